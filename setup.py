@@ -1,0 +1,32 @@
+"""ament_python package definition (colcon build / ros2 run, and pip for the venv world)."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE = "stewart_vibration"
+
+# Console scripts: the CLI plus one executable per node (ros2 run stewart_vibration <exe>).
+CONSOLE_SCRIPTS = [
+    "stewart-vibration = stewart_vibration.cli.main:main",
+]
+
+setup(
+    name=PACKAGE,
+    version="0.1.0",
+    packages=find_packages(exclude=["test", "test.*"]),
+    data_files=[
+        ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
+        (f"share/{PACKAGE}", ["package.xml"]),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml")),
+        (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
+    ],
+    install_requires=["setuptools"],
+    zip_safe=False,
+    maintainer="stewart_vibration developers",
+    maintainer_email="dev@stewart-vibration.invalid",
+    description="Vibration planning and emulation for a 6-UPS tibia fracture reduction robot",
+    license="Apache-2.0",
+    tests_require=["pytest"],
+    entry_points={"console_scripts": CONSOLE_SCRIPTS},
+)

@@ -1,0 +1,69 @@
+"""stewart_vibration: kinematics, vibration planning and dynamics of a 6-UPS
+tibia fracture reduction robot with a linear vibration unit on each leg.
+
+The core (this package minus ``stewart_vibration.nodes``) is pure numpy and
+never imports rclpy; the ROS 2 nodes in ``stewart_vibration.nodes`` are thin
+adapters over it. SI units, base/platform frames, pose = [x, y, z, roll,
+pitch, yaw] with R = Rz(yaw) Ry(pitch) Rx(roll).
+"""
+
+from .errors import (
+    ConfigError,
+    ForwardKinematicsError,
+    InvalidInputError,
+    JointLimitError,
+    SingularPoseError,
+    StewartError,
+    StrokeLimitError,
+    UnreachablePoseError,
+    VibrationLimitError,
+)
+from .kinematics import (
+    ForwardKinematicsResult,
+    check_pose,
+    condition_number,
+    forward_kinematics,
+    inverse_kinematics,
+    jacobian,
+    joint_angles,
+    leg_vectors,
+)
+from .robot import Robot, load_robot
+from .rotations import (
+    euler_rate_matrix,
+    pose_from_position_quaternion,
+    pose_to_position_quaternion,
+    quaternion_from_rpy,
+    rotation_from_rpy,
+    rpy_from_quaternion,
+    rpy_from_rotation,
+)
+
+__all__ = [
+    "ConfigError",
+    "ForwardKinematicsError",
+    "ForwardKinematicsResult",
+    "InvalidInputError",
+    "JointLimitError",
+    "Robot",
+    "SingularPoseError",
+    "StewartError",
+    "StrokeLimitError",
+    "UnreachablePoseError",
+    "VibrationLimitError",
+    "check_pose",
+    "condition_number",
+    "euler_rate_matrix",
+    "forward_kinematics",
+    "inverse_kinematics",
+    "jacobian",
+    "joint_angles",
+    "leg_vectors",
+    "load_robot",
+    "pose_from_position_quaternion",
+    "pose_to_position_quaternion",
+    "quaternion_from_rpy",
+    "rotation_from_rpy",
+    "rpy_from_quaternion",
+    "rpy_from_rotation",
+]

@@ -1,0 +1,1 @@
+"""The ``stewart-vibration`` command line (offline tools over the pure core)."""

@@ -1,0 +1,44 @@
+"""Entry point of ``stewart-vibration``: one subcommand module per job.
+
+Each module in SUBCOMMAND_MODULES has ``register(subparsers)`` which adds its
+parser and sets ``func(args) -> int`` (the exit code).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+from ..errors import StewartError
+
+SUBCOMMAND_MODULES = [
+    "stewart_vibration.cli.kinematics_cmd",
+    "stewart_vibration.cli.scenario_cmd",
+]
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="stewart-vibration",
+        description="6-UPS tibia robot: kinematics, vibration and dynamics tools (SI units).",
+    )
+    parser.add_argument("--robot", help="robot YAML (default: config/robot.yaml)")
+    subparsers = parser.add_subparsers(dest="command", required=True)
+    for name in SUBCOMMAND_MODULES:
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except StewartError as exc:
+        print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

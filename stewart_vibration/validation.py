@@ -1,0 +1,36 @@
+"""Input checks shared by the core: shapes and finiteness, with clear errors."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+
+def as_batch(values, last_dim: int, name: str) -> np.ndarray:
+    """Return ``values`` as a float array of shape [..., last_dim], all finite.
+
+    Raises InvalidInputError naming ``name`` on a wrong trailing dimension or
+    on NaN/inf (with the flat index of the first bad sample).
+    """
+    try:
+        arr = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"{name}: not numeric ({exc})") from None
+    if arr.ndim == 0 or arr.shape[-1] != last_dim:
+        raise InvalidInputError(
+            f"{name}: expected shape [..., {last_dim}], got {list(arr.shape)}"
+        )
+    finite = np.isfinite(arr)
+    if not finite.all():
+        bad = int(np.argmin(finite.all(axis=-1).reshape(-1)))
+        raise InvalidInputError(f"{name}: non-finite value (NaN or inf) in sample {bad}")
+    return arr
+
+
+def first_violation(mask: np.ndarray) -> tuple[int, int]:
+    """(flat sample index, leg index 0..5) of the first True in a [..., 6] mask."""
+    flat = mask.reshape(-1, mask.shape[-1])
+    sample = int(np.argmax(flat.any(axis=-1)))
+    leg = int(np.argmax(flat[sample]))
+    return sample, leg
