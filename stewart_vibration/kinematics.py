@@ -8,6 +8,7 @@ d_i = p + R a_i - b_i, l_i = |d_i|, n_i = d_i / l_i.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,13 +72,128 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
 
     With ``check_limits`` (default) raises StrokeLimitError / JointLimitError
     / UnreachablePoseError naming the sample and leg; nothing is clipped.
+    Large batches run through a cache-sized chunked path (see _ik_chunked).
     """
-    d = leg_vectors(robot, poses)
-    lengths = np.sqrt(np.einsum("...ij,...ij->...i", d, d))
-    if check_limits:
-        poses = np.asarray(poses, dtype=float)
-        _check_reachable(robot, d, lengths, rotation_from_rpy(poses[..., 3:]))
-    return lengths
+    poses = as_batch(poses, 6, "pose")
+    flat = poses.reshape(-1, 6)
+    if flat.shape[0] < 64:
+        rot = rotation_from_rpy(poses[..., 3:])
+        d, _ = leg_vectors_from_rotation(robot, poses[..., :3], rot)
+        lengths = np.sqrt(np.einsum("...ij,...ij->...i", d, d))
+        if check_limits:
+            _check_reachable(robot, d, lengths, rot)
+        return lengths
+    lengths, violated = _ik_chunked(robot, flat, check_limits)
+    if violated is not None:
+        chunk = flat[violated : violated + _IK_CHUNK]
+        rot = rotation_from_rpy(chunk[:, 3:])
+        d, _ = leg_vectors_from_rotation(robot, chunk[:, :3], rot)
+        try:
+            _check_reachable(robot, d, np.linalg.norm(d, axis=-1), rot)
+        except UnreachablePoseError as exc:
+            exc.sample = (exc.sample or 0) + violated
+            exc.args = (str(exc).replace(f"(sample {exc.sample - violated})", f"(sample {exc.sample})", 1),)
+            raise
+    return lengths.reshape(poses.shape)
+
+
+_IK_CHUNK = 8192
+
+
+def _ik_matrix(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
+    """(W^T (18, 21), c (6,)) for the chunked IK, cached on the robot.
+
+    With features F = [p_m R_mk (9), R_mk (9), p_m (3)] per pose:
+    rows 0-5 give l_i^2 - |p|^2 - c_i, rows 6-11 d_i,z, rows 12-17 d_i . (R e_z)
+    (all linear in F because d_i = p - b_i + R a_i).
+    """
+    cached = getattr(robot, "_ik_matrix", None)
+    if cached is None:
+        a, b = robot.platform_hinges, robot.base_hinges
+        w = np.zeros((21, 18))
+        for i in range(6):
+            for m in range(3):
+                for k in range(3):
+                    w[3 * m + k, i] = 2 * a[i, k]  # 2 p.R a_i
+                    w[9 + 3 * m + k, i] = -2 * b[i, m] * a[i, k]  # -2 b_i.R a_i
+                w[18 + m, i] = -2 * b[i, m]  # -2 p.b_i
+                w[9 + 3 * m + 2, 12 + i] = -b[i, m]  # -b_i . R e_z
+                w[3 * m + 2, 12 + i] = 1.0  # p . R e_z
+            w[9 + 6 : 9 + 9, 6 + i] = a[i]  # (R a_i)_z
+            w[18 + 2, 6 + i] = 1.0  # p_z
+        const = np.concatenate([(a**2).sum(1) + (b**2).sum(1), -b[:, 2], a[:, 2]])
+        cached = (np.ascontiguousarray(w.T), const)
+        object.__setattr__(robot, "_ik_matrix", cached)
+    return cached
+
+
+def _ik_chunked(robot: Robot, poses: np.ndarray, check: bool):
+    """Leg lengths (N, 6) for poses (N, 6) in cache-sized chunks, and the start
+    row of the first chunk with a limit violation (None if none or unchecked).
+
+    Trigonometry dominates (scalar libm); for |angle| < 1.2 rad cos comes from
+    sqrt(1 - sin^2) (cos > 0.36 there, so no precision loss).
+    """
+    wt, const = _ik_matrix(robot)
+    lim = robot.limits
+    cos_u, cos_s = np.cos(lim.universal_joint_max), np.cos(lim.spherical_joint_max)
+    rows = 18 if check else 6
+    wt = wt[:rows]
+    n = poses.shape[0]
+    out = np.empty((n, 6))
+    feat, trig, tmp = np.empty((21, _IK_CHUNK)), np.empty((6, _IK_CHUNK)), np.empty(_IK_CHUNK)
+    for start in range(0, n, _IK_CHUNK):
+        q = poses[start : start + _IK_CHUNK].T
+        m = q.shape[1]
+        f, t, tt = feat[:, :m], trig[:, :m], tmp[:m]
+        angles = q[3:]
+        np.sin(angles, out=t[:3])
+        if np.abs(angles).max() < 1.2:
+            np.multiply(t[:3], t[:3], out=t[3:])
+            np.subtract(1.0, t[3:], out=t[3:])
+            np.sqrt(t[3:], out=t[3:])
+        else:
+            np.cos(angles, out=t[3:])
+        sr, sp, sy, cr, cp, cy = t
+        rot = f[9:18]
+        np.multiply(cy, cp, out=rot[0])
+        np.multiply(sy, cr, out=tt)
+        np.multiply(cy * sp, sr, out=rot[1])
+        rot[1] -= tt
+        np.multiply(sy, sr, out=tt)
+        np.multiply(cy * sp, cr, out=rot[2])
+        rot[2] += tt
+        np.multiply(sy, cp, out=rot[3])
+        np.multiply(cy, cr, out=tt)
+        np.multiply(sy * sp, sr, out=rot[4])
+        rot[4] += tt
+        np.multiply(cy, sr, out=tt)
+        np.multiply(sy * sp, cr, out=rot[5])
+        rot[5] -= tt
+        np.negative(sp, out=rot[6])
+        np.multiply(cp, sr, out=rot[7])
+        np.multiply(cp, cr, out=rot[8])
+        for axis in range(3):
+            np.multiply(rot[3 * axis : 3 * axis + 3], q[axis], out=f[3 * axis : 3 * axis + 3])
+        f[18:21] = q[:3]
+        res = wt @ f
+        res += const[:rows, None]
+        np.einsum("km,km->m", q[:3], q[:3], out=tt)
+        sq = res[:6]
+        sq += tt
+        np.sqrt(sq, out=sq)
+        out[start : start + m] = sq.T
+        if check:
+            bad = (
+                (res[6:12] <= 0.0).any()
+                or (sq < lim.stroke_min).any()
+                or (sq > lim.stroke_max).any()
+                or (res[6:12] < cos_u * sq).any()
+                or (res[12:18] < cos_s * sq).any()
+            )
+            if bad:
+                return out, start
+    return out, None
 
 
 def joint_angles(robot: Robot, poses) -> tuple[np.ndarray, np.ndarray]:
@@ -260,10 +376,11 @@ def forward_kinematics(
     sign than at home (another assembly mode) are flagged assembly_ok=False.
     """
     lengths = as_batch(lengths, 6, "lengths")
-    if (lengths <= 0).any():
+    low, high = float(lengths.min()), float(lengths.max())
+    if low <= 0:
         raise InvalidInputError("lengths: leg lengths must be > 0")
-    if check_limits:
-        lim = robot.limits
+    lim = robot.limits
+    if check_limits and (low < lim.stroke_min or high > lim.stroke_max):
         for mask, limit in ((lengths < lim.stroke_min, lim.stroke_min), (lengths > lim.stroke_max, lim.stroke_max)):
             if mask.any():
                 sample, leg = first_violation(mask)
@@ -280,6 +397,10 @@ def forward_kinematics(
     target = lengths.reshape(-1, 6)
     count = target.shape[0]
     home_lengths, home_jinv, home_det_sign = _home_cache(robot)
+    if count == 1 and guess is not None:
+        start = as_batch(guess, 6, "guess").reshape(-1, 6)
+        if start.shape[0] == 1:
+            return _forward_kinematics_single(robot, target[0], start[0], tol, max_iter, batch_shape)
 
     if guess is None:
         start = robot.home_pose + (target - home_lengths) @ home_jinv.T
@@ -342,3 +463,90 @@ def _solve_steps(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         return np.linalg.solve(jac, rhs[..., None])[..., 0]
     except np.linalg.LinAlgError:
         return np.einsum("nij,nj->ni", np.linalg.pinv(jac), rhs)
+
+
+def _rotation_single(rpy: np.ndarray) -> np.ndarray:
+    """rotation_from_rpy for one pose with scalar math (low call overhead)."""
+    cr, sr = math.cos(rpy[0]), math.sin(rpy[0])
+    cp, sp = math.cos(rpy[1]), math.sin(rpy[1])
+    cy, sy = math.cos(rpy[2]), math.sin(rpy[2])
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def _rotate_single(phi: np.ndarray, rot: np.ndarray) -> np.ndarray:
+    """exp([phi]x) @ rot for one rotation vector phi (rad), with scalar math."""
+    x, y, z = float(phi[0]), float(phi[1]), float(phi[2])
+    t2 = x * x + y * y + z * z
+    if t2 < 1e-12:
+        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
+    else:
+        t = math.sqrt(t2)
+        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / t2
+    e = (
+        (1 - b * (y * y + z * z), -a * z + b * x * y, a * y + b * x * z),
+        (a * z + b * x * y, 1 - b * (x * x + z * z), -a * x + b * y * z),
+        (-a * y + b * x * z, a * x + b * y * z, 1 - b * (x * x + y * y)),
+    )
+    m = rot.tolist()
+    return np.array([[e[i][0] * m[0][j] + e[i][1] * m[1][j] + e[i][2] * m[2][j] for j in range(3)] for i in range(3)])
+
+
+def _forward_kinematics_single(robot, target, start, tol, max_iter, batch_shape) -> ForwardKinematicsResult:
+    """Same Newton iteration as the batched path, for one warm-started solve (low latency)."""
+    hinges, base = robot.platform_hinges, robot.base_hinges
+    position, rotation = start[:3].copy(), _rotation_single(start[3:])
+
+    def evaluate(p, rot):
+        r = hinges @ rot.T
+        d = r + (p - base)
+        cur = np.sqrt((d * d).sum(axis=1))
+        g = cur - target
+        return d, r, cur, g, float(np.abs(g).max())
+
+    d, r, cur, g, res = evaluate(position, rotation)
+    iterations = 0
+    jac = np.empty((6, 6))
+    while res >= tol and iterations < max_iter:
+        n = d / cur[:, None]
+        jac[:, :3] = n
+        jac[:, 3] = r[:, 1] * n[:, 2] - r[:, 2] * n[:, 1]
+        jac[:, 4] = r[:, 2] * n[:, 0] - r[:, 0] * n[:, 2]
+        jac[:, 5] = r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0]
+        try:
+            step = np.linalg.solve(jac, -g)
+        except np.linalg.LinAlgError:
+            step = np.linalg.lstsq(jac, -g, rcond=None)[0]
+        alpha = 1.0
+        for halving in range(11):
+            p_try = position + alpha * step[:3]
+            rot_try = _rotate_single(alpha * step[3:], rotation)
+            trial = evaluate(p_try, rot_try)
+            if trial[4] < res or trial[4] < tol or halving == 10:
+                break
+            alpha *= 0.5
+        position, rotation = p_try, rot_try
+        d, r, cur, g, res = trial
+        iterations += 1
+    if iterations == 0:
+        jac = jacobian_from_vectors(d, r, cur)
+    # the last Newton Jacobian is within one (converged) step of the solution,
+    # so its determinant sign identifies the assembly mode
+    home_det_sign = _home_cache(robot)[2]
+    assembly_ok = bool((d[:, 2] > 0).all() and np.sign(np.linalg.det(jac)) == home_det_sign)
+    r00, r10, r20, r21, r22 = rotation[0, 0], rotation[1, 0], rotation[2, 0], rotation[2, 1], rotation[2, 2]
+    rpy = (math.atan2(r21, r22), math.atan2(-r20, math.hypot(r00, r10)), math.atan2(r10, r00))
+    pose = np.array([position[0], position[1], position[2], *rpy])
+    return ForwardKinematicsResult(
+        pose=pose.reshape(batch_shape + (6,)),
+        rotation=rotation.reshape(batch_shape + (3, 3)),
+        iterations=np.array(iterations).reshape(batch_shape),
+        residual=np.array(res).reshape(batch_shape),
+        converged=np.array(res < tol).reshape(batch_shape),
+        assembly_ok=np.array(assembly_ok).reshape(batch_shape),
+    )

@@ -1,0 +1,189 @@
+"""Kinematics (issue 2): IK, Jacobian, FK against independent references."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import yaml
+from reference import reference_hinges, reference_lengths, reference_rotation, rodrigues
+
+from stewart_vibration import (
+    condition_number,
+    forward_kinematics,
+    inverse_kinematics,
+    jacobian,
+    load_robot,
+)
+from stewart_vibration.robot import default_config_dir
+
+
+def random_workspace_poses(robot, count, seed=0):
+    """Uniform in +-20 mm and +-15 deg around home (the reduction workspace)."""
+    rng = np.random.default_rng(seed)
+    offsets = np.concatenate(
+        [rng.uniform(-0.02, 0.02, (count, 3)), rng.uniform(-np.radians(15), np.radians(15), (count, 3))], axis=1
+    )
+    return robot.home_pose + offsets
+
+
+@pytest.fixture(scope="module")
+def ref_geometry():
+    """Hinge points rebuilt from the YAML file itself, not from the library."""
+    tree = yaml.safe_load((default_config_dir() / "robot.yaml").read_text())["geometry"]
+    base = reference_hinges(tree["base"]["radius_m"], tree["base"]["angles_deg"], tree["base"]["z_m"])
+    plat = reference_hinges(tree["platform"]["radius_m"], tree["platform"]["angles_deg"], tree["platform"]["z_m"])
+    return base, plat
+
+
+def test_ik_matches_per_leg_reference(robot, ref_geometry):
+    base, plat = ref_geometry
+    poses = random_workspace_poses(robot, 300, seed=1)
+    lengths = inverse_kinematics(robot, poses)  # batched (chunked path: > 64 poses)
+    expected = np.array([reference_lengths(base, plat, q) for q in poses])
+    assert np.abs(lengths - expected).max() <= 1e-12
+    single = np.array([inverse_kinematics(robot, q) for q in poses[:20]])  # small-batch path
+    assert np.abs(single - expected[:20]).max() <= 1e-12
+
+
+def test_ik_large_angles_use_exact_trig(robot, ref_geometry):
+    """Angles beyond 1.2 rad take the np.cos branch of the chunked IK."""
+    base, plat = ref_geometry
+    poses = np.tile(robot.home_pose, (100, 1))
+    poses[:, 5] = np.linspace(-3.0, 3.0, 100)  # yaw through +-172 deg
+    lengths = inverse_kinematics(robot, poses, check_limits=False)
+    expected = np.array([reference_lengths(base, plat, q) for q in poses])
+    assert np.abs(lengths - expected).max() <= 1e-12
+
+
+def test_ik_batch_shapes(robot):
+    poses = random_workspace_poses(robot, 24).reshape(2, 3, 4, 6)
+    assert inverse_kinematics(robot, poses).shape == (2, 3, 4, 6)
+    assert inverse_kinematics(robot, robot.home_pose).shape == (6,)
+
+
+def test_home_is_symmetric(robot):
+    lengths = inverse_kinematics(robot, robot.home_pose)
+    assert np.ptp(lengths) < 1e-15
+
+
+def test_jacobian_matches_central_differences(robot, ref_geometry):
+    base, plat = ref_geometry
+    for pose in random_workspace_poses(robot, 20, seed=2):
+        jac = jacobian(robot, pose)
+        h = 1e-6
+        numeric = np.zeros((6, 6))
+        rot0 = reference_rotation(*pose[3:])
+        for k in range(6):
+            lengths = []
+            for sign in (1, -1):
+                if k < 3:
+                    p = pose[:3].copy()
+                    p[k] += sign * h
+                    rot = rot0
+                else:
+                    p = pose[:3]
+                    phi = np.zeros(3)
+                    phi[k - 3] = sign * h
+                    rot = rodrigues(phi) @ rot0  # small rotation in the base frame
+                lengths.append(np.array([np.linalg.norm(p + rot @ plat[i] - base[i]) for i in range(6)]))
+            numeric[:, k] = (lengths[0] - lengths[1]) / (2 * h)
+        rel = np.abs(jac - numeric).max() / np.abs(numeric).max()
+        assert rel <= 1e-7
+
+
+def test_jacobian_transpose_is_the_force_map(robot, ref_geometry):
+    """J^T F equals the wrench of axial leg forces computed leg by leg."""
+    base, plat = ref_geometry
+    pose = random_workspace_poses(robot, 1, seed=3)[0]
+    forces = np.array([10.0, -5.0, 3.0, 7.0, -2.0, 1.0])
+    rot = reference_rotation(*pose[3:])
+    force = np.zeros(3)
+    moment = np.zeros(3)
+    for i in range(6):
+        arm = rot @ plat[i]
+        axis = pose[:3] + arm - base[i]
+        axis /= np.linalg.norm(axis)
+        force += forces[i] * axis
+        moment += np.cross(arm, forces[i] * axis)
+    wrench = jacobian(robot, pose).T @ forces
+    assert np.allclose(wrench, np.concatenate([force, moment]), atol=1e-12)
+
+
+def test_condition_number_is_dimensionless_and_grows_near_singularity(robot):
+    home = condition_number(robot, robot.home_pose)
+    assert 1.0 <= home < robot.limits.condition_number_max
+    low = robot.home_pose.copy()
+    low[2] = 1e-4  # platform almost in the base plane: legs nearly horizontal
+    assert condition_number(robot, low) > 100 * home
+    # scaling the whole robot (and the pose translation) leaves it unchanged
+    tree = yaml.safe_load((default_config_dir() / "robot.yaml").read_text())
+    tree["geometry"]["base"]["radius_m"] *= 10
+    tree["geometry"]["platform"]["radius_m"] *= 10
+    from stewart_vibration.robot import robot_from_dict
+
+    big = robot_from_dict(tree)
+    pose = robot.home_pose.copy()
+    pose[:3] *= 10
+    assert condition_number(big, pose) == pytest.approx(home, rel=1e-9)
+
+
+def test_fk_round_trip_10000_poses(robot):
+    poses = random_workspace_poses(robot, 10_000, seed=4)
+    lengths = inverse_kinematics(robot, poses)
+    cold = forward_kinematics(robot, lengths)
+    assert cold.converged.all() and cold.assembly_ok.all()
+    assert cold.residual.max() <= 1e-12
+    assert np.abs(cold.pose - poses).max() <= 1e-10
+    assert np.median(cold.iterations) <= 5
+    # warm start from a pose 10 um / 1e-4 rad away
+    rng = np.random.default_rng(5)
+    direction = rng.normal(size=(10_000, 6))
+    direction[:, :3] *= 1e-5 / np.linalg.norm(direction[:, :3], axis=1, keepdims=True)
+    direction[:, 3:] *= 1e-4 / np.linalg.norm(direction[:, 3:], axis=1, keepdims=True)
+    warm = forward_kinematics(robot, lengths, guess=poses + direction)
+    assert warm.converged.all() and warm.assembly_ok.all()
+    assert np.abs(warm.pose - poses).max() <= 1e-10
+    assert np.median(warm.iterations) <= 2
+
+
+def test_fk_single_warm_path_matches_batched(robot):
+    pose = random_workspace_poses(robot, 1, seed=6)[0]
+    lengths = inverse_kinematics(robot, pose)
+    guess = pose + 1e-5
+    single = forward_kinematics(robot, lengths, guess=guess)
+    batched = forward_kinematics(robot, lengths[None], guess=guess[None])
+    assert single.pose.shape == (6,) and batched.pose.shape == (1, 6)
+    assert np.abs(single.pose - pose).max() <= 1e-12
+    assert np.abs(single.pose - batched.pose[0]).max() <= 1e-12
+    assert int(single.iterations) == int(batched.iterations[0])
+
+
+def test_fk_rejects_other_assembly_mode(robot):
+    """Mirror the platform through the base plane: same leg lengths, wrong mode."""
+    pose = robot.home_pose.copy()
+    lengths = inverse_kinematics(robot, pose)
+    mirrored = pose.copy()
+    mirrored[2] = -pose[2]
+    result = forward_kinematics(robot, lengths, guess=mirrored)
+    assert result.converged  # it is a valid solution of the equations ...
+    assert not result.assembly_ok  # ... but not this robot's assembly mode
+    with pytest.raises(Exception, match="assembly mode"):
+        result.raise_for_failure()
+
+
+def test_fk_backtracking_from_a_far_guess(robot):
+    pose = random_workspace_poses(robot, 1, seed=7)[0]
+    lengths = inverse_kinematics(robot, pose)
+    far = robot.home_pose + np.array([0.03, -0.03, 0.03, 0.4, -0.4, 0.4])
+    result = forward_kinematics(robot, lengths, guess=far)
+    assert result.converged and result.assembly_ok
+    assert np.abs(result.pose - pose).max() <= 1e-10
+
+
+def test_load_robot_explicit_path_equals_default(tmp_path):
+    text = (default_config_dir() / "robot.yaml").read_text()
+    path = tmp_path / "robot.yaml"
+    path.write_text(text)
+    a, b = load_robot(path), load_robot()
+    assert np.array_equal(a.base_hinges, b.base_hinges)
+    assert np.array_equal(a.platform_hinges, b.platform_hinges)
