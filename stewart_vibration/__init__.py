@@ -38,6 +38,15 @@ from .rotations import (
     rpy_from_quaternion,
     rpy_from_rotation,
 )
+from .vibration import (
+    MotionClassification,
+    SuperpositionResult,
+    VibrationDecomposition,
+    decompose_vibration,
+    platform_vibration_motion,
+    sample_leg_vibration,
+    superpose_vibration,
+)
 
 __all__ = [
     "ConfigError",
@@ -66,4 +75,12 @@ __all__ = [
     "rotation_from_rpy",
     "rpy_from_quaternion",
     "rpy_from_rotation",
+    # vibration (issue 3)
+    "MotionClassification",
+    "SuperpositionResult",
+    "VibrationDecomposition",
+    "decompose_vibration",
+    "platform_vibration_motion",
+    "sample_leg_vibration",
+    "superpose_vibration",
 ]

@@ -1,0 +1,82 @@
+"""The scalar vibration delta(t) = e(t) A sin(2 pi f t + phase) with a smooth envelope.
+
+Times are relative to the vibration start (the planner's common start
+stamp). The envelope e(t) ramps in over ``ramp_time`` from t = 0 and out over
+``ramp_time`` before t = ``duration`` with the quintic smoothstep
+10x^3 - 15x^4 + 6x^5, whose first and second derivatives vanish at both
+ends, so displacement, velocity and acceleration are continuous.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+
+def _smoothstep(x: np.ndarray):
+    """Quintic smoothstep s(x) and ds/dx, d2s/dx2 on x clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    value = x**3 * (10.0 + x * (-15.0 + 6.0 * x))
+    first = 30.0 * x**2 * (1.0 - x) ** 2
+    second = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
+    return value, first, second
+
+
+def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
+    """Envelope e(t), de/dt (1/s), d2e/dt2 (1/s^2) for times [N] (s from the start).
+
+    e = 0 before t = 0 and (with a duration) after t = duration; ramps of
+    ``ramp_time`` seconds at both ends (0: a hard start/stop, e = 1 inside).
+    """
+    t = np.asarray(times, dtype=float)
+    if ramp_time < 0 or not np.isfinite(ramp_time):
+        raise InvalidInputError(f"ramp_time must be >= 0 s, got {ramp_time}")
+    if duration is not None and ramp_time > 0 and 2 * ramp_time > duration:
+        raise InvalidInputError(f"ramp_time {ramp_time} s: two ramps do not fit in duration {duration} s")
+    inside = t >= 0.0
+    if duration is not None:
+        inside &= t <= duration
+    value = inside.astype(float)
+    first = np.zeros_like(t)
+    second = np.zeros_like(t)
+    if ramp_time > 0:
+        s, ds, dds = _smoothstep(t / ramp_time)
+        value = np.where(inside, s, 0.0)
+        first = np.where(inside, ds / ramp_time, 0.0)
+        second = np.where(inside, dds / ramp_time**2, 0.0)
+        if duration is not None:
+            s2, ds2, dds2 = _smoothstep((duration - t) / ramp_time)
+            # product rule e = s(t) s2(t); ramps do not overlap, but the product is exact anyway
+            value, first, second = (
+                value * s2,
+                first * s2 - value * ds2 / ramp_time,
+                second * s2 - 2.0 * first * ds2 / ramp_time + value * dds2 / ramp_time**2,
+            )
+            value = np.where(inside, value, 0.0)
+    return value, first, second
+
+
+def sinusoid(times, amplitude: float, frequency: float, phase: float, duration=None, ramp_time: float = 0.0):
+    """delta, d delta/dt, d2 delta/dt2 [N] of e(t) A sin(2 pi f t + phase) (units of A per s^k)."""
+    t = np.asarray(times, dtype=float)
+    omega = 2.0 * np.pi * frequency
+    angle = omega * t + phase
+    s, c = np.sin(angle), np.cos(angle)
+    e, de, dde = envelope(t, duration, ramp_time)
+    delta = amplitude * e * s
+    velocity = amplitude * (de * s + e * omega * c)
+    acceleration = amplitude * (dde * s + 2.0 * de * omega * c - e * omega**2 * s)
+    return delta, velocity, acceleration
+
+
+def default_times(frequency: float, duration: float | None = None, samples_per_period: int = 256) -> np.ndarray:
+    """Uniform sample times (s): one period of ``frequency`` (endpoint excluded) or ``duration``."""
+    if samples_per_period < 8:
+        raise InvalidInputError("samples_per_period must be >= 8")
+    step = 1.0 / (frequency * samples_per_period)
+    if duration is None:
+        return np.arange(samples_per_period) * step
+    if duration <= 0:
+        raise InvalidInputError(f"duration must be > 0 s, got {duration}")
+    return np.arange(int(np.floor(duration / step + 1e-9)) + 1) * step
