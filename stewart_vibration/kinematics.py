@@ -266,9 +266,11 @@ def _check_reachable(robot: Robot, d: np.ndarray, lengths: np.ndarray, rot: np.n
 def jacobian_from_vectors(d: np.ndarray, r: np.ndarray, lengths: np.ndarray | None = None):
     """Rows [n_i, (R a_i) x n_i] from leg vectors d and arms r = R a_i -> [..., 6, 6]."""
     if lengths is None:
-        lengths = np.linalg.norm(d, axis=-1)
-    n = d / lengths[..., None]
-    return np.concatenate([n, cross(r, n)], axis=-1)
+        lengths = np.sqrt(np.einsum("...ij,...ij->...i", d, d))
+    jac = np.empty(d.shape[:-1] + (6,))
+    n = np.divide(d, lengths[..., None], out=jac[..., :3])
+    jac[..., 3:] = cross(r, n)
+    return jac
 
 
 def jacobian(robot: Robot, poses) -> np.ndarray:
@@ -418,26 +420,32 @@ def forward_kinematics(
     for _ in range(max_iter):
         if active.size == 0:
             break
-        jac = jacobian_from_vectors(d[active], r[active], current[active])
-        step = _solve_steps(jac, -g[active])
+        # views while every sample is still iterating, gathers once some converged
+        sel = slice(None) if active.size == count else active
+        jac = jacobian_from_vectors(d[sel], r[sel], current[sel])
+        step = _solve_steps(jac, -g[sel])
         alpha = np.ones(active.size)
         pending = np.arange(active.size)
         for halving in range(11):
-            idx = active[pending]
-            p_try = position[idx] + alpha[pending, None] * step[pending, :3]
-            rot_try = so3_exp(alpha[pending, None] * step[pending, 3:]) @ rotation[idx]
+            idx = sel if pending.size == count else active[pending]
+            a = alpha[:, None] if pending.size == count else alpha[pending, None]
+            s = step if pending.size == count else step[pending]
+            p_try = position[idx] + a * s[:, :3]
+            rot_try = so3_exp(a * s[:, 3:]) @ rotation[idx]
             d_try, r_try = leg_vectors_from_rotation(robot, p_try, rot_try)
             cur_try = np.sqrt(np.einsum("nij,nij->ni", d_try, d_try))
             g_try = cur_try - target[idx]
             res_try = np.abs(g_try).max(axis=-1)
             accept = (res_try < res[idx]) | (res_try < tol) | (halving == 10)
-            ok = idx[accept]
+            if accept.all():
+                position[idx], rotation[idx] = p_try, rot_try
+                d[idx], r[idx], current[idx], g[idx], res[idx] = d_try, r_try, cur_try, g_try, res_try
+                break
+            ok = (np.arange(count) if isinstance(idx, slice) else idx)[accept]
             position[ok], rotation[ok] = p_try[accept], rot_try[accept]
             d[ok], r[ok], current[ok] = d_try[accept], r_try[accept], cur_try[accept]
             g[ok], res[ok] = g_try[accept], res_try[accept]
             pending = pending[~accept]
-            if pending.size == 0:
-                break
             alpha[pending] *= 0.5
         iterations[active] += 1
         active = active[~(res[active] < tol)]
