@@ -9,6 +9,7 @@ PACKAGE = "stewart_vibration"
 # Console scripts: the CLI plus one executable per node (ros2 run stewart_vibration <exe>).
 CONSOLE_SCRIPTS = [
     "stewart-vibration = stewart_vibration.cli.main:main",
+    "kinematics_node = stewart_vibration.nodes.kinematics_node:main",
 ]
 
 setup(

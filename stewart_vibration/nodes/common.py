@@ -1,0 +1,159 @@
+"""rclpy helpers shared by the suite's nodes: run loop, diagnostics, message conversion."""
+
+from __future__ import annotations
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Duration as DurationMsg
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+from ..errors import InvalidInputError
+from ..rotations import pose_from_position_quaternion, pose_to_position_quaternion
+
+LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
+VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
+BASE_FRAME = "base"
+
+OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+
+
+def run_node(factory, args=None) -> None:
+    """rclpy.init, spin the node from ``factory()`` until Ctrl-C / SIGTERM, clean up.
+
+    A node may define ``shutdown()``; it runs before the node is destroyed
+    (e.g. to make the emulated robot safe or finish a file).
+    """
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = factory()
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            if hasattr(node, "shutdown"):
+                node.shutdown()
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+def float_param(description: str, low: float, high: float, step: float = 0.0) -> ParameterDescriptor:
+    """Descriptor of a floating-point parameter with an inclusive range."""
+    return ParameterDescriptor(
+        description=description,
+        floating_point_range=[FloatingPointRange(from_value=float(low), to_value=float(high), step=float(step))],
+    )
+
+
+def int_param(description: str, low: int, high: int) -> ParameterDescriptor:
+    return ParameterDescriptor(
+        description=description, integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
+    )
+
+
+def text_param(description: str, read_only: bool = False) -> ParameterDescriptor:
+    return ParameterDescriptor(description=description, read_only=read_only)
+
+
+class Diagnostics:
+    """One DiagnosticStatus on /diagnostics, republished every ``period_s`` and on change."""
+
+    def __init__(self, node, name: str, period_s: float = 1.0):
+        self._node = node
+        self._name = f"{node.get_name()}: {name}"
+        self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self.level, self.message, self.values = OK, "starting", {}
+        node.create_timer(period_s, self.publish)
+
+    def set(self, level: bytes, message: str, **values) -> None:
+        changed = (level, message) != (self.level, self.message)
+        self.level, self.message = level, message
+        self.values.update({k: str(v) for k, v in values.items()})
+        if changed:
+            self.publish()
+
+    def publish(self) -> None:
+        status = DiagnosticStatus(
+            level=self.level,
+            name=self._name,
+            message=self.message,
+            hardware_id="stewart_vibration",
+            values=[KeyValue(key=k, value=v) for k, v in sorted(self.values.items())],
+        )
+        msg = DiagnosticArray(status=[status])
+        msg.header.stamp = self._node.get_clock().now().to_msg()
+        self._pub.publish(msg)
+
+
+def reject(node, diagnostics: Diagnostics, what: str, reason: str) -> None:
+    """Log a rejected input with its reason and report it on /diagnostics (WARN)."""
+    node.get_logger().warning(f"rejected {what}: {reason}")
+    diagnostics.set(WARN, f"rejected {what}: {reason}", last_rejection=reason)
+
+
+def pose_from_msg(msg) -> np.ndarray:
+    """geometry_msgs/Pose -> pose [x, y, z, roll, pitch, yaw]; InvalidInputError on NaN / non-unit quaternion."""
+    p, q = msg.position, msg.orientation
+    return pose_from_position_quaternion([p.x, p.y, p.z], [q.x, q.y, q.z, q.w])
+
+
+def pose_stamped(pose, stamp, frame_id: str = BASE_FRAME) -> PoseStamped:
+    """Pose vector -> geometry_msgs/PoseStamped in ``frame_id``."""
+    position, quat = pose_to_position_quaternion(pose)
+    msg = PoseStamped()
+    msg.header.stamp = stamp
+    msg.header.frame_id = frame_id
+    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = (float(v) for v in position)
+    o = msg.pose.orientation
+    o.x, o.y, o.z, o.w = (float(v) for v in quat)
+    return msg
+
+
+def named_values(names, values, wanted) -> np.ndarray | None:
+    """Values for ``wanted`` names (in that order) from parallel name/value lists, None if any is missing."""
+    index = {name: i for i, name in enumerate(names)}
+    if len(values) < len(names) or any(name not in index for name in wanted):
+        return None
+    return np.array([values[index[name]] for name in wanted], dtype=float)
+
+
+def duration_msg(seconds: float) -> DurationMsg:
+    sec = int(np.floor(seconds))
+    return DurationMsg(sec=sec, nanosec=int(round((seconds - sec) * 1e9)) % 1_000_000_000)
+
+
+def duration_seconds(msg) -> float:
+    return msg.sec + msg.nanosec * 1e-9
+
+
+def stamp_seconds(stamp) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+__all__ = [
+    "BASE_FRAME",
+    "ERROR",
+    "LEG_NAMES",
+    "OK",
+    "VIB_NAMES",
+    "WARN",
+    "Diagnostics",
+    "InvalidInputError",
+    "duration_msg",
+    "duration_seconds",
+    "float_param",
+    "int_param",
+    "named_values",
+    "pose_from_msg",
+    "pose_stamped",
+    "reject",
+    "run_node",
+    "stamp_seconds",
+    "text_param",
+]

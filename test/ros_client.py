@@ -1,0 +1,73 @@
+"""A real rclpy client for integration tests: own Context on the test's ROS domain.
+
+Nodes under test run as separate processes (stewart_vibration.processes);
+this client publishes, subscribes and calls services over real DDS.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections import defaultdict
+
+import rclpy
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+
+import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
+
+
+class RosTestClient:
+    """Node + executor on ROS_DOMAIN_ID; records every message it subscribes to."""
+
+    def __init__(self, name: str = "test_client"):
+        self.context = Context()
+        self.context.init(domain_id=int(os.environ.get("ROS_DOMAIN_ID", "0")))
+        self.node = Node(name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.received = defaultdict(list)
+        self._publishers = {}
+
+    def subscribe(self, topic: str, msg_type, depth: int = 1000):
+        self.node.create_subscription(msg_type, topic, self.received[topic].append, depth)
+        return self.received[topic]
+
+    def publisher(self, topic: str, msg_type, depth: int = 10):
+        if topic not in self._publishers:
+            self._publishers[topic] = self.node.create_publisher(msg_type, topic, depth)
+        return self._publishers[topic]
+
+    def spin_for(self, seconds: float) -> None:
+        deadline = time.monotonic() + seconds
+        while time.monotonic() < deadline:
+            self.executor.spin_once(timeout_sec=0.01)
+
+    def spin_until(self, predicate, timeout: float) -> bool:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            if predicate():
+                return True
+            self.executor.spin_once(timeout_sec=0.01)
+        return bool(predicate())
+
+    def wait_for_subscribers(self, topic: str, count: int = 1, timeout: float = 20.0) -> bool:
+        return self.spin_until(lambda: self.node.count_subscribers(topic) >= count, timeout)
+
+    def call(self, srv_type, name: str, request, timeout: float = 20.0):
+        client = self.node.create_client(srv_type, name)
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f"service {name} not available")
+        future = client.call_async(request)
+        if not self.spin_until(future.done, timeout):
+            raise TimeoutError(f"service {name} did not answer")
+        return future.result()
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()
+
+
+__all__ = ["RosTestClient", "rclpy"]
