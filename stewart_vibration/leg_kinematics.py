@@ -1,0 +1,119 @@
+"""Leg (strut) velocities and accelerations from the platform motion (REVIEW.md Dynamics, steps 1-3).
+
+Frames and units: everything in the base frame, SI (m, rad, s). The platform
+twist is [v, w]: v the velocity of the platform-frame origin, w the angular
+velocity; the acceleration is [a, alpha] of the same point. Both [..., 6].
+
+Each leg is a cylinder turning about the base hinge B_i and a piston sliding
+in it, ending in the platform hinge A_i. The leg's spin about its own axis is
+ignored (w_i is perpendicular to s_i), the standard UPS assumption; with a
+universal joint at B_i the real cylinder spins slightly (see
+``stewart_vibration.mujoco_sim.leg_spin_force_bound``).
+
+Internally vectors are stored component-first ([3, n, 6], "SoA") so that the
+batched arithmetic runs on contiguous arrays; ``leg_motion`` returns the
+usual [..., 6, 3] layout.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .robot import Robot
+from .rotations import rotation_from_rpy
+from .validation import as_batch
+
+
+def cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a x b for component-first arrays [3, ...]."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[0] = a[1] * b[2] - a[2] * b[1]
+    out[1] = a[2] * b[0] - a[0] * b[2]
+    out[2] = a[0] * b[1] - a[1] * b[0]
+    return out
+
+
+def dot0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a . b for component-first arrays [3, ...] -> [...]."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@dataclass(frozen=True)
+class LegMotion:
+    """Leg kinematics, base frame, SI units.
+
+    Vectors are [..., 6, 3] (``leg_motion``) or component-first [3, n, 6]
+    (internal ``leg_motion_soa``). rotation: platform R; arm: r_i = R a_i (m);
+    axis: unit s_i; length l (m), length_rate l_dot (m/s), length_accel
+    l_ddot (m/s^2); omega w_i and alpha alpha_i: leg angular velocity (rad/s)
+    and acceleration (rad/s^2), both normal to s_i; axis_rate
+    s_dot = w_i x s_i; axis_accel s_ddot = alpha_i x s_i + w_i x (w_i x s_i);
+    hinge_velocity / hinge_accel: velocity / acceleration of A_i.
+    """
+
+    rotation: np.ndarray
+    arm: np.ndarray
+    axis: np.ndarray
+    length: np.ndarray
+    length_rate: np.ndarray
+    length_accel: np.ndarray
+    omega: np.ndarray
+    alpha: np.ndarray
+    axis_rate: np.ndarray
+    axis_accel: np.ndarray
+    hinge_velocity: np.ndarray
+    hinge_accel: np.ndarray
+
+
+def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.ndarray) -> LegMotion:
+    """Steps 1-3 on flat, validated inputs [n, 6]; vectors returned component-first [3, n, 6]."""
+    rot = rotation_from_rpy(pose[:, 3:])
+    r = np.einsum("nkm,im->kni", rot, robot.platform_hinges)
+    d = r + (pose[:, :3].T[:, :, None] - robot.base_hinges.T[:, None, :])
+    length = np.sqrt(dot0(d, d))
+    inv_l = 1.0 / length
+    s = d * inv_l
+    v, w = twist[:, :3].T[:, :, None], twist[:, 3:].T[:, :, None]
+    a, alpha = accel[:, :3].T[:, :, None], accel[:, 3:].T[:, :, None]
+    w_x_r = cross0(w, r)
+    v_a = v + w_x_r
+    a_a = a + cross0(alpha, r) + cross0(w, w_x_r)
+    l_dot = dot0(s, v_a)
+    omega = cross0(s, v_a) * inv_l
+    l_ddot = dot0(s, a_a) + length * dot0(omega, omega)
+    leg_alpha = (cross0(s, a_a) - 2.0 * l_dot * omega) * inv_l
+    s_dot = cross0(omega, s)
+    s_ddot = cross0(leg_alpha, s) + cross0(omega, s_dot)
+    return LegMotion(rot, r, s, length, l_dot, l_ddot, omega, leg_alpha, s_dot, s_ddot, v_a, a_a)
+
+
+def flat_inputs(pose, twist, accel) -> tuple[tuple, np.ndarray, np.ndarray, np.ndarray]:
+    """Validate and broadcast [..., 6] inputs; return (batch shape, pose, twist, accel as [n, 6])."""
+    pose = as_batch(pose, 6, "pose")
+    twist = as_batch(twist, 6, "twist")
+    accel = as_batch(accel, 6, "accel")
+    shape = np.broadcast_shapes(pose.shape, twist.shape, accel.shape)
+    flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 6)) for x in (pose, twist, accel)]
+    return shape[:-1], *flat
+
+
+def leg_motion(robot: Robot, pose, twist, accel) -> LegMotion:
+    """Steps 1-3: leg lengths, axes, rates and angular motion from the platform motion.
+
+    pose [..., 6] (m, rad); twist [..., 6] = [v, w] and accel [..., 6] = [a, alpha]
+    of the platform origin, base frame; shapes broadcast. Vectors in the
+    result are [..., 6, 3], scalars [..., 6], rotation [..., 3, 3].
+    """
+    batch, pose, twist, accel = flat_inputs(pose, twist, accel)
+    soa = leg_motion_soa(robot, pose, twist, accel)
+    out = {}
+    for name, value in vars(soa).items():
+        if name == "rotation":
+            out[name] = value.reshape(batch + (3, 3))
+        elif value.ndim == 3:
+            out[name] = np.moveaxis(value, 0, -1).reshape(batch + (6, 3))
+        else:
+            out[name] = value.reshape(batch + (6,))
+    return LegMotion(**out)

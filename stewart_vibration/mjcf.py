@@ -1,0 +1,183 @@
+"""Generate the MuJoCo model (MJCF) of the 6-UPS robot from the robot config (pure python).
+
+Structure (names are the public contract used by the simulator and the
+hardware emulator):
+- world: fixed base; gravity from robot.yaml; contacts disabled.
+- per leg i = 1..6: body ``cylinder_i`` at B_i with a universal joint
+  (hinges ``u1_i``, ``u2_i``, both normal to the home leg axis) or, with
+  ``base_joint="ball"``, a ball joint ``ball_i``; child body ``piston_i`` on
+  the slide joint ``leg_i`` along the leg. The slide's position IS the strut
+  length (m, hinge centre to hinge centre, ``ref`` = home length). Motor
+  actuator ``leg_i`` (gear 1: ctrl = axial force, N, positive extends) and
+  sensor ``force_leg_i`` (actuatorfrc).
+- body ``platform`` (platform + payload, one rigid body, platform frame) on a
+  free joint ``platform``.
+- equality ``connect`` between site ``tip_i`` (on the piston, at A_i) and
+  site ``a_i`` (on the platform): the spherical joint at A_i.
+Every body's frame has its z axis along the home leg axis (legs) or is the
+platform frame; the model is assembled at the home pose by IK, so all
+constraints hold at qpos0. Leg masses follow ``dynamics.leg_parts`` (vibration
+unit lumped into the piston), the same as the Newton-Euler model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .dynamics import leg_parts
+from .errors import ConfigError
+from .kinematics import leg_vectors
+from .robot import Robot, default_config_dir
+from .rotations import quaternion_from_rpy
+
+BASE_JOINTS = ("universal", "ball")
+
+
+@dataclass(frozen=True)
+class SimulationSettings:
+    """Numerical settings of the generated model (see config/simulation.yaml for the reasons)."""
+
+    timestep: float = 1.0e-4
+    integrator: str = "RK4"
+    solref_timeconst_factor: float = 2.0
+    solref_dampratio: float = 1.0
+    solimp: tuple = (0.9999, 0.9999, 0.001, 0.5, 2.0)
+    armature: float = 0.0
+    solver: str = "Newton"
+    solver_iterations: int = 50
+    solver_tolerance: float = 1.0e-12
+    drive_bandwidth_hz: float = 50.0
+    drive_damping_ratio: float = 1.0
+
+    @property
+    def solref(self) -> tuple[float, float]:
+        """(time constant s, damping ratio) of the equality constraints."""
+        return (self.solref_timeconst_factor * self.timestep, self.solref_dampratio)
+
+
+_YAML_KEYS = {
+    "timestep_s": "timestep", "integrator": "integrator",
+    "solref_timeconst_factor": "solref_timeconst_factor", "solref_dampratio": "solref_dampratio",
+    "solimp": "solimp", "armature": "armature", "solver": "solver",
+    "solver_iterations": "solver_iterations", "solver_tolerance": "solver_tolerance",
+    "drive_bandwidth_hz": "drive_bandwidth_hz", "drive_damping_ratio": "drive_damping_ratio",
+}
+
+
+def load_simulation_settings(path=None, **overrides) -> SimulationSettings:
+    """Settings from config/simulation.yaml (or ``path``), then keyword overrides."""
+    path = Path(path) if path is not None else default_config_dir() / "simulation.yaml"
+    try:
+        tree = yaml.safe_load(path.read_text()) or {}
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f"cannot read simulation config {path}: {exc}") from None
+    unknown = set(tree) - set(_YAML_KEYS)
+    if unknown:
+        raise ConfigError(f"simulation config {path}: unknown keys {sorted(unknown)}")
+    values = {_YAML_KEYS[k]: (tuple(v) if isinstance(v, list) else v) for k, v in tree.items()}
+    values.update(overrides)
+    settings = SimulationSettings(**values)
+    if not settings.timestep > 0 or len(settings.solimp) != 5:
+        raise ConfigError(f"simulation config {path}: timestep must be > 0 and solimp have 5 numbers")
+    return settings
+
+
+def leg_frame(axis: np.ndarray) -> np.ndarray:
+    """Rotation (3, 3) whose z column is the unit leg ``axis`` and x column is horizontal."""
+    x = np.cross([0.0, 0.0, 1.0], axis)
+    if np.linalg.norm(x) < 1e-9:
+        x = np.array([1.0, 0.0, 0.0])
+    x /= np.linalg.norm(x)
+    return np.stack([x, np.cross(axis, x), axis], axis=1)
+
+
+def quat_wxyz_from_matrix(rot: np.ndarray) -> np.ndarray:
+    """MuJoCo quaternion [w, x, y, z] of a rotation matrix (3, 3)."""
+    import mujoco
+
+    quat = np.zeros(4)
+    mujoco.mju_mat2Quat(quat, np.ascontiguousarray(rot).reshape(9))
+    return quat
+
+
+def _f(values) -> str:
+    return " ".join(f"{float(v):.17g}" for v in np.atleast_1d(values))
+
+
+def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal") -> str:
+    """MJCF XML string of the robot at its home pose (see module docstring)."""
+    if base_joint not in BASE_JOINTS:
+        raise ConfigError(f"base_joint must be one of {BASE_JOINTS}, got {base_joint!r}")
+    s = settings or SimulationSettings()
+    p = leg_parts(robot)
+    home = robot.home_pose
+    d = leg_vectors(robot, home)
+    lengths = np.linalg.norm(d, axis=1)
+    body = robot.moving_body
+    inertia = body.inertia
+    full = [inertia[0, 0], inertia[1, 1], inertia[2, 2], inertia[0, 1], inertia[0, 2], inertia[1, 2]]
+    xyzw = quaternion_from_rpy(home[3:])
+    lines = [
+        '<mujoco model="stewart_vibration_6ups">',
+        '  <compiler angle="radian" inertiafromgeom="false" autolimits="true"/>',
+        f'  <option timestep="{s.timestep:.17g}" integrator="{s.integrator}" gravity="{_f(robot.gravity)}"',
+        f'          solver="{s.solver}" iterations="{s.solver_iterations}" tolerance="{s.solver_tolerance:.17g}"',
+        '          jacobian="dense">',
+        '    <flag contact="disable"/>',
+        '  </option>',
+        '  <default>',
+        f'    <joint armature="{s.armature:.17g}" damping="0"/>',
+        f'    <equality solref="{_f(s.solref)}" solimp="{_f(s.solimp)}"/>',
+        '    <geom contype="0" conaffinity="0" group="1"/>',
+        '  </default>',
+        '  <worldbody>',
+        '    <geom name="base" type="cylinder" size="0.11 0.003" rgba="0.5 0.5 0.5 1"/>',
+    ]
+    for i in range(6):
+        n = i + 1
+        axis = d[i] / lengths[i]
+        frame = leg_frame(axis)
+        lines.append(f'    <body name="cylinder_{n}" pos="{_f(robot.base_hinges[i])}" '
+                     f'quat="{_f(quat_wxyz_from_matrix(frame))}">')
+        if base_joint == "universal":
+            lines.append(f'      <joint name="u1_{n}" type="hinge" axis="1 0 0"/>')
+            lines.append(f'      <joint name="u2_{n}" type="hinge" axis="0 1 0"/>')
+        else:
+            lines.append(f'      <joint name="ball_{n}" type="ball"/>')
+        lines += [
+            f'      <inertial pos="0 0 {p.e1:.17g}" mass="{p.m1:.17g}" diaginertia="{_f([p.it1, p.it1, p.ia1])}"/>',
+            f'      <geom type="capsule" fromto="0 0 0 0 0 {2 * p.e1:.17g}" size="0.010" rgba="0.3 0.4 0.8 1"/>',
+            f'      <body name="piston_{n}" pos="0 0 {lengths[i]:.17g}">',
+            f'        <joint name="leg_{n}" type="slide" axis="0 0 1" ref="{lengths[i]:.17g}"/>',
+            f'        <inertial pos="0 0 {-p.e2:.17g}" mass="{p.m2:.17g}" diaginertia="{_f([p.it2, p.it2, p.ia2])}"/>',
+            f'        <geom type="capsule" fromto="0 0 {-2 * p.e2:.17g} 0 0 0" size="0.006" rgba="0.8 0.8 0.8 1"/>',
+            f'        <site name="tip_{n}" pos="0 0 0" size="0.004"/>',
+            '      </body>',
+            '    </body>',
+        ]
+    lines += [
+        f'    <body name="platform" pos="{_f(home[:3])}" quat="{_f([xyzw[3], xyzw[0], xyzw[1], xyzw[2]])}">',
+        '      <freejoint name="platform"/>',
+        f'      <inertial pos="{_f(body.com)}" mass="{body.mass:.17g}" fullinertia="{_f(full)}"/>',
+        '      <geom type="cylinder" size="0.105 0.003" rgba="0.8 0.5 0.3 0.6"/>',
+    ]
+    lines += [f'      <site name="a_{i + 1}" pos="{_f(robot.platform_hinges[i])}" size="0.004"/>' for i in range(6)]
+    lines += ['    </body>', '  </worldbody>', '  <equality>']
+    lines += [f'    <connect name="hinge_{i + 1}" site1="tip_{i + 1}" site2="a_{i + 1}"/>' for i in range(6)]
+    lines += ['  </equality>', '  <actuator>']
+    lines += [f'    <motor name="leg_{i + 1}" joint="leg_{i + 1}" gear="1"/>' for i in range(6)]
+    lines += ['  </actuator>', '  <sensor>']
+    lines += [f'    <actuatorfrc name="force_leg_{i + 1}" actuator="leg_{i + 1}"/>' for i in range(6)]
+    lines += ['  </sensor>', '</mujoco>']
+    return "\n".join(lines) + "\n"
+
+
+def build_model(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal"):
+    """Compiled mujoco.MjModel of ``build_mjcf``."""
+    import mujoco
+
+    return mujoco.MjModel.from_xml_string(build_mjcf(robot, settings, base_joint))

@@ -1,0 +1,319 @@
+"""MuJoCo simulation of the generated 6-UPS model: state setting, driving, read-back.
+
+``StewartSim`` is the API for the validation and the hardware emulator:
+build from a Robot, put the robot in a consistent state at a pose, step with
+six axial forces or track leg-length targets (computed-force drive), read leg
+lengths / velocities / actuator forces and the platform pose / twist /
+acceleration. SI units, base frame, pose = [x, y, z, roll, pitch, yaw],
+twist [v, w] / accel [a, alpha] of the platform origin (base frame).
+
+Vibration (the ``vib_i`` joints of the design): the vibration unit sits in
+series with the strut on the same leg axis, so what the platform feels is the
+total hinge-to-hinge length leg_i + vib_i, and both carry the same axial
+force. The model therefore has one slide per leg whose position is the total
+length; ``step_tracking(..., vib=...)`` adds the vibration displacement (and
+its rates) to the strut target. The vibration unit's moving mass is lumped
+into the piston (see ``dynamics.leg_parts``).
+
+``closed_chain_forces`` is the exact static check: at a consistent state it
+solves MuJoCo's own equations [B J_c^T] [F; lambda] = M qacc + c.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+from .dynamics import leg_parts
+from .kinematics import leg_vectors
+from .leg_kinematics import leg_motion
+from .mjcf import SimulationSettings, build_model, leg_frame
+from .robot import Robot
+from .rotations import quaternion_from_rpy, rotation_from_rpy, rpy_from_rotation
+from .validation import as_batch
+
+
+class StewartSim:
+    """One MuJoCo model + data of the robot (see module docstring).
+
+    base_joint: "universal" (the real robot) or "ball" (exact static check).
+    Attributes: model, data (mujoco), robot, settings.
+    """
+
+    def __init__(self, robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal"):
+        self.robot = robot
+        self.settings = settings or SimulationSettings()
+        self.base_joint = base_joint
+        self.model = build_model(robot, self.settings, base_joint)
+        self.data = mujoco.MjData(self.model)
+        self._scratch = mujoco.MjData(self.model)
+        m = self.model
+        jid = [m.joint(f"leg_{i}").id for i in range(1, 7)]
+        self.slide_qpos = np.array([m.jnt_qposadr[j] for j in jid])
+        self.slide_dof = np.array([m.jnt_dofadr[j] for j in jid])
+        first = "u1" if base_joint == "universal" else "ball"
+        self.base_qpos = np.array([m.jnt_qposadr[m.joint(f"{first}_{i}").id] for i in range(1, 7)])
+        self.base_dof = np.array([m.jnt_dofadr[m.joint(f"{first}_{i}").id] for i in range(1, 7)])
+        free = m.joint("platform").id
+        self.free_qpos, self.free_dof = int(m.jnt_qposadr[free]), int(m.jnt_dofadr[free])
+        self.actuator_map = np.zeros((m.nv, m.nu))  # B: generalised force = B F
+        for k in range(m.nu):
+            self.actuator_map[m.jnt_dofadr[m.actuator_trnid[k, 0]], k] = m.actuator_gear[k, 0]
+        d0 = leg_vectors(robot, robot.home_pose)
+        self.leg_frames = np.stack([leg_frame(v / np.linalg.norm(v)) for v in d0])  # F0_i (6, 3, 3)
+        omega = 2 * np.pi * self.settings.drive_bandwidth_hz
+        self.kp, self.kd = omega**2, 2 * self.settings.drive_damping_ratio * omega
+
+    # -- state ---------------------------------------------------------------
+    def reset(self, pose=None) -> None:
+        """Reset time and put the robot at rest at ``pose`` (default home)."""
+        mujoco.mj_resetData(self.model, self.data)
+        self.set_state(self.robot.home_pose if pose is None else pose)
+
+    def set_state(self, pose, twist=None, accel=None, data=None) -> np.ndarray | None:
+        """Set a kinematically consistent state (platform and all leg joints) and run mj_forward.
+
+        pose, twist, accel: (6,) (twist/accel default 0). Leg spin is zero with
+        ball joints; with universal joints it is what the U-joint imposes.
+        Returns the consistent qacc (nv,) if ``accel`` is given (for
+        ``closed_chain_forces``), else None.
+        """
+        data = self.data if data is None else data
+        pose = as_batch(pose, 6, "pose").reshape(6)
+        twist = np.zeros(6) if twist is None else as_batch(twist, 6, "twist").reshape(6)
+        acc6 = np.zeros(6) if accel is None else as_batch(accel, 6, "accel").reshape(6)
+        lm = leg_motion(self.robot, pose, twist, acc6)
+        rot = lm.rotation
+        qpos, qvel, qacc = data.qpos, data.qvel, np.zeros(self.model.nv)
+        xyzw = quaternion_from_rpy(pose[3:])
+        qpos[self.free_qpos:self.free_qpos + 7] = np.r_[pose[:3], xyzw[3], xyzw[:3]]
+        fd = self.free_dof
+        qvel[fd:fd + 6] = np.r_[twist[:3], rot.T @ twist[3:]]
+        qacc[fd:fd + 6] = np.r_[acc6[:3], rot.T @ acc6[3:]]
+        qpos[self.slide_qpos], qvel[self.slide_dof], qacc[self.slide_dof] = (
+            lm.length, lm.length_rate, lm.length_accel)
+        for i in range(6):
+            f0 = self.leg_frames[i]
+            s, sd, sdd = f0.T @ lm.axis[i], f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i]
+            qa, da = self.base_qpos[i], self.base_dof[i]
+            if self.base_joint == "universal":
+                q, qd, qdd = _universal_angles(s, sd, sdd)
+                qpos[qa:qa + 2], qvel[da:da + 2], qacc[da:da + 2] = q, qd, qdd
+            else:
+                quat, rel = _ball_quat(s)
+                r_cyl = f0 @ rel
+                qpos[qa:qa + 4] = quat
+                qvel[da:da + 3] = r_cyl.T @ lm.omega[i]
+                qacc[da:da + 3] = r_cyl.T @ lm.alpha[i]
+        mujoco.mj_forward(self.model, data)
+        return qacc if accel is not None else None
+
+    # -- stepping ------------------------------------------------------------
+    def step(self, forces) -> None:
+        """One time step with the six axial actuator forces (N, positive extends the leg)."""
+        self.data.ctrl[:] = as_batch(forces, 6, "forces").reshape(6)
+        mujoco.mj_step(self.model, self.data)
+
+    def drive_forces(self, length, rate=None, accel=None) -> np.ndarray:
+        """Computed-force drive: the six forces giving l_ddot = accel + kd (rate - l_dot) + kp (length - l).
+
+        length, rate, accel: leg targets (6,) (m, m/s, m/s^2; rates default 0).
+        Exact because MuJoCo's acceleration is affine in the actuator forces
+        (equality-only constraints, Newton solver): qacc(F) = qacc(0) + G F.
+        """
+        m, d = self.model, self.data
+        rate = np.zeros(6) if rate is None else np.asarray(rate, dtype=float)
+        accel = np.zeros(6) if accel is None else np.asarray(accel, dtype=float)
+        want = accel + self.kd * (rate - self.leg_velocities()) + self.kp * (length - self.leg_lengths())
+        saved = d.ctrl.copy()
+        d.ctrl[:] = 0.0
+        mujoco.mj_forward(m, d)
+        base = d.qacc[self.slide_dof].copy()
+        gain = np.empty((6, 6))
+        for k in range(6):
+            d.ctrl[:] = 0.0
+            d.ctrl[k] = 1.0
+            mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
+            gain[:, k] = d.qacc[self.slide_dof] - base
+        d.ctrl[:] = saved
+        return np.linalg.solve(gain, want - base)
+
+    def step_tracking(self, length, rate=None, accel=None, vib=None, vib_rate=None, vib_accel=None) -> np.ndarray:
+        """Step once toward strut targets plus optional vibration displacement (all (6,), SI).
+
+        Target total length = length + vib (and likewise for the rates).
+        Returns the six forces applied during the step (N).
+        """
+        def add(a, b):
+            if b is None:
+                return a
+            return (np.zeros(6) if a is None else np.asarray(a, dtype=float)) + np.asarray(b, dtype=float)
+
+        forces = self.drive_forces(add(length, vib), add(rate, vib_rate), add(accel, vib_accel))
+        self.step(forces)
+        return forces
+
+    # -- read-back -----------------------------------------------------------
+    @property
+    def time(self) -> float:
+        return float(self.data.time)
+
+    def leg_lengths(self, data=None) -> np.ndarray:
+        """Total hinge-to-hinge strut lengths (6,) (m)."""
+        return (self.data if data is None else data).qpos[self.slide_qpos].copy()
+
+    def leg_velocities(self, data=None) -> np.ndarray:
+        """Strut length rates (6,) (m/s)."""
+        return (self.data if data is None else data).qvel[self.slide_dof].copy()
+
+    def actuator_forces(self, data=None) -> np.ndarray:
+        """Axial actuator forces (6,) (N) from the force sensors (valid after a step or mj_forward)."""
+        return (self.data if data is None else data).sensordata[:6].copy()
+
+    def platform_rotation(self, data=None) -> np.ndarray:
+        data = self.data if data is None else data
+        return data.xmat[self.model.body("platform").id].reshape(3, 3).copy()
+
+    def platform_pose(self, data=None) -> np.ndarray:
+        """Platform pose (6,) [x, y, z, roll, pitch, yaw] from the free joint."""
+        data = self.data if data is None else data
+        quat = data.qpos[self.free_qpos + 3:self.free_qpos + 7]
+        rot = np.zeros(9)
+        mujoco.mju_quat2Mat(rot, quat / np.linalg.norm(quat))
+        return np.r_[data.qpos[self.free_qpos:self.free_qpos + 3], rpy_from_rotation(rot.reshape(3, 3))]
+
+    def platform_twist(self, data=None) -> np.ndarray:
+        """[v, w] (6,) of the platform origin, base frame (MuJoCo stores w in the body frame)."""
+        data = self.data if data is None else data
+        fd = self.free_dof
+        rot = rotation_from_rpy(self.platform_pose(data)[3:])
+        return np.r_[data.qvel[fd:fd + 3], rot @ data.qvel[fd + 3:fd + 6]]
+
+    def platform_accel(self, data=None) -> np.ndarray:
+        """[a, alpha] (6,) of the platform origin, base frame, from qacc (valid after mj_forward)."""
+        data = self.data if data is None else data
+        fd = self.free_dof
+        rot = rotation_from_rpy(self.platform_pose(data)[3:])
+        return np.r_[data.qacc[fd:fd + 3], rot @ data.qacc[fd + 3:fd + 6]]
+
+    def constraint_violation(self, data=None) -> float:
+        """Largest hinge gap |tip_i - a_i| (m) of the six leg-platform connects."""
+        data = self.data if data is None else data
+        gaps = [data.site(f"tip_{i}").xpos - data.site(f"a_{i}").xpos for i in range(1, 7)]
+        return float(np.max(np.linalg.norm(gaps, axis=1)))
+
+    def evaluate(self, qpos, qvel, forces):
+        """Re-evaluate a recorded state with forces on a scratch MjData (mj_forward).
+
+        Returns (pose, twist, accel, constraint violation) of that state: the
+        acceleration MuJoCo's equations give for exactly these forces (not an
+        RK4 stage).
+        """
+        d = self._scratch
+        d.qpos[:], d.qvel[:], d.ctrl[:] = qpos, qvel, forces
+        mujoco.mj_forward(self.model, d)
+        return self.platform_pose(d), self.platform_twist(d), self.platform_accel(d), self.constraint_violation(d)
+
+
+def _universal_angles(s, sd, sdd):
+    """Hinge angles (q1 about x, then q2 about the rotated y) and their rates for the leg axis
+    s = Rx(q1) Ry(q2) z = [sin q2, -sin q1 cos q2, cos q1 cos q2] in the cylinder's home frame."""
+    q2 = np.arcsin(s[0])
+    c2 = np.cos(q2)
+    q2d = sd[0] / c2
+    q2dd = (sdd[0] + np.sin(q2) * q2d**2) / c2
+    y, z = -s[1], s[2]
+    yd, zd, ydd, zdd = -sd[1], sd[2], -sdd[1], sdd[2]
+    den = y * y + z * z
+    num = z * yd - y * zd
+    q1 = np.arctan2(y, z)
+    q1d = num / den
+    q1dd = ((z * ydd - y * zdd) * den - num * 2.0 * (y * yd + z * zd)) / den**2
+    return np.array([q1, q2]), np.array([q1d, q2d]), np.array([q1dd, q2dd])
+
+
+def _ball_quat(s):
+    """Smallest rotation taking z to the unit vector s: (quaternion [w, x, y, z], matrix)."""
+    axis = np.cross([0.0, 0.0, 1.0], s)
+    sin = np.linalg.norm(axis)
+    angle = np.arctan2(sin, s[2])
+    quat = np.r_[1.0, 0.0, 0.0, 0.0] if sin < 1e-15 else np.r_[np.cos(angle / 2), np.sin(angle / 2) * axis / sin]
+    rot = np.zeros(9)
+    mujoco.mju_quat2Mat(rot, quat)
+    return quat, rot.reshape(3, 3)
+
+
+def closed_chain_forces(sim: StewartSim, qacc: np.ndarray, data=None):
+    """Solve MuJoCo's equations of motion for the actuator forces at the current state.
+
+    [B  J_c^T] [F; lambda] = M qacc + c, with M from mj_fullM, c = qfrc_bias
+    (Coriolis, centrifugal, gravity), J_c the connect-constraint Jacobian rows
+    and B the actuator map. Requires mj_forward at the state (set_state does
+    it). Returns (F (6,), lambda, relative residual of the least-squares solve).
+    """
+    m, d = sim.model, (sim.data if data is None else data)
+    mass = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, mass)
+    rows = np.flatnonzero(d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    jac = d.efc_J.reshape(-1, m.nv)[rows] if d.efc_J.size else np.zeros((0, m.nv))
+    rhs = mass @ qacc + d.qfrc_bias - d.qfrc_passive
+    lhs = np.hstack([sim.actuator_map, jac.T])
+    sol, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    residual = np.linalg.norm(lhs @ sol - rhs) / max(np.linalg.norm(rhs), 1e-300)
+    return sol[:m.nu], sol[m.nu:], residual
+
+
+def universal_spin(sim: StewartSim, pose, twist, accel):
+    """Leg spin rate and spin acceleration (6,) each (rad/s, rad/s^2) a universal joint imposes.
+
+    The Newton-Euler model assumes zero spin about the leg axis; the U-joint
+    forces spin = w_cyl . s with w_cyl = x q1' + (Rx(q1) y) q2' (home leg frame).
+    """
+    lm = leg_motion(sim.robot, pose, twist, accel)
+    spin, spin_acc = np.zeros(6), np.zeros(6)
+    for i in range(6):
+        f0 = sim.leg_frames[i]
+        s, sd, sdd = f0.T @ lm.axis[i], f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i]
+        q, qd, qdd = _universal_angles(s, sd, sdd)
+        u1 = np.array([1.0, 0.0, 0.0])
+        u2 = np.array([0.0, np.cos(q[0]), np.sin(q[0])])
+        u2_dot = np.cross(u1 * qd[0], u2)
+        w = u1 * qd[0] + u2 * qd[1]
+        w_dot = u1 * qdd[0] + u2 * qdd[1] + u2_dot * qd[1]
+        spin[i] = w @ s
+        spin_acc[i] = w_dot @ s + w @ sd
+    return spin, spin_acc, lm
+
+
+def leg_spin_force_correction(sim: StewartSim, pose, twist, accel) -> np.ndarray:
+    """Axial-force change (6,) (N) caused by the U-joint leg spin the Newton-Euler model ignores.
+
+    The spin adds d/dt(I_a w_s s) = I_a (w_s' s + w_s s') to each leg's moment
+    about B_i (I_a = cylinder + piston axial inertia). Its component along the
+    leg is taken by the U-joint torque tau n (n = u1 x u2, so
+    tau = dM.s / n.s); the rest, dM - tau n, is balanced by an extra transverse
+    force at A_i, dh = s x (dM - tau n) / l, which the six struts carry:
+    H dF = -sum [dh; rho x dh]. This is the documented bound of the exact
+    static check with universal joints (first order in I_a, exact at a
+    consistent state).
+    """
+    spin, spin_acc, lm = universal_spin(sim, pose, twist, accel)
+    p = leg_parts(sim.robot)
+    ia = p.ia1 + p.ia2
+    rot = lm.rotation
+    c = rot @ sim.robot.moving_body.com
+    wrench = np.zeros(6)
+    cols = np.zeros((6, 6))
+    for i in range(6):
+        s = lm.axis[i]
+        d_m = ia * (spin_acc[i] * s + spin[i] * lm.axis_rate[i])
+        f0 = sim.leg_frames[i]
+        q, _, _ = _universal_angles(f0.T @ s, f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i])
+        n = f0 @ np.cross([1.0, 0.0, 0.0], [0.0, np.cos(q[0]), np.sin(q[0])])
+        tau = (d_m @ s) / (n @ s)
+        dh = np.cross(s, d_m - tau * n) / lm.length[i]
+        rho = lm.arm[i] - c
+        wrench -= np.r_[dh, np.cross(rho, dh)]
+        cols[:, i] = np.r_[s, np.cross(rho, s)]
+    return np.linalg.solve(cols, wrench)
+
