@@ -15,6 +15,7 @@ from ..errors import StewartError
 SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.kinematics_cmd",
     "stewart_vibration.cli.scenario_cmd",
+    "stewart_vibration.cli.paper_cmd",
 ]
 
 
