@@ -1,0 +1,1 @@
+"""Hardware emulation core (no rclpy): command following, safety, MuJoCo stepping."""
