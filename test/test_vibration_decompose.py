@@ -95,6 +95,7 @@ def test_exact_minus_linear_matches_second_order(robot, pose, amplitude, frequen
     delta = plan.delta[:, None]
     predicted = (1 - k**2) * delta**2 / (2 * lengths)
     diff = plan.exact_signals - plan.linear_signals
+    np.testing.assert_allclose(plan.curvature, (1 - k**2) / lengths, rtol=1e-12)
     peak = np.abs(predicted).max(axis=0)
     assert np.all(np.abs(diff - predicted).max(axis=0) <= 0.05 * peak)
     # the exact signals are the IK difference of the displaced poses (independent IK path)
@@ -156,6 +157,7 @@ def test_rotational_vibration_uses_rotation_columns(robot, pose):
     pred = 0.5 * curvature * plan.delta[:, None] ** 2
     diff = plan.exact_signals - plan.linear_signals
     assert np.abs(diff - pred).max() <= 0.05 * np.abs(pred).max()
+    np.testing.assert_allclose(plan.curvature, curvature, rtol=1e-4, atol=1e-6 * np.abs(curvature).max())
 
 
 def test_rotation_rejects_acceleration_and_both_kinds(robot, pose):
