@@ -1,0 +1,202 @@
+"""Newton-Euler leg forces: power balance, statics limit, symmetry, options (issue 4).
+
+References are computed here independently of stewart_vibration.dynamics.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from stewart_vibration.dynamics import Friction, leg_forces, leg_forces_paper
+from stewart_vibration.errors import InvalidInputError
+from stewart_vibration.kinematics import jacobian
+from stewart_vibration.paper import paper_pose
+from stewart_vibration.rotations import rotation_from_rpy
+from stewart_vibration.trajectory import SinusoidalTrajectory
+
+
+def random_trajectory(robot, seed, k=3, scale=1.0):
+    rng = np.random.default_rng(seed)
+    amp = rng.uniform(-1, 1, (k, 6)) * np.array([0.005, 0.005, 0.005, 0.05, 0.05, 0.05]) * scale
+    return SinusoidalTrajectory(paper_pose(robot), amp, rng.uniform(2.0, 40.0, k), rng.uniform(0, 2 * np.pi, (k, 6)))
+
+
+def energy(robot, pose, twist):
+    """T + V (J) of platform, payload, cylinders and pistons, from body velocities.
+
+    Leg masses: cylinder; piston + vibration unit (lumped, the documented model choice).
+    """
+    g = robot.gravity
+    body = robot.moving_body
+    rot = rotation_from_rpy(pose[:, 3:])
+    p, v, w = pose[:, :3], twist[:, :3], twist[:, 3:]
+    c = np.einsum("nij,j->ni", rot, body.com)
+    v_c = v + np.cross(w, c)
+    inertia = rot @ body.inertia @ np.swapaxes(rot, 1, 2)
+    t = 0.5 * body.mass * np.sum(v_c**2, -1) + 0.5 * np.einsum("ni,nij,nj->n", w, inertia, w)
+    pot = -body.mass * (p + c) @ g
+    leg = robot.leg
+    m1, e1, m2, e2 = leg.cylinder_mass, leg.cylinder_com_offset, leg.piston_mass + leg.vibration_unit_mass, \
+        leg.piston_com_offset
+    it = leg.cylinder_inertia_transverse + leg.piston_inertia_transverse
+    for i in range(6):
+        arm = np.einsum("nij,j->ni", rot, robot.platform_hinges[i])
+        d = p + arm - robot.base_hinges[i]
+        length = np.linalg.norm(d, axis=-1)
+        s = d / length[:, None]
+        v_a = v + np.cross(w, arm)
+        l_dot = np.sum(s * v_a, -1)
+        s_dot = (v_a - l_dot[:, None] * s) / length[:, None]
+        w_leg = np.cross(s, s_dot)
+        v2 = l_dot[:, None] * s + (length - e2)[:, None] * s_dot
+        t += 0.5 * m1 * e1**2 * np.sum(s_dot**2, -1) + 0.5 * m2 * np.sum(v2**2, -1) + 0.5 * it * np.sum(w_leg**2, -1)
+        pot += -m1 * (robot.base_hinges[i] + e1 * s) @ g - m2 * (robot.base_hinges[i] + (length - e2)[:, None] * s) @ g
+    return t + pot
+
+
+def strut_rates(robot, pose, twist):
+    rot = rotation_from_rpy(pose[:, 3:])
+    arm = np.einsum("nij,kj->nki", rot, robot.platform_hinges)
+    d = pose[:, None, :3] + arm - robot.base_hinges
+    s = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    return np.sum(s * (twist[:, None, :3] + np.cross(twist[:, None, 3:], arm)), -1)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2, 3])
+def test_power_balance_along_random_trajectories(robot, seed):
+    traj = random_trajectory(robot, seed)
+    duration = 0.5
+    nodes, weights = np.polynomial.legendre.leggauss(300)
+    t = 0.5 * duration * (nodes + 1.0)
+    samp = traj.sample(t)
+    rng = np.random.default_rng(100 + seed)
+    wrench = rng.normal(size=6) * np.array([5, 5, 5, 0.3, 0.3, 0.3])
+    forces = leg_forces(robot, samp.pose, samp.twist, samp.accel, external_wrench=wrench)
+    power = np.sum(forces * strut_rates(robot, samp.pose, samp.twist), -1) + samp.twist @ wrench
+    work = 0.5 * duration * weights @ power
+    ends = traj.sample(np.array([0.0, duration]))
+    e = energy(robot, ends.pose, ends.twist)
+    scale = 0.5 * duration * weights @ np.abs(power)
+    residual = abs((e[1] - e[0]) - work) / scale
+    assert residual <= 1e-8, residual
+
+
+def test_power_balance_detects_a_missing_term(robot):
+    """The same check rejects the paper model (it drops leg dynamics): the test can fail."""
+    traj = random_trajectory(robot, 0)
+    nodes, weights = np.polynomial.legendre.leggauss(300)
+    t = 0.25 * (nodes + 1.0)
+    samp = traj.sample(t)
+    power = np.sum(leg_forces_paper(robot, samp.pose, samp.twist, samp.accel)
+                   * strut_rates(robot, samp.pose, samp.twist), -1)
+    ends = traj.sample(np.array([0.0, 0.5]))
+    e = energy(robot, ends.pose, ends.twist)
+    assert abs((e[1] - e[0]) - 0.25 * weights @ power) / (0.25 * weights @ np.abs(power)) > 1e-3
+
+
+def massless_legs(robot):
+    leg = dataclasses.replace(robot.leg, cylinder_mass=0.0, cylinder_inertia_transverse=0.0,
+                              cylinder_inertia_axial=0.0, piston_mass=0.0, piston_inertia_transverse=0.0,
+                              piston_inertia_axial=0.0, vibration_unit_mass=0.0)
+    return dataclasses.replace(robot, leg=leg)
+
+
+def test_massless_legs_reduce_to_jacobian_statics(robot):
+    light = massless_legs(robot)
+    samp = random_trajectory(robot, 7).sample(np.linspace(0, 0.3, 9))
+    rng = np.random.default_rng(7)
+    wrench = rng.normal(size=6) * np.array([5, 5, 5, 0.3, 0.3, 0.3])
+    forces = leg_forces(light, samp.pose, samp.twist, samp.accel, external_wrench=wrench)
+    # platform wrench (force; moment about the platform origin) the legs must supply
+    body = robot.moving_body
+    rot = rotation_from_rpy(samp.pose[:, 3:])
+    c = np.einsum("nij,j->ni", rot, body.com)
+    w, alpha = samp.twist[:, 3:], samp.accel[:, 3:]
+    a_c = samp.accel[:, :3] + np.cross(alpha, c) + np.cross(w, np.cross(w, c))
+    inertia = rot @ body.inertia @ np.swapaxes(rot, 1, 2)
+    f = body.mass * (a_c - robot.gravity) - wrench[:3]
+    mom = (np.einsum("nij,nj->ni", inertia, alpha) + np.cross(w, np.einsum("nij,nj->ni", inertia, w))
+           + np.cross(c, body.mass * (a_c - robot.gravity)) - wrench[3:])
+    jt_f = np.einsum("nij,ni->nj", jacobian(robot, samp.pose), forces)
+    expected = np.concatenate([f, mom], -1)
+    assert np.abs(jt_f - expected).max() <= 1e-12 * np.abs(expected).max()
+    # the paper model is the same when the legs are massless
+    paper = leg_forces_paper(light, samp.pose, samp.twist, samp.accel, external_wrench=wrench)
+    assert np.allclose(paper, forces, rtol=1e-12, atol=1e-12)
+
+
+def test_symmetric_pose_gives_equal_forces(robot):
+    pose = robot.home_pose
+    twist = np.array([0.0, 0.0, 0.01, 0.0, 0.0, 0.0])
+    accel = np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
+    forces = leg_forces(robot, pose, twist, accel)
+    assert np.ptp(forces) <= 1e-12 * np.abs(forces).max()
+    # weight check: six equal struts carry the whole (moving) mass vertically
+    assert forces.mean() > 0
+    asym = leg_forces(robot, paper_pose(robot), twist, accel)
+    assert np.ptp(asym) > 0.1
+
+
+def test_reactions_balance_each_leg_and_platform(robot):
+    samp = random_trajectory(robot, 11).sample(np.linspace(0, 0.2, 5))
+    res = leg_forces(robot, samp.pose, samp.twist, samp.accel, return_reactions=True)
+    forces = leg_forces(robot, samp.pose, samp.twist, samp.accel)
+    assert np.allclose(res.force, forces, rtol=0, atol=1e-12)
+    body = robot.moving_body
+    rot = rotation_from_rpy(samp.pose[:, 3:])
+    c = np.einsum("nij,j->ni", rot, body.com)
+    w, alpha = samp.twist[:, 3:], samp.accel[:, 3:]
+    a_c = samp.accel[:, :3] + np.cross(alpha, c) + np.cross(w, np.cross(w, c))
+    # sum of leg-on-platform forces = m (a_c - g)
+    assert np.allclose(res.platform_joint.sum(axis=1), body.mass * (a_c - robot.gravity), rtol=0, atol=1e-10)
+    # transverse part is normal to the leg; axial part of platform_joint - transverse is along s
+    m = leg_forces(robot, samp.pose, samp.twist, samp.accel, return_reactions=True)
+    d = samp.pose[:, None, :3] + np.einsum("nij,kj->nki", rot, robot.platform_hinges) - robot.base_hinges
+    s = d / np.linalg.norm(d, axis=-1, keepdims=True)
+    assert np.abs(np.sum(m.transverse * s, -1)).max() < 1e-12
+    # whole-robot momentum: base reactions + gravity = rate of momentum of all moving bodies
+    total_leg_mass = robot.leg.cylinder_mass + robot.leg.piston_mass + robot.leg.vibration_unit_mass
+    weight = (body.mass + 6 * total_leg_mass) * robot.gravity
+    static = leg_forces(robot, robot.home_pose, np.zeros(6), np.zeros(6), return_reactions=True)
+    assert np.allclose(static.base_joint.sum(axis=0), -weight, rtol=0, atol=1e-10)
+
+
+def test_friction_adds_on_top(robot):
+    samp = random_trajectory(robot, 5).sample(np.linspace(0, 0.2, 6))
+    base = leg_forces(robot, samp.pose, samp.twist, samp.accel)
+    fric = Friction(coulomb=2.0, viscous=np.full(6, 30.0))
+    forces = leg_forces(robot, samp.pose, samp.twist, samp.accel, friction=fric)
+    rates = strut_rates(robot, samp.pose, samp.twist)
+    assert np.allclose(forces - base, 2.0 * np.sign(rates) + 30.0 * rates, rtol=0, atol=1e-12)
+
+
+def test_external_wrench_sign_and_batch_shapes(robot):
+    pose = paper_pose(robot)
+    zero = np.zeros(6)
+    free = leg_forces(robot, pose, zero, zero)
+    # an upward external force equal to the weight unloads the struts by the platform's share
+    weight = np.r_[-robot.moving_body.mass * robot.gravity, np.cross(
+        rotation_from_rpy(pose[3:]) @ robot.moving_body.com, -robot.moving_body.mass * robot.gravity)]
+    lifted = leg_forces(robot, pose, zero, zero, external_wrench=weight)
+    only_legs = leg_forces(massless_legs(robot), pose, zero, zero)
+    assert np.allclose(free - lifted, only_legs, rtol=0, atol=1e-12)
+    batch = leg_forces(robot, np.broadcast_to(pose, (2, 3, 6)), zero, zero)
+    assert batch.shape == (2, 3, 6) and np.allclose(batch, free, rtol=0, atol=1e-12)
+    with pytest.raises(InvalidInputError):
+        leg_forces(robot, np.full(6, np.nan), zero, zero)
+    with pytest.raises(InvalidInputError):
+        leg_forces(robot, pose, np.zeros(5), zero)
+
+
+def test_euler_rate_input_agrees_with_twist(robot):
+    from stewart_vibration.trajectory import twist_from_euler_rates
+
+    traj = random_trajectory(robot, 9)
+    t = np.linspace(0, 0.2, 4)
+    pose, rate, acc = traj.pose_derivatives(t)
+    twist, accel = twist_from_euler_rates(pose, rate, acc)
+    samp = traj.sample(t)
+    assert np.allclose(leg_forces(robot, pose, twist, accel), leg_forces(robot, samp.pose, samp.twist, samp.accel))
