@@ -9,10 +9,10 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.srv import GetPlan
+from ros_client import RosTestClient
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from ros_client import RosTestClient
 from stewart_vibration import inverse_kinematics, pose_to_position_quaternion
 from stewart_vibration.processes import ros_environment, start_python_module
 
