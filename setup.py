@@ -10,6 +10,9 @@ PACKAGE = "stewart_vibration"
 CONSOLE_SCRIPTS = [
     "stewart-vibration = stewart_vibration.cli.main:main",
     "kinematics_node = stewart_vibration.nodes.kinematics_node:main",
+    "vibration_planner_node = stewart_vibration.nodes.vibration_planner_node:main",
+    "leg_force_estimator_node = stewart_vibration.nodes.leg_force_estimator_node:main",
+    "hardware_emulator_node = stewart_vibration.nodes.hardware_emulator_node:main",
 ]
 
 setup(

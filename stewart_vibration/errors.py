@@ -65,3 +65,17 @@ class VibrationLimitError(StewartError, ValueError):
         self.limit_name = limit_name
         self.value = value
         self.limit = limit
+
+
+class ActuatorLimitError(StewartError, ValueError):
+    """A strut command exceeds an actuator limit (velocity, force) or the emulator is stopped.
+
+    Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``.
+    """
+
+    def __init__(self, message: str, *, leg=None, limit_name=None, value=None, limit=None):
+        super().__init__(message)
+        self.leg = leg
+        self.limit_name = limit_name
+        self.value = value
+        self.limit = limit

@@ -31,11 +31,12 @@ def buffer(robot):
 def test_cubic_interpolation_reproduces_the_sine(buffer):
     buffer.add(window(10.0, 0.0, 0.6), now=9.9)
     t = np.linspace(10.01, 10.39, 777)  # before the watchdog (last receipt 9.9 + 0.5 s)
-    pos, vel = buffer.sample(t)
+    pos, vel, acc = buffer.sample(t)
     w = 2 * np.pi * F
     exact = A * np.sin(w * (t - 10.0))[:, None] * GAINS
     assert np.abs(pos - exact).max() < 1e-4 * A  # cubic Hermite at 28 samples/period
     assert np.abs(vel - A * w * np.cos(w * (t - 10.0))[:, None] * GAINS).max() < 1e-2 * A * w
+    assert np.abs(acc + w * w * exact).max() < 0.1 * A * w * w  # cubic acceleration is piecewise linear
 
 
 def test_new_window_replaces_from_its_first_sample(buffer):
@@ -43,8 +44,8 @@ def test_new_window_replaces_from_its_first_sample(buffer):
     buffer.add(window(t0, 0.0, 0.6), now=t0)
     buffer.add(window(t0, 0.3, 0.9, amp=A / 2), now=t0 + 0.25)
     assert buffer.end == pytest.approx(t0 + 0.9)
-    p_old, _ = buffer.sample([t0 + 0.2])
-    p_new, _ = buffer.sample([t0 + 0.4])
+    p_old, _, _ = buffer.sample([t0 + 0.2])
+    p_new, _, _ = buffer.sample([t0 + 0.4])
     w = 2 * np.pi * F
     assert np.allclose(p_old[0], A * np.sin(w * 0.2) * GAINS, atol=1e-9)
     assert np.allclose(p_new[0], A / 2 * np.sin(w * 0.4) * GAINS, atol=1e-9)
@@ -68,8 +69,10 @@ def test_amplitude_and_acceleration_limits_name_the_leg(robot, buffer):
 
 def ramp_checks(buffer, t_from, t_to):
     t = np.arange(t_from, t_to, 1e-4)
-    pos, _ = buffer.sample(t)
+    pos, vel, acc = buffer.sample(t)
     step = np.abs(np.diff(pos, axis=0)).max()
+    dt = t[1] - t[0]
+    assert np.allclose(np.gradient(pos, dt, axis=0)[2:-2], vel[2:-2], atol=0.02 * A * 2 * np.pi * F)
     assert step < 2 * np.pi * F * A * 1e-4 * 1.5  # never more than the sine's own slope per sample
     return t, pos
 

@@ -98,12 +98,13 @@ class VibrationBuffer:
         return self.times.size > 0 and not self.latched and now < self.end + self.ramp_s
 
     def sample(self, times):
-        """(displacement, velocity) [n, 6] (m, m/s) at increasing absolute times [n] (s)."""
+        """(displacement, velocity, acceleration) [n, 6] (m, m/s, m/s^2) at increasing absolute times [n] (s)."""
         times = np.atleast_1d(np.asarray(times, dtype=float))
         pos = np.zeros((times.size, 6))
         vel = np.zeros((times.size, 6))
+        acc = np.zeros((times.size, 6))
         if self.times.size == 0 or self.latched:
-            return pos, vel
+            return pos, vel, acc
         # watchdog: latch the ramp start once sampling passes it
         if self.ramp_start is None:
             due = min(self.last_receive + self.watchdog_s, self.end)
@@ -117,17 +118,28 @@ class VibrationBuffer:
             seg = np.clip(np.searchsorted(bt, t, side="right") - 1, 0, bt.size - 2)
             h = (bt[seg + 1] - bt[seg])[:, None]
             s = ((t - bt[seg])[:, None]) / h
-            p, v, _ = _cubic(s, h, self.positions[seg], self.velocities[seg], self.positions[seg + 1],
+            p, v, a = _cubic(s, h, self.positions[seg], self.velocities[seg], self.positions[seg + 1],
                              self.velocities[seg + 1])
-            pos[inside], vel[inside] = p, v
+            pos[inside], vel[inside], acc[inside] = p, v, a
         elif inside.any():
             pos[inside] = self.positions[0]
         after = times > bt[-1]
-        pos[after] = self.positions[-1]  # held, and ramped out below
+        if after.any():
+            # past the last sample: let the last velocity decay (time constant ramp_s / 5) so the
+            # velocity stays continuous; the ramp below takes the (bounded) result to zero
+            tau = self.ramp_s / 5.0
+            decay = np.exp(-(times[after] - bt[-1]) / tau)[:, None]
+            v_end = self.velocities[-1]
+            pos[after] = self.positions[-1] + v_end * tau * (1.0 - decay)
+            vel[after] = v_end * decay
+            acc[after] = -v_end / tau * decay
         if self.ramp_start is not None:
-            gain, rate, _ = envelope(self.ramp_start + self.ramp_s - times, None, self.ramp_s)
-            vel = vel * gain[:, None] - pos * rate[:, None]  # d/dt (g p) with dg/dt = -rate
-            pos = pos * gain[:, None]
+            # output g(t) p(t) with g falling 1 -> 0; envelope of the reversed time gives g, -dg/dt, d2g/dt2
+            gain, rate, curve = envelope(self.ramp_start + self.ramp_s - times, None, self.ramp_s)
+            g, dg, ddg = gain[:, None], -rate[:, None], curve[:, None]
+            acc = acc * g + 2 * vel * dg + pos * ddg
+            vel = vel * g + pos * dg
+            pos = pos * g
             if times[-1] >= self.ramp_start + self.ramp_s:
                 self.latched = True
-        return pos, vel
+        return pos, vel, acc
