@@ -1,0 +1,123 @@
+"""Run analysis (pure numpy): what a vibration actually did, from recorded signals.
+
+Least-squares sinusoid fits at a known frequency, the platform's vibration
+direction and amplitude from its ground-truth positions, the legs' relative
+phases, and the error of estimated against measured leg forces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import InvalidInputError
+
+
+@dataclass(frozen=True)
+class SinusoidFit:
+    """x(t) ~ offset + amplitude sin(2 pi f t + phase) (+ drift t): per column [k]."""
+
+    amplitude: np.ndarray
+    phase: np.ndarray
+    offset: np.ndarray
+    complex_amplitude: np.ndarray  # c with x = Re(c exp(i(2 pi f t - pi/2))) = |c| sin(2 pi f t + arg c)
+    residual_rms: np.ndarray
+
+
+def fit_sinusoid(times, signals, frequency: float, drift: bool = True) -> SinusoidFit:
+    """Fit columns of ``signals`` [n, k] (or [n]) at ``frequency`` (Hz) over ``times`` [n] (s)."""
+    t = np.asarray(times, dtype=float)
+    x = np.asarray(signals, dtype=float)
+    x2 = x.reshape(t.size, -1)
+    if t.size < 4 or not np.isfinite(x2).all():
+        raise InvalidInputError("fit_sinusoid needs >= 4 finite samples")
+    w = 2 * np.pi * frequency
+    tc = t - t.mean()
+    cols = [np.sin(w * t), np.cos(w * t), np.ones_like(t)] + ([tc] if drift else [])
+    basis = np.stack(cols, axis=1)
+    coef, *_ = np.linalg.lstsq(basis, x2, rcond=None)
+    s, c = coef[0], coef[1]  # x = s sin + c cos = A sin(wt + phi), A cos phi = s, A sin phi = c
+    resid = x2 - basis @ coef
+    shape = x.shape[1:]
+    return SinusoidFit(
+        amplitude=np.hypot(s, c).reshape(shape),
+        phase=np.arctan2(c, s).reshape(shape),
+        offset=coef[2].reshape(shape),
+        complex_amplitude=(s + 1j * c).reshape(shape),
+        residual_rms=np.sqrt((resid**2).mean(axis=0)).reshape(shape),
+    )
+
+
+def wrap(angle):
+    """Angle(s) wrapped to (-pi, pi]."""
+    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class LineVibration:
+    """Principal direction (unit, base frame), amplitude (m), off-axis ratio of a vibration."""
+
+    direction: np.ndarray
+    amplitude: float
+    off_axis_ratio: float
+
+
+def line_vibration(times, positions, frequency: float) -> LineVibration:
+    """Direction and amplitude of the fundamental of positions [n, 3] (m).
+
+    The fundamental is Re(c e^{i w t}) with c in C^3; its principal axis is the
+    first left singular vector of [Re c, Im c] (3 x 2), the amplitude the first
+    singular value, and the off-axis ratio sigma2 / sigma1 (0 for a line).
+    """
+    fit = fit_sinusoid(times, positions, frequency)
+    c = fit.complex_amplitude
+    u, sv, _ = np.linalg.svd(np.stack([c.real, c.imag], axis=1))
+    direction = u[:, 0]
+    return LineVibration(direction=direction, amplitude=float(sv[0]), off_axis_ratio=float(sv[1] / sv[0]))
+
+
+def direction_error_deg(measured, expected) -> float:
+    """Angle (deg) between two line directions, sign-free (a line has no sign)."""
+    a = np.asarray(measured, dtype=float)
+    b = np.asarray(expected, dtype=float)
+    cos = abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b))
+    return float(np.degrees(np.arccos(min(cos, 1.0))))
+
+
+def leg_phase_offsets_deg(fit: SinusoidFit, reference_leg: int | None = None) -> np.ndarray:
+    """Each leg's phase relative to the reference leg (largest amplitude by default), deg in (-180, 180]."""
+    ref = int(np.argmax(fit.amplitude)) if reference_leg is None else reference_leg
+    return np.degrees(wrap(fit.phase - fit.phase[ref]))
+
+
+def phase_error_to_0_or_pi_deg(offsets_deg) -> np.ndarray:
+    """Distance (deg) of each relative phase from the nearest of 0 and 180 deg."""
+    off = np.abs(np.asarray(offsets_deg, dtype=float)) % 180.0
+    return np.minimum(off, 180.0 - off)
+
+
+def force_error(times_est, forces_est, times_meas, forces_meas, frequency: float | None = None) -> dict:
+    """RMS of (estimated - measured) leg forces [n, 6] on the measured time base, absolute (N) and
+    relative to the measured force amplitude (the fitted oscillation at ``frequency``, else half the
+    peak-to-peak). Estimates are linearly interpolated to the measured stamps."""
+    te, fe = np.asarray(times_est, dtype=float), np.asarray(forces_est, dtype=float)
+    tm, fm = np.asarray(times_meas, dtype=float), np.asarray(forces_meas, dtype=float)
+    inside = (tm >= te[0]) & (tm <= te[-1])
+    tm, fm = tm[inside], fm[inside]
+    if tm.size < 4:
+        raise InvalidInputError("force_error: the estimate and measurement do not overlap")
+    est = np.stack([np.interp(tm, te, fe[:, k]) for k in range(fe.shape[1])], axis=1)
+    diff = est - fm
+    rms = np.sqrt((diff**2).mean(axis=0))
+    if frequency:
+        amplitude = fit_sinusoid(tm, fm, frequency).amplitude
+    else:
+        amplitude = (fm.max(axis=0) - fm.min(axis=0)) / 2
+    return {
+        "rms_error_n": rms,
+        "force_amplitude_n": amplitude,
+        "relative_rms_error": rms / amplitude,
+        "worst_leg_relative": float((rms / amplitude).max()),
+        "samples": int(tm.size),
+    }
