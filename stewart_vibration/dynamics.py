@@ -28,12 +28,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .leg_kinematics import cross0, dot0, flat_inputs, leg_motion_soa
+from .leg_kinematics import cross0, dot0, flat_inputs, hinge_arms, leg_motion_soa
 from .robot import Robot
 from .rotations import rotation_from_rpy
 from .validation import as_batch
 
-CHUNK = 4096  # samples per vectorised block (measured fastest on the 2-core target)
+CHUNK = 2048  # samples per vectorised block (measured fastest on the 2-core target)
 
 
 @dataclass(frozen=True)
@@ -99,37 +99,85 @@ class LegForceResult:
     transverse: np.ndarray
 
 
-def _platform_terms(robot: Robot, rot, arm, twist, accel, wrench):
-    """Arms rho_i [3, n, 6] from the COM, and the platform's required force and moment
-    about the COM [3, n] (minus the external wrench)."""
+def _platform_terms(robot: Robot, rot_t, arm, twist, accel, wrench):
+    """Arms rho_i [3, 6, n] from the COM, and the platform's required force and moment about
+    the COM [3, n] (minus the external wrench). rot_t: R as [3, 3, n]; twist, accel, wrench: [6, n]."""
     body = robot.moving_body
-    c = np.einsum("nij,j->in", rot, body.com)  # COM offset from the platform origin
-    w, alpha, a = twist[:, 3:].T, accel[:, 3:].T, accel[:, :3].T
+    c = (rot_t * body.com[None, :, None]).sum(axis=1)  # COM offset from the platform origin
+    w, alpha, a = twist[3:], accel[3:], accel[:3]
     a_c = a + cross0(alpha, c) + cross0(w, cross0(w, c))
-    inertia = rot @ body.inertia @ np.swapaxes(rot, -1, -2)
-    i_w = np.einsum("nij,jn->in", inertia, w)
-    i_alpha = np.einsum("nij,jn->in", inertia, alpha)
-    f_ext, m_ext = wrench[:, :3].T, wrench[:, 3:].T
+
+    def world_inertia_times(x):  # R I R^T x, component-wise
+        local = body.inertia @ (rot_t * x[:, None, :]).sum(axis=0)
+        return (rot_t * local[None, :, :]).sum(axis=1)
+
+    f_ext, m_ext = wrench[:3], wrench[3:]
     force = body.mass * (a_c - robot.gravity[:, None]) - f_ext
-    moment = i_alpha + cross0(w, i_w) - (m_ext - cross0(c, f_ext))
-    rho = arm - c[:, :, None]
+    moment = world_inertia_times(alpha) + cross0(w, world_inertia_times(w)) - (m_ext - cross0(c, f_ext))
+    rho = arm - c[:, None, :]
     return rho, force, moment
 
 
-def _solve(axis, rho, h, force, moment):
-    """Solve H F = [force - sum h; moment - sum rho x h], H columns [s_i; rho_i x s_i]."""
-    n = axis.shape[1]
-    mat = np.empty((n, 6, 6))
-    mat[:, :3, :] = np.moveaxis(axis, 0, 1)
-    mat[:, 3:, :] = np.moveaxis(cross0(rho, axis), 0, 1)
-    rhs = np.empty((n, 6, 1))
-    rhs[:, :3, 0] = (force - h.sum(axis=-1)).T
-    rhs[:, 3:, 0] = (moment - cross0(rho, h).sum(axis=-1)).T
-    return np.linalg.solve(mat, rhs)[..., 0]
+def _preconditioner(robot: Robot) -> np.ndarray:
+    """H0^-1 (6, 6): inverse of H at the home pose at rest (cached on the robot)."""
+    cached = getattr(robot, "_dynamics_preconditioner", None)
+    if cached is None:
+        home = robot.home_pose
+        rot = rotation_from_rpy(home[3:])
+        arm = robot.platform_hinges @ rot.T
+        d = home[:3] + arm - robot.base_hinges
+        s = d / np.linalg.norm(d, axis=1, keepdims=True)
+        rho = arm - rot @ robot.moving_body.com
+        cached = np.linalg.inv(np.concatenate([s, np.cross(rho, s)], axis=1).T)
+        object.__setattr__(robot, "_dynamics_preconditioner", cached)
+    return cached
+
+
+def _eliminate(g: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Gaussian elimination without pivoting, in place, on g [6, 6, n] (row, column, sample), b [6, n]."""
+    for k in range(5):
+        f = g[k + 1:, k] / g[k, k]
+        g[k + 1:, k + 1:] -= f[:, None, :] * g[k, None, k + 1:]
+        b[k + 1:] -= f * b[k]
+    x = np.empty_like(b)
+    for k in range(5, -1, -1):
+        x[k] = (b[k] - (g[k, k + 1:] * x[k + 1:]).sum(axis=0)) / g[k, k]
+    return x
+
+
+def _solve(robot: Robot, axis, rho, h, force, moment):
+    """Solve H F = [force - sum h; moment - sum rho x h], H columns [s_i; rho_i x s_i] -> F [6, n].
+
+    axis, rho, h: [3, 6, n]; force, moment: [3, n]. Batched 6x6 solves: the
+    system is preconditioned with the home-pose inverse H0^-1 (so it is close
+    to the identity in the workspace) and eliminated without pivoting over all
+    samples at once; every solution is checked by its residual in the
+    original system, and samples that fail (far from home, near-singular)
+    are re-solved with LAPACK (partial pivoting).
+    """
+    n = axis.shape[-1]
+    hmat = np.empty((6, 6, n))  # [row, leg, sample]
+    hmat[:3] = axis
+    hmat[3:] = cross0(rho, axis)
+    rhs = np.empty((6, n))
+    rhs[:3] = force - h.sum(axis=1)
+    rhs[3:] = moment - cross0(rho, h).sum(axis=1)
+    pre = _preconditioner(robot)
+    g = (pre @ hmat.reshape(6, -1)).reshape(6, 6, n)
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        x = _eliminate(g, pre @ rhs)
+        prod = hmat * x[None]
+        residual = np.abs(prod.sum(axis=1) - rhs)
+        scale = np.abs(prod).sum(axis=1) + np.abs(rhs)
+        bad = ~(residual <= 1e-12 * scale + 1e-300).all(axis=0)
+    if bad.any():
+        idx = np.flatnonzero(bad)
+        x[:, idx] = np.linalg.solve(hmat[:, :, idx].transpose(2, 0, 1), rhs[:, idx].T[..., None])[..., 0].T
+    return x
 
 
 def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions: bool):
-    """Steps 1-8 for one block [n, 6], with the leg terms in closed form (no leg angular rates).
+    """Steps 1-8 for one block (inputs [6, n], vectors [3, 6, n]); leg terms in closed form.
 
     With w_i = s x v_A / l and alpha_i = (s x a_A - 2 l_dot w_i) / l (steps 3-4),
     the leg's moment about B_i (step 6) is
@@ -139,17 +187,17 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
     k_a = I_eff / l^2, k_v = 2 l_dot (I_eff / l - m2 (l - e2)) / l^2, k_g = mu / l,
     and s.a2 = s.a_A + e2 |v_A_perp|^2 / l^2 (x_perp = x - (s.x) s).
     """
-    n = pose.shape[0]
-    rot = rotation_from_rpy(pose[:, 3:])
-    r = np.einsum("nkm,im->kni", rot, robot.platform_hinges)
-    d = r + (pose[:, :3].T[:, :, None] - robot.base_hinges.T[:, None, :])
+    n = pose.shape[-1]
+    rot_t = np.ascontiguousarray(rotation_from_rpy(pose[3:].T).transpose(1, 2, 0))  # [3, 3, n]
+    r = hinge_arms(robot, rot_t)
+    d = r + (pose[:3, None, :] - robot.base_hinges.T[:, :, None])
     length = np.sqrt(dot0(d, d))
     inv_l = 1.0 / length
     s = d * inv_l
-    w, alpha = twist[:, 3:].T[:, :, None], accel[:, 3:].T[:, :, None]
+    w, alpha = twist[3:, None, :], accel[3:, None, :]
     w_x_r = cross0(w, r)
-    v_a = twist[:, :3].T[:, :, None] + w_x_r
-    a_a = accel[:, :3].T[:, :, None] + cross0(alpha, r) + cross0(w, w_x_r)
+    v_a = twist[:3, None, :] + w_x_r
+    a_a = accel[:3, None, :] + cross0(alpha, r) + cross0(w, w_x_r)
     g = robot.gravity
     l_dot, s_a, s_g = dot0(s, v_a), dot0(s, a_a), s[0] * g[0] + s[1] * g[1] + s[2] * g[2]
     v_perp2 = (dot0(v_a, v_a) - l_dot * l_dot) * inv_l * inv_l
@@ -161,12 +209,12 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
     k_g = (p.m1 * p.e1 + p.m2 * arm2) * inv_l
     # Step 7: h_i = m2 s.(g - a2) s + f_perp (leg-on-platform force minus F_i s).
     coef = k_a * s_a - k_v * l_dot - k_g * s_g + p.m2 * (s_g - s_a - p.e2 * v_perp2)
-    h = np.empty((3, n, 6))
+    h = np.empty((3, 6, n))
     for k in range(3):
         h[k] = k_v * v_a[k] - k_a * a_a[k] + coef * s[k] + k_g * g[k]
     # Step 8: platform Newton-Euler about its centre of mass.
-    rho, force, mom = _platform_terms(robot, rot, r, twist, accel, wrench)
-    axial = _solve(s, rho, h, force, mom)
+    rho, force, mom = _platform_terms(robot, rot_t, r, twist, accel, wrench)
+    axial = _solve(robot, s, rho, h, force, mom)
     if not reactions:
         return axial, l_dot, None
     l_ddot = s_a + length * v_perp2
@@ -175,7 +223,7 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
     a2 = a_a - p.e2 * s_ddot  # piston COM = A_i - e2 s
     transverse = h - (p.m2 * (s_g - dot0(s, a2))) * s
     platform_joint = axial * s + h
-    gg = g[:, None, None]
+    gg = g[:, None, None]  # [3, 1, 1]
     base_joint = p.m1 * (a1 - gg) + p.m2 * (a2 - gg) + platform_joint
     return axial, l_dot, (platform_joint, base_joint, transverse)
 
@@ -185,27 +233,28 @@ def _paper_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reaction
     s = m.axis
     h = -(p.m2 * dot0(s, m.hinge_accel - robot.gravity[:, None, None])) * s
     rho, force, mom = _platform_terms(robot, m.rotation, m.arm, twist, accel, wrench)
-    return _solve(s, rho, h, force, mom), m.length_rate, None
+    return _solve(robot, s, rho, h, force, mom), m.length_rate, None
 
 
 def _run_blocks(block, robot: Robot, pose, twist, accel, external_wrench, reactions: bool):
-    batch, pose, twist, accel = flat_inputs(pose, twist, accel)
-    n = pose.shape[0]
+    batch, pose, twist, accel = flat_inputs(pose, twist, accel)  # [6, n]
+    n = pose.shape[-1]
     if external_wrench is None:
-        wrench = np.zeros((n, 6))
+        wrench = np.zeros((6, n))
     else:
         wrench = as_batch(external_wrench, 6, "external_wrench")
-        wrench = np.ascontiguousarray(np.broadcast_to(wrench, batch + (6,)).reshape(-1, 6))
+        wrench = np.ascontiguousarray(np.broadcast_to(wrench, batch + (6,)).reshape(-1, 6).T)
     p = leg_parts(robot)
-    force, rate = np.empty((n, 6)), np.empty((n, 6))
-    extra = [np.empty((3, n, 6)) for _ in range(3)] if reactions else None
+    force, rate = np.empty((6, n)), np.empty((6, n))
+    extra = [np.empty((3, 6, n)) for _ in range(3)] if reactions else None
     for i in range(0, n, CHUNK):
         sl = slice(i, i + CHUNK)
-        force[sl], rate[sl], parts = block(robot, p, pose[sl], twist[sl], accel[sl], wrench[sl], reactions)
+        force[:, sl], rate[:, sl], parts = block(robot, p, pose[:, sl], twist[:, sl], accel[:, sl],
+                                                 wrench[:, sl], reactions)
         if reactions:
             for dst, src in zip(extra, parts):
-                dst[:, sl] = src
-    return batch, force, rate, extra
+                dst[..., sl] = src
+    return batch, force.T, rate.T, extra
 
 
 def leg_forces(robot: Robot, pose, twist, accel, external_wrench=None, friction: Friction | None = None,
@@ -224,7 +273,7 @@ def leg_forces(robot: Robot, pose, twist, accel, external_wrench=None, friction:
     force = force.reshape(batch + (6,))
     if not return_reactions:
         return force
-    vecs = [np.moveaxis(x, 0, -1).reshape(batch + (6, 3)) for x in extra]
+    vecs = [x.transpose(2, 1, 0).reshape(batch + (6, 3)) for x in extra]
     return LegForceResult(force, *vecs)
 
 

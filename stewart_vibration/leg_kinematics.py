@@ -10,7 +10,7 @@ ignored (w_i is perpendicular to s_i), the standard UPS assumption; with a
 universal joint at B_i the real cylinder spins slightly (see
 ``stewart_vibration.mujoco_sim.leg_spin_force_bound``).
 
-Internally vectors are stored component-first ([3, n, 6], "SoA") so that the
+Internally vectors are stored component-first ([3, 6, n], "SoA") so that the
 batched arithmetic runs on contiguous arrays; ``leg_motion`` returns the
 usual [..., 6, 3] layout.
 """
@@ -44,7 +44,7 @@ def dot0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 class LegMotion:
     """Leg kinematics, base frame, SI units.
 
-    Vectors are [..., 6, 3] (``leg_motion``) or component-first [3, n, 6]
+    Vectors are [..., 6, 3] (``leg_motion``) or component-first [3, 6, n]
     (internal ``leg_motion_soa``). rotation: platform R; arm: r_i = R a_i (m);
     axis: unit s_i; length l (m), length_rate l_dot (m/s), length_accel
     l_ddot (m/s^2); omega w_i and alpha alpha_i: leg angular velocity (rad/s)
@@ -67,16 +67,26 @@ class LegMotion:
     hinge_accel: np.ndarray
 
 
+def hinge_arms(robot: Robot, rot_t: np.ndarray) -> np.ndarray:
+    """r_i = R a_i as [3, 6, n] from rot_t = R laid out [3, 3, n]."""
+    a = robot.platform_hinges
+    return (rot_t[:, 0, None, :] * a[None, :, 0, None] + rot_t[:, 1, None, :] * a[None, :, 1, None]
+            + rot_t[:, 2, None, :] * a[None, :, 2, None])
+
+
 def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.ndarray) -> LegMotion:
-    """Steps 1-3 on flat, validated inputs [n, 6]; vectors returned component-first [3, n, 6]."""
-    rot = rotation_from_rpy(pose[:, 3:])
-    r = np.einsum("nkm,im->kni", rot, robot.platform_hinges)
-    d = r + (pose[:, :3].T[:, :, None] - robot.base_hinges.T[:, None, :])
+    """Steps 1-3 on validated inputs laid out [6, n]; vectors returned as [3, 6, n], scalars [6, n].
+
+    ``rotation`` is returned as [3, 3, n].
+    """
+    rot_t = np.ascontiguousarray(rotation_from_rpy(pose[3:].T).transpose(1, 2, 0))
+    r = hinge_arms(robot, rot_t)
+    d = r + (pose[:3, None, :] - robot.base_hinges.T[:, :, None])
     length = np.sqrt(dot0(d, d))
     inv_l = 1.0 / length
     s = d * inv_l
-    v, w = twist[:, :3].T[:, :, None], twist[:, 3:].T[:, :, None]
-    a, alpha = accel[:, :3].T[:, :, None], accel[:, 3:].T[:, :, None]
+    v, w = twist[:3, None, :], twist[3:, None, :]
+    a, alpha = accel[:3, None, :], accel[3:, None, :]
     w_x_r = cross0(w, r)
     v_a = v + w_x_r
     a_a = a + cross0(alpha, r) + cross0(w, w_x_r)
@@ -86,16 +96,16 @@ def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.
     leg_alpha = (cross0(s, a_a) - 2.0 * l_dot * omega) * inv_l
     s_dot = cross0(omega, s)
     s_ddot = cross0(leg_alpha, s) + cross0(omega, s_dot)
-    return LegMotion(rot, r, s, length, l_dot, l_ddot, omega, leg_alpha, s_dot, s_ddot, v_a, a_a)
+    return LegMotion(rot_t, r, s, length, l_dot, l_ddot, omega, leg_alpha, s_dot, s_ddot, v_a, a_a)
 
 
 def flat_inputs(pose, twist, accel) -> tuple[tuple, np.ndarray, np.ndarray, np.ndarray]:
-    """Validate and broadcast [..., 6] inputs; return (batch shape, pose, twist, accel as [n, 6])."""
+    """Validate and broadcast [..., 6] inputs; return (batch shape, pose, twist, accel laid out [6, n])."""
     pose = as_batch(pose, 6, "pose")
     twist = as_batch(twist, 6, "twist")
     accel = as_batch(accel, 6, "accel")
     shape = np.broadcast_shapes(pose.shape, twist.shape, accel.shape)
-    flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 6)) for x in (pose, twist, accel)]
+    flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 6).T) for x in (pose, twist, accel)]
     return shape[:-1], *flat
 
 
@@ -111,9 +121,9 @@ def leg_motion(robot: Robot, pose, twist, accel) -> LegMotion:
     out = {}
     for name, value in vars(soa).items():
         if name == "rotation":
-            out[name] = value.reshape(batch + (3, 3))
+            out[name] = value.transpose(2, 0, 1).reshape(batch + (3, 3))
         elif value.ndim == 3:
-            out[name] = np.moveaxis(value, 0, -1).reshape(batch + (6, 3))
+            out[name] = value.transpose(2, 1, 0).reshape(batch + (6, 3))
         else:
-            out[name] = value.reshape(batch + (6,))
+            out[name] = value.T.reshape(batch + (6,))
     return LegMotion(**out)
