@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .leg_kinematics import cross0, dot0, flat_inputs, hinge_arms, leg_motion_soa
+from .leg_kinematics import cross0, dot0, flat_inputs, hinge_motion, leg_axes, leg_motion_soa
 from .robot import Robot
 from .rotations import rotation_from_rpy
 from .validation import as_batch
@@ -188,16 +188,8 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
     and s.a2 = s.a_A + e2 |v_A_perp|^2 / l^2 (x_perp = x - (s.x) s).
     """
     n = pose.shape[-1]
-    rot_t = np.ascontiguousarray(rotation_from_rpy(pose[3:].T).transpose(1, 2, 0))  # [3, 3, n]
-    r = hinge_arms(robot, rot_t)
-    d = r + (pose[:3, None, :] - robot.base_hinges.T[:, :, None])
-    length = np.sqrt(dot0(d, d))
-    inv_l = 1.0 / length
-    s = d * inv_l
-    w, alpha = twist[3:, None, :], accel[3:, None, :]
-    w_x_r = cross0(w, r)
-    v_a = twist[:3, None, :] + w_x_r
-    a_a = accel[:3, None, :] + cross0(alpha, r) + cross0(w, w_x_r)
+    rot_t, r, length, inv_l, s = leg_axes(robot, pose)
+    v_a, a_a = hinge_motion(r, twist, accel)
     g = robot.gravity
     l_dot, s_a, s_g = dot0(s, v_a), dot0(s, a_a), s[0] * g[0] + s[1] * g[1] + s[2] * g[2]
     v_perp2 = (dot0(v_a, v_a) - l_dot * l_dot) * inv_l * inv_l

@@ -74,22 +74,30 @@ def hinge_arms(robot: Robot, rot_t: np.ndarray) -> np.ndarray:
             + rot_t[:, 2, None, :] * a[None, :, 2, None])
 
 
-def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.ndarray) -> LegMotion:
-    """Steps 1-3 on validated inputs laid out [6, n]; vectors returned as [3, 6, n], scalars [6, n].
-
-    ``rotation`` is returned as [3, 3, n].
-    """
+def leg_axes(robot: Robot, pose: np.ndarray):
+    """Step 1 on poses [6, n]: (R as [3, 3, n], arms r_i [3, 6, n], l [6, n], 1 / l, unit axes s_i [3, 6, n])."""
     rot_t = np.ascontiguousarray(rotation_from_rpy(pose[3:].T).transpose(1, 2, 0))
     r = hinge_arms(robot, rot_t)
     d = r + (pose[:3, None, :] - robot.base_hinges.T[:, :, None])
     length = np.sqrt(dot0(d, d))
     inv_l = 1.0 / length
-    s = d * inv_l
-    v, w = twist[:3, None, :], twist[3:, None, :]
-    a, alpha = accel[:3, None, :], accel[3:, None, :]
-    w_x_r = cross0(w, r)
-    v_a = v + w_x_r
-    a_a = a + cross0(alpha, r) + cross0(w, w_x_r)
+    return rot_t, r, length, inv_l, d * inv_l
+
+
+def hinge_motion(arm: np.ndarray, twist: np.ndarray, accel: np.ndarray):
+    """Step 2: velocity and acceleration of A_i [3, 6, n] from arms r_i and the platform twist/accel [6, n]."""
+    w, alpha = twist[3:, None, :], accel[3:, None, :]
+    w_x_r = cross0(w, arm)
+    return twist[:3, None, :] + w_x_r, accel[:3, None, :] + cross0(alpha, arm) + cross0(w, w_x_r)
+
+
+def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.ndarray) -> LegMotion:
+    """Steps 1-3 on validated inputs laid out [6, n]; vectors returned as [3, 6, n], scalars [6, n].
+
+    ``rotation`` is returned as [3, 3, n].
+    """
+    rot_t, r, length, inv_l, s = leg_axes(robot, pose)
+    v_a, a_a = hinge_motion(r, twist, accel)
     l_dot = dot0(s, v_a)
     omega = cross0(s, v_a) * inv_l
     l_ddot = dot0(s, a_a) + length * dot0(omega, omega)

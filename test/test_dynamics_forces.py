@@ -97,6 +97,14 @@ def test_power_balance_detects_a_missing_term(robot):
     assert abs((e[1] - e[0]) - 0.25 * weights @ power) / (0.25 * weights @ np.abs(power)) > 1e-3
 
 
+def com_motion(robot, samp):
+    """Platform R, COM offset c = R c_p, w, alpha and COM acceleration (base frame)."""
+    rot = rotation_from_rpy(samp.pose[:, 3:])
+    c = np.einsum("nij,j->ni", rot, robot.moving_body.com)
+    w, alpha = samp.twist[:, 3:], samp.accel[:, 3:]
+    return rot, c, w, alpha, samp.accel[:, :3] + np.cross(alpha, c) + np.cross(w, np.cross(w, c))
+
+
 def massless_legs(robot):
     leg = dataclasses.replace(robot.leg, cylinder_mass=0.0, cylinder_inertia_transverse=0.0,
                               cylinder_inertia_axial=0.0, piston_mass=0.0, piston_inertia_transverse=0.0,
@@ -112,10 +120,7 @@ def test_massless_legs_reduce_to_jacobian_statics(robot):
     forces = leg_forces(light, samp.pose, samp.twist, samp.accel, external_wrench=wrench)
     # platform wrench (force; moment about the platform origin) the legs must supply
     body = robot.moving_body
-    rot = rotation_from_rpy(samp.pose[:, 3:])
-    c = np.einsum("nij,j->ni", rot, body.com)
-    w, alpha = samp.twist[:, 3:], samp.accel[:, 3:]
-    a_c = samp.accel[:, :3] + np.cross(alpha, c) + np.cross(w, np.cross(w, c))
+    rot, c, w, alpha, a_c = com_motion(robot, samp)
     inertia = rot @ body.inertia @ np.swapaxes(rot, 1, 2)
     f = body.mass * (a_c - robot.gravity) - wrench[:3]
     mom = (np.einsum("nij,nj->ni", inertia, alpha) + np.cross(w, np.einsum("nij,nj->ni", inertia, w))
@@ -146,10 +151,7 @@ def test_reactions_balance_each_leg_and_platform(robot):
     forces = leg_forces(robot, samp.pose, samp.twist, samp.accel)
     assert np.allclose(res.force, forces, rtol=0, atol=1e-12)
     body = robot.moving_body
-    rot = rotation_from_rpy(samp.pose[:, 3:])
-    c = np.einsum("nij,j->ni", rot, body.com)
-    w, alpha = samp.twist[:, 3:], samp.accel[:, 3:]
-    a_c = samp.accel[:, :3] + np.cross(alpha, c) + np.cross(w, np.cross(w, c))
+    rot, c, w, alpha, a_c = com_motion(robot, samp)
     # sum of leg-on-platform forces = m (a_c - g)
     assert np.allclose(res.platform_joint.sum(axis=1), body.mass * (a_c - robot.gravity), rtol=0, atol=1e-10)
     # transverse part is normal to the leg; axial part of platform_joint - transverse is along s
