@@ -7,6 +7,7 @@ adapters over it. SI units, base/platform frames, pose = [x, y, z, roll,
 pitch, yaw] with R = Rz(yaw) Ry(pitch) Rx(roll).
 """
 
+from .dynamics import Friction, LegForceResult, leg_forces, leg_forces_paper
 from .errors import (
     ConfigError,
     ForwardKinematicsError,
@@ -28,6 +29,7 @@ from .kinematics import (
     joint_angles,
     leg_vectors,
 )
+from .mjcf import build_mjcf
 from .robot import Robot, load_robot
 from .rotations import (
     euler_rate_matrix,
@@ -38,6 +40,7 @@ from .rotations import (
     rpy_from_quaternion,
     rpy_from_rotation,
 )
+from .trajectory import SinusoidalTrajectory, twist_from_euler_rates, vibration_trajectory
 from .vibration import (
     MotionClassification,
     SuperpositionResult,
@@ -49,6 +52,8 @@ from .vibration import (
 )
 
 __all__ = [
+    "Friction", "LegForceResult", "SinusoidalTrajectory", "build_mjcf", "leg_forces", "leg_forces_paper",
+    "twist_from_euler_rates", "vibration_trajectory",
     "ConfigError",
     "ForwardKinematicsError",
     "ForwardKinematicsResult",
