@@ -202,3 +202,12 @@ def test_euler_rate_input_agrees_with_twist(robot):
     twist, accel = twist_from_euler_rates(pose, rate, acc)
     samp = traj.sample(t)
     assert np.allclose(leg_forces(robot, pose, twist, accel), leg_forces(robot, samp.pose, samp.twist, samp.accel))
+
+
+def test_solver_falls_back_to_lapack_when_elimination_fails(robot, monkeypatch):
+    import stewart_vibration.dynamics as dyn
+
+    samp = random_trajectory(robot, 13).sample(np.linspace(0, 0.2, 7))
+    good = leg_forces(robot, samp.pose, samp.twist, samp.accel)
+    monkeypatch.setattr(dyn, "_eliminate", lambda g, b: np.full_like(b, np.nan))
+    assert np.allclose(leg_forces(robot, samp.pose, samp.twist, samp.accel), good, rtol=1e-12, atol=1e-12)

@@ -60,3 +60,22 @@ def test_tracking_with_vibration_offsets(robot, sim):
     assert np.allclose(sim.actuator_forces(), forces)
     assert sim.constraint_violation() < 1e-8
     assert sim.time == pytest.approx(600 * sim.model.opt.timestep)
+
+
+def test_validate_dynamics_cli_json(tmp_path, capsys):
+    import json
+
+    from stewart_vibration.cli.main import main
+
+    code = main(["validate-dynamics", "--json", "--paper-duration", "0.02", "--clinical-duration", "0.03",
+                 "--out", str(tmp_path)])
+    report = json.loads(capsys.readouterr().out)
+    assert code == 0
+    for name in ("paper", "clinical"):
+        scen = report["scenarios"][name]
+        assert scen["full_model"]["worst_leg_rms_relative"] <= 1e-4
+        assert scen["paper_model"]["worst_leg_rms_relative"] > 1e-2
+        assert len(scen["full_model"]["rms_relative_per_leg"]) == 6
+        assert (tmp_path / f"{name}_forces.png").stat().st_size > 10_000
+        assert (tmp_path / f"{name}_legs.png").stat().st_size > 10_000
+    assert (tmp_path / "validate_dynamics.json").is_file()
