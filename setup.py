@@ -9,6 +9,8 @@ PACKAGE = "stewart_vibration"
 # Console scripts: the CLI plus one executable per node (ros2 run stewart_vibration <exe>).
 CONSOLE_SCRIPTS = [
     "stewart-vibration = stewart_vibration.cli.main:main",
+    "mcap_recorder = stewart_vibration.nodes.mcap_recorder_node:main",
+    "mcap_replay = stewart_vibration.nodes.mcap_replay_node:main",
     "kinematics_node = stewart_vibration.nodes.kinematics_node:main",
     "vibration_planner_node = stewart_vibration.nodes.vibration_planner_node:main",
     "leg_force_estimator_node = stewart_vibration.nodes.leg_force_estimator_node:main",

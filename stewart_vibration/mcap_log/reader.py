@@ -1,0 +1,149 @@
+"""Read our (or any rosbag2) MCAP runs: topic summary, raw messages in log-time order, decoding.
+
+Works on complete files (summary and indexes) and on files cut short by a
+crash (linear scan of the data section up to the last complete record).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Iterator
+
+from mcap.exceptions import McapError
+from mcap.reader import make_reader
+from mcap.records import Channel, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader
+
+
+@dataclass(frozen=True)
+class TopicSummary:
+    """One channel of a run."""
+
+    topic: str
+    type_name: str
+    message_count: int
+    offered_qos_profiles: str
+    schema_text: str
+
+
+@dataclass(frozen=True)
+class RawMessage:
+    """One recorded message: times in ns, serialized CDR bytes."""
+
+    topic: str
+    type_name: str
+    log_time: int
+    publish_time: int
+    data: bytes
+
+
+class RunReader:
+    """Random access when the file has a summary, else one linear scan (crash-truncated files)."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        self.complete = False
+        self.truncated = False
+        self.schemas: dict[int, Schema] = {}
+        self.channels: dict[int, Channel] = {}
+        self.metadata: dict[str, dict[str, str]] = {}
+        self.profile = ""
+        self._counts: dict[int, int] = {}
+        self._messages: list[Message] | None = None
+        self._load()
+
+    def _load(self) -> None:
+        with open(self.path, "rb") as f:
+            reader = make_reader(f)
+            try:
+                self.profile = reader.get_header().profile
+                summary = reader.get_summary()
+            except McapError:
+                summary = None
+            if summary is not None and summary.statistics is not None:
+                self.complete = True
+                self.schemas = dict(summary.schemas)
+                self.channels = dict(summary.channels)
+                self._counts = dict(summary.statistics.channel_message_counts)
+                for name, data in ((m.name, m.metadata) for m in reader.iter_metadata()):
+                    self.metadata[name] = dict(data)
+                return
+        self._scan()
+
+    def _scan(self) -> None:
+        """Linear scan; stops quietly at a truncated record (crash), setting ``truncated``."""
+        messages: list[Message] = []
+        with open(self.path, "rb") as f:
+            try:
+                for record in StreamReader(f, skip_magic=False).records:
+                    if isinstance(record, Schema):
+                        self.schemas[record.id] = record
+                    elif isinstance(record, Channel):
+                        self.channels[record.id] = record
+                    elif isinstance(record, Message):
+                        messages.append(record)
+                        self._counts[record.channel_id] = self._counts.get(record.channel_id, 0) + 1
+                    elif isinstance(record, Metadata):
+                        self.metadata[record.name] = dict(record.metadata)
+                    elif hasattr(record, "profile"):
+                        self.profile = record.profile
+            except Exception:  # noqa: BLE001 - any parse error past the last good record
+                self.truncated = True
+        messages.sort(key=lambda m: m.log_time)
+        self._messages = messages
+
+    def topics(self) -> list[TopicSummary]:
+        """Every channel with its type, message count, QoS YAML and schema text."""
+        out = []
+        for cid, ch in sorted(self.channels.items()):
+            schema = self.schemas.get(ch.schema_id)
+            out.append(
+                TopicSummary(
+                    ch.topic,
+                    schema.name if schema else "",
+                    int(self._counts.get(cid, 0)),
+                    ch.metadata.get("offered_qos_profiles", ""),
+                    schema.data.decode("utf-8") if schema else "",
+                )
+            )
+        return out
+
+    def message_count(self) -> int:
+        return int(sum(self._counts.values()))
+
+    def _raw(self, msg: Message) -> RawMessage:
+        ch = self.channels[msg.channel_id]
+        schema = self.schemas.get(ch.schema_id)
+        return RawMessage(
+            ch.topic, schema.name if schema else "", msg.log_time, msg.publish_time, msg.data
+        )
+
+    def messages(self, topics: list[str] | None = None) -> Iterator[RawMessage]:
+        """Raw messages in log-time order, optionally only ``topics``."""
+        wanted = set(topics) if topics is not None else None
+        if self._messages is not None:
+            for m in self._messages:
+                if wanted is None or self.channels[m.channel_id].topic in wanted:
+                    yield self._raw(m)
+            return
+        with open(self.path, "rb") as f:
+            reader = make_reader(f)
+            for _schema, channel, message in reader.iter_messages(
+                topics=list(wanted) if wanted is not None else None, log_time_order=True
+            ):
+                yield self._raw(message)
+
+    def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, object]]:
+        """(raw, decoded) pairs using mcap_ros2's dynamic decoder (no ROS needed)."""
+        from mcap_ros2.decoder import DecoderFactory
+
+        factory = DecoderFactory()
+        decoders: dict[str, object] = {}
+        by_type = {s.name: s for s in self.schemas.values()}
+        for raw in self.messages(topics):
+            dec = decoders.get(raw.type_name)
+            if dec is None:
+                dec = factory.decoder_for("cdr", by_type[raw.type_name])
+                decoders[raw.type_name] = dec
+            yield raw, dec(raw.data)

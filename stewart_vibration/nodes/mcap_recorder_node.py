@@ -1,0 +1,187 @@
+"""mcap_recorder: record the suite's topics as serialized CDR to a rosbag2-compatible MCAP.
+
+Raw subscriptions with the QoS the publishers offer (rosbag2's rule: reliable /
+transient_local only when every publisher offers it), created as soon as a
+topic appears on the graph. log_time = receive time on the node clock (sim
+time with use_sim_time); publish_time = header.stamp when the type starts with
+a std_msgs/Header, else log_time. A writer thread does all MCAP work
+(stewart_vibration.mcap_log.writer), so callbacks only enqueue.
+
+Parameters: output_dir (str, "runs"), file_pattern (str, "run_{stamp}.mcap";
+fields {stamp} local time YYYYmmdd_HHMMSS, {node}), record_on_start (bool,
+true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
+/clock, /diagnostics, /rosout), qos_depth (int, 1000), chunk_size (bytes,
+262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
+Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
+SIGINT/SIGTERM: the file is finished (summary) before exit.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+
+import rclpy
+from rclpy.node import Node
+from std_srvs.srv import Trigger
+
+from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
+from ..mcap_log.writer import McapRunWriter
+from .mcap_ros import (
+    make_executor,
+    message_class,
+    offered_profile,
+    rclpy_profile,
+    spin_until_shutdown,
+)
+
+SUITE_TOPICS = [
+    "platform/target_pose",
+    "legs/joint_trajectory",
+    "vibration/joint_trajectory",
+    "legs/joint_states",
+    "platform/pose",
+    "platform/pose_estimate",
+    "legs/force_estimate",
+    "platform/external_wrench_estimate",
+    "/clock",
+    "/diagnostics",
+    "/rosout",
+]
+
+
+class McapRecorderNode(Node):
+    """Discovers the wanted topics, subscribes raw, hands bytes to an McapRunWriter."""
+
+    def __init__(self, **kwargs):
+        super().__init__("mcap_recorder", **kwargs)
+        self.declare_parameter("output_dir", "runs")
+        self.declare_parameter("file_pattern", "run_{stamp}.mcap")
+        self.declare_parameter("record_on_start", True)
+        self.declare_parameter("topics", [""])
+        self.declare_parameter("qos_depth", 1000)
+        self.declare_parameter("chunk_size", 256 * 1024)
+        self.declare_parameter("flush_period_s", 0.5)
+        self.declare_parameter("discovery_period_s", 0.2)
+        names = [t for t in self.get_parameter("topics").value if t] or SUITE_TOPICS
+        self._wanted = {self.resolve_topic_name(t) for t in names}
+        self._known: dict[str, tuple[str, str, str]] = {}  # topic -> (type, qos yaml, hash)
+        self._subs = {}
+        self._writer: McapRunWriter | None = None
+        self._clock = self.get_clock()
+        self.create_service(Trigger, "~/start", self._on_start)
+        self.create_service(Trigger, "~/stop", self._on_stop)
+        self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
+        self._discover()
+        if self.get_parameter("record_on_start").value:
+            self.start_recording()
+
+    # -- recording ------------------------------------------------------------------
+    def _next_path(self) -> Path:
+        pattern = str(self.get_parameter("file_pattern").value)
+        name = pattern.format(stamp=time.strftime("%Y%m%d_%H%M%S"), node=self.get_name())
+        path = Path(str(self.get_parameter("output_dir").value)) / name
+        n = 1
+        while path.exists():
+            path = path.with_name(f"{Path(name).stem}_{n}{Path(name).suffix}")
+            n += 1
+        return path
+
+    def start_recording(self) -> Path:
+        """Open a new file (if not recording) and declare every topic already subscribed."""
+        if self._writer is None:
+            writer = McapRunWriter(
+                self._next_path(),
+                chunk_size=int(self.get_parameter("chunk_size").value),
+                flush_period_s=float(self.get_parameter("flush_period_s").value),
+            )
+            for topic, (type_name, qos_yaml, type_hash) in self._known.items():
+                writer.add_topic(topic, type_name, qos_yaml, type_hash)
+            self._writer = writer
+            self.get_logger().info(f"recording to {writer.path}")
+        return self._writer.path
+
+    def stop_recording(self) -> dict | None:
+        """Finish the file (summary, indexes, rosbag2 metadata); returns the counters."""
+        writer, self._writer = self._writer, None
+        if writer is None:
+            return None
+        stats = writer.close()
+        report = {
+            "path": str(writer.path),
+            "received": stats.received,
+            "written": stats.written,
+            "dropped": stats.dropped,
+            "max_backlog": stats.max_backlog,
+            "per_topic": dict(stats.per_topic),
+        }
+        # One machine-readable line for tests and the benchmark.
+        print("MCAP_RECORDER_STATS " + json.dumps(report), flush=True)
+        return report
+
+    def _on_start(self, _req, resp):
+        path = self.start_recording()
+        resp.success, resp.message = True, str(path)
+        return resp
+
+    def _on_stop(self, _req, resp):
+        report = self.stop_recording()
+        resp.success = report is not None
+        resp.message = report["path"] if report else "not recording"
+        return resp
+
+    # -- discovery ------------------------------------------------------------------
+    def _discover(self) -> None:
+        missing = self._wanted - self._subs.keys()
+        if not missing:
+            return
+        for topic, types in self.get_topic_names_and_types():
+            if topic not in missing or len(types) != 1:
+                continue
+            infos = self.get_publishers_info_by_topic(topic)
+            if not infos:
+                continue
+            try:
+                self._subscribe(topic, types[0], infos)
+            except Exception as exc:  # noqa: BLE001 - unknown type: keep recording the rest
+                self.get_logger().error(f"cannot record {topic} ({types[0]}): {exc}")
+                self._wanted.discard(topic)
+
+    def _subscribe(self, topic: str, type_name: str, infos) -> None:
+        offers = [offered_profile(i.qos_profile) for i in infos]
+        request = request_for_offers(offers, int(self.get_parameter("qos_depth").value))
+        type_hash = str(infos[0].topic_type_hash)
+        self._known[topic] = (type_name, dump_qos_profiles(offers), type_hash)
+        if self._writer is not None:
+            self._writer.add_topic(topic, type_name, *self._known[topic][1:])
+        clock = self._clock
+
+        def on_message(data: bytes, _topic=topic) -> None:
+            writer = self._writer
+            if writer is not None:
+                writer.submit(_topic, clock.now().nanoseconds, data)
+
+        self._subs[topic] = self.create_subscription(
+            message_class(type_name), topic, on_message, rclpy_profile(request), raw=True
+        )
+        self.get_logger().info(f"subscribed {topic} [{type_name}] {request.reliability}")
+
+
+def main(args=None) -> int:
+    rclpy.init(args=args)
+    node = McapRecorderNode()
+    executor = make_executor()
+    executor.add_node(node)
+    try:
+        spin_until_shutdown(executor)
+    finally:
+        node.stop_recording()
+        node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
