@@ -68,16 +68,18 @@ def main() -> None:
     traj, _ = clinical_scenario(robot)
     ref = traj.sample(np.arange(2000) * dt)
     legs = leg_motion(robot, ref.pose, ref.twist, ref.accel)
-    sim.reset()
-    sim.set_state(ref.pose[0], ref.twist[0])
+    for interval in (1, 20):
+        sim = StewartSim(robot, settings, gain_interval=interval)
+        sim.reset()
+        sim.set_state(ref.pose[0], ref.twist[0])
 
-    def driven():
-        for k in range(2000):
-            sim.step_tracking(legs.length[k], legs.length_rate[k], legs.length_accel[k])
+        def driven(sim=sim):
+            for k in range(2000):
+                sim.step_tracking(legs.length[k], legs.length_rate[k], legs.length_accel[k])
 
-    rate = best_rate(driven, 2000, repeats=1)
-    print(f"computed-force drive (python loop): {rate:10,.0f} steps/s, real-time factor {rate * dt:.2f}")
-
+        rate = best_rate(driven, 2000, repeats=1)
+        print(f"computed-force drive, gain every {interval:2d} steps (python loop): {rate:8,.0f} steps/s, "
+              f"real-time factor {rate * dt:.2f}")
 
 if __name__ == "__main__":
     main()

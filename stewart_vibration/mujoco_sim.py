@@ -37,11 +37,17 @@ class StewartSim:
     """One MuJoCo model + data of the robot (see module docstring).
 
     base_joint: "universal" (the real robot) or "ball" (exact static check).
+    gain_interval: recompute the drive's force-to-acceleration matrix every
+    this many steps (1 = exact computed-force drive, used by the validation;
+    larger is faster, the feedback absorbs the slowly changing gain).
     Attributes: model, data (mujoco), robot, settings.
     """
 
-    def __init__(self, robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal"):
+    def __init__(self, robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal",
+                 gain_interval: int = 1):
         self.robot = robot
+        self.gain_interval = max(1, int(gain_interval))
+        self._gain, self._gain_age = None, 0
         self.settings = settings or SimulationSettings()
         self.base_joint = base_joint
         self.model = build_model(robot, self.settings, base_joint)
@@ -68,6 +74,7 @@ class StewartSim:
     def reset(self, pose=None) -> None:
         """Reset time and put the robot at rest at ``pose`` (default home)."""
         mujoco.mj_resetData(self.model, self.data)
+        self._gain = None
         self.set_state(self.robot.home_pose if pose is None else pose)
 
     def set_state(self, pose, twist=None, accel=None, data=None) -> np.ndarray | None:
@@ -129,14 +136,17 @@ class StewartSim:
         d.ctrl[:] = 0.0
         mujoco.mj_forward(m, d)
         base = d.qacc[self.slide_dof].copy()
-        gain = np.empty((6, 6))
-        for k in range(6):
-            d.ctrl[:] = 0.0
-            d.ctrl[k] = 1.0
-            mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
-            gain[:, k] = d.qacc[self.slide_dof] - base
+        if self._gain is None or self._gain_age >= self.gain_interval:
+            gain = np.empty((6, 6))
+            for k in range(6):
+                d.ctrl[:] = 0.0
+                d.ctrl[k] = 1.0
+                mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
+                gain[:, k] = d.qacc[self.slide_dof] - base
+            self._gain, self._gain_age = gain, 0
+        self._gain_age += 1
         d.ctrl[:] = saved
-        return np.linalg.solve(gain, want - base)
+        return np.linalg.solve(self._gain, want - base)
 
     def step_tracking(self, length, rate=None, accel=None, vib=None, vib_rate=None, vib_accel=None) -> np.ndarray:
         """Step once toward strut targets plus optional vibration displacement (all (6,), SI).
