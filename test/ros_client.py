@@ -9,6 +9,7 @@ from __future__ import annotations
 import os
 import time
 from collections import defaultdict
+from contextlib import contextmanager
 
 import rclpy
 from rclpy.context import Context
@@ -16,6 +17,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
+from stewart_vibration.processes import ros_environment, start_python_module
 
 
 class RosTestClient:
@@ -70,4 +72,16 @@ class RosTestClient:
         self.context.try_shutdown()
 
 
-__all__ = ["RosTestClient", "rclpy"]
+@contextmanager
+def node_under_test(name: str, module: str, domain: int, log_dir, args=()):
+    """(NodeProcess, RosTestClient): ``python -m module args`` on ``domain``, stopped and checked on exit."""
+    proc = start_python_module(name, module, list(args), ros_environment(domain), log_dir)
+    client = RosTestClient()
+    try:
+        yield proc, client
+    finally:
+        client.close()
+        assert proc.stop() is not None
+
+
+__all__ = ["RosTestClient", "node_under_test", "rclpy"]

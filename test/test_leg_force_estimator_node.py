@@ -13,14 +13,13 @@ import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
-from ros_client import RosTestClient
+from ros_client import node_under_test
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration import decompose_vibration, inverse_kinematics, platform_vibration_motion, sample_leg_vibration
 from stewart_vibration.dynamics import leg_forces
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 
@@ -33,15 +32,8 @@ WRENCH = np.array([2.0, -1.5, 6.0, 0.12, -0.08, 0.03])  # on the platform, N and
 
 @pytest.fixture
 def estimator(ros_domain, tmp_path):
-    proc = start_python_module(
-        "estimator", "stewart_vibration.nodes.leg_force_estimator_node", [], ros_environment(ros_domain), tmp_path
-    )
-    client = RosTestClient()
-    try:
-        yield proc, client
-    finally:
-        client.close()
-        assert proc.stop() is not None
+    with node_under_test("estimator", "stewart_vibration.nodes.leg_force_estimator_node", ros_domain, tmp_path) as pair:
+        yield pair
 
 
 def stamp(t: float) -> Time:

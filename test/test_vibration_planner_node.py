@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from ros_client import RosTestClient
+from ros_client import node_under_test
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import pose_to_position_quaternion, rotation_from_rpy
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 
@@ -24,15 +24,8 @@ VIB = [f"vib_{i}" for i in range(1, 7)]
 
 @pytest.fixture
 def planner(ros_domain, tmp_path):
-    proc = start_python_module(
-        "planner", "stewart_vibration.nodes.vibration_planner_node", [], ros_environment(ros_domain), tmp_path
-    )
-    client = RosTestClient()
-    try:
-        yield proc, client
-    finally:
-        client.close()
-        assert proc.stop() is not None
+    with node_under_test("planner", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path) as pair:
+        yield pair
 
 
 def pose_msg(pose):
@@ -191,3 +184,39 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     response = trigger(client, "start")
     assert not response.success and "StrokeLimitError" in response.message, response.message
     assert proc.alive()
+
+
+def test_streams_on_sim_time(robot, ros_domain, tmp_path):
+    from rosgraph_msgs.msg import Clock
+
+    args = ["--ros-args", "-p", "use_sim_time:=true", "-p", "duration_s:=1.0", "-p", "ramp_s:=0.1"]
+    with node_under_test("planner_sim", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
+                         args) as (proc, client):
+        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
+        clock = client.publisher("/clock", Clock)
+        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
+        client.publisher("platform/pose_estimate", PoseStamped).publish(pose_msg(paper_pose(robot)))
+        client.spin_for(0.2)
+        response = trigger(client, "start")
+        assert not response.success and "clock not running" in response.message, response.message
+
+        sim = 100.0
+        clock.publish(Clock(clock=Time(sec=100)))
+        client.spin_for(0.2)
+        client.publisher("platform/pose_estimate", PoseStamped).publish(pose_msg(paper_pose(robot)))
+        client.spin_for(0.2)
+        response = trigger(client, "start")
+        assert response.success, response.message
+        while sim < 101.5:  # 1.5 s of sim time at ~4x wall speed
+            sim += 0.01
+            ns = round(sim * 1e9)
+            clock.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
+            client.spin_for(0.0025)
+        client.spin_for(0.2)
+        stamp = windows[0].header.stamp
+        assert abs(stamp.sec + stamp.nanosec * 1e-9 - 100.1) < 1e-6  # t0 = sim now + lead_s
+        samples, worst = merged(windows)
+        last = samples[max(samples)]
+        assert worst < 1e-15 and abs(last[0] - 1.0) < 1e-9 and np.abs(last[1]).max() == 0.0  # ends at rest
+        assert 2 <= len(windows) <= 6  # one per 0.2 s of sim time until the end is covered
+        assert trigger(client, "stop").message == "already idle"
