@@ -13,6 +13,7 @@ import sys
 from ..errors import StewartError
 
 SUBCOMMAND_MODULES = [
+    "stewart_vibration.cli.report_cmd",
     "stewart_vibration.cli.kinematics_cmd",
     "stewart_vibration.cli.scenario_cmd",
     "stewart_vibration.cli.paper_cmd",

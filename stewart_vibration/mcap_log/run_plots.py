@@ -1,0 +1,111 @@
+"""PNG plots of a run (matplotlib, Agg): one figure per subject, only for data present."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+COLORS = plt.get_cmap("tab10").colors
+
+
+def _legs_grid(title: str):
+    fig, axes = plt.subplots(3, 2, figsize=(11, 8), sharex=True)
+    fig.suptitle(title)
+    return fig, axes.ravel()
+
+
+def _save(fig, out: Path, name: str, plots: list[str]) -> None:
+    fig.tight_layout()
+    fig.savefig(out / name, dpi=110)
+    plt.close(fig)
+    plots.append(name)
+
+
+def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
+    """Write the PNGs into ``out``; returns their file names."""
+    plots: list[str] = []
+    if "leg_lengths" in data:
+        fig, axes = _legs_grid("Leg lengths (strut, from legs/joint_states)")
+        for i, ax in enumerate(axes):
+            ax.plot(data["leg_t"], data["leg_lengths"][:, i] * 1e3, color=COLORS[i], lw=0.8)
+            ax.set_title(f"leg_{i + 1}")
+            ax.set_ylabel("length (mm)")
+            ax.grid(alpha=0.3)
+        for ax in axes[-2:]:
+            ax.set_xlabel("time (s)")
+        _save(fig, out, "leg_lengths.png", plots)
+    if "vib" in data:
+        fig, axes = _legs_grid("Vibration unit displacement per leg (vib_*)")
+        vib = summary.get("vibration", {})
+        for i, ax in enumerate(axes):
+            ax.plot(data["vib_t"], data["vib"][:, i] * 1e3, color=COLORS[i], lw=0.8)
+            v = vib.get(f"vib_{i + 1}", {})
+            ax.set_title(f"vib_{i + 1}: {v.get('amplitude_m', 0) * 1e3:.3f} mm at {v.get('frequency_hz', 0):.1f} Hz")
+            ax.set_ylabel("displacement (mm)")
+            ax.grid(alpha=0.3)
+        for ax in axes[-2:]:
+            ax.set_xlabel("time (s)")
+        _save(fig, out, "vibration.png", plots)
+    if "pose_xyz" in data:
+        fig = plt.figure(figsize=(13, 6))
+        mean = data["pose_xyz"].mean(axis=0)
+        dev = (data["pose_xyz"] - mean) * 1e3
+        for k, name in enumerate("xyz"):
+            ax = fig.add_subplot(3, 2, 2 * k + 1)
+            ax.plot(data["pose_t"], dev[:, k], color=COLORS[k], lw=0.8)
+            ax.set_ylabel(f"{name} (mm)\nmean {mean[k] * 1e3:.2f}")
+            ax.grid(alpha=0.3)
+            if k == 0:
+                ax.set_title("Platform position about its mean (platform/pose)")
+        ax.set_xlabel("time (s)")
+        ax3 = fig.add_subplot(1, 2, 2, projection="3d")
+        ax3.plot(dev[:, 0], dev[:, 1], dev[:, 2], lw=0.8, color="gray")
+        p = summary.get("platform", {})
+        if p:
+            d = np.array(p["vibration_direction"]) * p["vibration_amplitude_m"] * 1e3
+            ax3.quiver(0, 0, 0, *d, color="red", lw=2)
+            ax3.set_title("Vibration path (mm, equal axes); red: direction ["
+                          + ", ".join(f"{x:.3f}" for x in p["vibration_direction"]) + "]", fontsize=10)
+        r = max(float(np.abs(dev).max()), 1e-6)
+        ax3.set_xlim(-r, r)
+        ax3.set_ylim(-r, r)
+        ax3.set_zlim(-r, r)
+        ax3.set_xlabel("x (mm)")
+        ax3.set_ylabel("y (mm)")
+        ax3.set_zlabel("z (mm)")
+        _save(fig, out, "platform.png", plots)
+    if "force" in data or "est" in data:
+        fig, axes = _legs_grid("Leg axial force: measured (legs/joint_states) vs estimated (legs/force_estimate)")
+        for i, ax in enumerate(axes):
+            if "force" in data:
+                ax.plot(data["force_t"], data["force"][:, i], color="black", lw=1.0, label="measured")
+            if "est" in data:
+                ax.plot(data["est_t"], data["est"][:, i], color="tab:orange", lw=1.0, ls="--", label="estimated")
+            ax.set_title(f"leg_{i + 1}")
+            ax.set_ylabel("force (N)")
+            ax.grid(alpha=0.3)
+        axes[0].legend(loc="upper right")
+        for ax in axes[-2:]:
+            ax.set_xlabel("time (s)")
+        _save(fig, out, "forces.png", plots)
+    events = data.get("events", [])
+    if events:
+        fig, ax = plt.subplots(figsize=(11, 1.2 + 0.35 * min(len(events), 20)))
+        levels = {0: "tab:green", 1: "tab:orange", 2: "tab:red", 3: "gray"}
+        for k, e in enumerate(events[:20]):
+            color = levels.get(e["level"], "tab:red" if e["level"] >= 40 else "tab:orange" if e["level"] >= 30 else "tab:blue")
+            ax.plot([e["t_s"]], [k], "o", color=color)
+            ax.annotate(f"{e['source']}: {e['text']}", (e["t_s"], k), xytext=(6, -3), textcoords="offset points", fontsize=8)
+        ax.set_yticks([])
+        ax.margins(x=0.3, y=0.4)
+        ax.invert_yaxis()
+        ax.set_xlabel("time (s)")
+        ax.set_title("Events (/diagnostics, /rosout warnings and start/stop)")
+        ax.grid(alpha=0.3, axis="x")
+        _save(fig, out, "events.png", plots)
+    return plots

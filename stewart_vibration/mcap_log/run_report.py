@@ -1,0 +1,169 @@
+"""Run report from an MCAP: summary (JSON + markdown) and PNG plots, for whatever topics exist.
+
+Topics are matched by suffix so namespaced runs work: ``legs/joint_states``
+(leg_* lengths, vib_* displacements, leg_* efforts = measured axial force),
+``platform/pose``, ``legs/force_estimate``, ``/diagnostics`` and ``/rosout``
+(events). Times in the plots are seconds from the first message; lengths and
+displacements are plotted in mm (labelled), everything in the JSON is SI.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+
+from .reader import RunReader
+
+LEGS = [f"leg_{i}" for i in range(1, 7)]
+VIBS = [f"vib_{i}" for i in range(1, 7)]
+EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
+
+
+def _find(reader: RunReader, suffix: str) -> str | None:
+    for t in reader.topics():
+        if t.topic.endswith(suffix) and t.message_count:
+            return t.topic
+    return None
+
+
+def _joint_series(reader, topic, names, field):
+    t, rows = [], []
+    for raw, msg in reader.decoded([topic]):
+        values = getattr(msg, field)
+        index = {n: i for i, n in enumerate(msg.name)}
+        if not all(n in index and index[n] < len(values) for n in names):
+            continue
+        t.append(raw.log_time)
+        rows.append([values[index[n]] for n in names])
+    return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, len(names))
+
+
+def _dominant(t_s: np.ndarray, x: np.ndarray) -> tuple[float, float]:
+    """(amplitude, frequency Hz) of the strongest sinusoid in x (uniformly resampled)."""
+    if len(t_s) < 8 or t_s[-1] <= t_s[0]:
+        return 0.0, 0.0
+    grid = np.linspace(t_s[0], t_s[-1], len(t_s))
+    y = np.interp(grid, t_s, x) - np.mean(x)
+    spec = np.fft.rfft(y * np.hanning(len(y)))
+    k = int(np.argmax(np.abs(spec[1:]))) + 1
+    freq = k / (grid[-1] - grid[0]) * (len(grid) - 1) / len(grid)
+    return float(np.sqrt(2.0) * np.std(y)), float(freq)
+
+
+def extract(reader: RunReader) -> dict:
+    """Arrays of the run (SI) keyed by what they are; missing topics are left out."""
+    data: dict = {}
+    starts = [m.log_time for m in reader.messages()][:1]
+    t0 = starts[0] if starts else 0
+    if js := _find(reader, "legs/joint_states"):
+        t, lengths = _joint_series(reader, js, LEGS, "position")
+        if len(t):
+            data["leg_t"], data["leg_lengths"] = (t - t0) / 1e9, lengths
+        t, vib = _joint_series(reader, js, VIBS, "position")
+        if len(t):
+            data["vib_t"], data["vib"] = (t - t0) / 1e9, vib
+        t, force = _joint_series(reader, js, LEGS, "effort")
+        if len(t):
+            data["force_t"], data["force"] = (t - t0) / 1e9, force
+    if est := _find(reader, "legs/force_estimate"):
+        t, force = _joint_series(reader, est, LEGS, "effort")
+        if len(t):
+            data["est_t"], data["est"] = (t - t0) / 1e9, force
+    if pose := _find(reader, "platform/pose"):
+        t, xyz = [], []
+        for raw, msg in reader.decoded([pose]):
+            p = msg.pose.position
+            t.append(raw.log_time)
+            xyz.append([p.x, p.y, p.z])
+        data["pose_t"], data["pose_xyz"] = (np.array(t) - t0) / 1e9, np.array(xyz)
+    events = []
+    for topic in ("/diagnostics", "/rosout"):
+        if _find(reader, topic) != topic:
+            continue
+        for raw, msg in reader.decoded([topic]):
+            when = (raw.log_time - t0) / 1e9
+            if topic == "/diagnostics":
+                for s in msg.status:
+                    events.append({"t_s": when, "source": s.name, "level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level), "text": s.message})
+            elif int(msg.level) >= 30 or any(w in msg.msg.lower() for w in EVENT_WORDS):
+                events.append({"t_s": when, "source": msg.name, "level": int(msg.level), "text": msg.msg})
+    data["events"] = events
+    return data
+
+
+def summarize(reader: RunReader, data: dict) -> dict:
+    """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events."""
+    topics = reader.topics()
+    out: dict = {
+        "file": str(reader.path),
+        "complete": reader.complete,
+        "message_count": reader.message_count(),
+        "topics": {t.topic: {"type": t.type_name, "count": t.message_count} for t in topics},
+    }
+    if "leg_lengths" in data:
+        out["leg_length_mean_m"] = dict(zip(LEGS, np.mean(data["leg_lengths"], axis=0).tolist()))
+    if "vib" in data:
+        out["vibration"] = {
+            n: dict(zip(("amplitude_m", "frequency_hz"), _dominant(data["vib_t"], data["vib"][:, i])))
+            for i, n in enumerate(VIBS)
+        }
+    if "pose_xyz" in data:
+        dev = data["pose_xyz"] - data["pose_xyz"].mean(axis=0)
+        _u, s, vt = np.linalg.svd(dev, full_matrices=False) if len(dev) > 1 else (None, [0.0], np.eye(3))
+        direction = vt[0] * (1 if vt[0][np.argmax(np.abs(vt[0]))] > 0 else -1)
+        out["platform"] = {
+            "mean_position_m": data["pose_xyz"].mean(axis=0).tolist(),
+            "vibration_direction": direction.tolist(),
+            "vibration_amplitude_m": float(np.sqrt(2.0) * s[0] / np.sqrt(max(len(dev), 1))),
+            "linearity": float(s[0] ** 2 / max(np.sum(np.square(s)), 1e-300)),
+        }
+    if "est" in data and "force" in data:
+        measured = np.column_stack([np.interp(data["est_t"], data["force_t"], data["force"][:, i]) for i in range(6)])
+        err = data["est"] - measured
+        out["force_error_rms_n"] = dict(zip(LEGS, np.sqrt(np.mean(err**2, axis=0)).tolist()))
+    out["events"] = data["events"]
+    return out
+
+
+def markdown(summary: dict, plots: list[str]) -> str:
+    """Human-readable summary."""
+    lines = [f"# Run report: {Path(summary['file']).name}", ""]
+    lines += [f"- complete file: {summary['complete']}", f"- messages: {summary['message_count']}", ""]
+    lines += ["| topic | type | messages |", "|---|---|---|"]
+    lines += [f"| {k} | {v['type']} | {v['count']} |" for k, v in summary["topics"].items()]
+    if "vibration" in summary:
+        lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
+        for i, (n, v) in enumerate(summary["vibration"].items()):
+            mean = summary.get("leg_length_mean_m", {}).get(LEGS[i], float("nan"))
+            lines.append(f"| {i + 1} | {mean:.6f} | {v['amplitude_m']:.3e} | {v['frequency_hz']:.2f} |")
+    if "platform" in summary:
+        p = summary["platform"]
+        d = ", ".join(f"{x:.4f}" for x in p["vibration_direction"])
+        lines += ["", f"Platform vibration direction [{d}], amplitude {p['vibration_amplitude_m']:.3e} m, "
+                  f"linearity {p['linearity']:.4f}"]
+    if "force_error_rms_n" in summary:
+        lines += ["", "Leg force estimate vs measured, RMS error (N): "
+                  + ", ".join(f"{k} {v:.3f}" for k, v in summary["force_error_rms_n"].items())]
+    if summary["events"]:
+        lines += ["", "| t (s) | source | level | event |", "|---|---|---|---|"]
+        lines += [f"| {e['t_s']:.3f} | {e['source']} | {e['level']} | {e['text']} |" for e in summary["events"]]
+    lines += ["", *[f"![{p}]({p})" for p in plots], ""]
+    return "\n".join(lines)
+
+
+def write_report(mcap_path: str | Path, out_dir: str | Path) -> dict:
+    """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary."""
+    from . import run_plots
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    reader = RunReader(mcap_path)
+    data = extract(reader)
+    summary = summarize(reader, data)
+    plots = run_plots.plot_all(data, summary, out)
+    summary["plots"] = plots
+    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    (out / "summary.md").write_text(markdown(summary, plots))
+    return summary
