@@ -85,6 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--count", type=int, default=100, help="samples per topic")
     parser.add_argument("--rate", type=float, default=100.0, help="Hz")
     parser.add_argument("--topics", default="joint_states,pose,force,diag", help="comma list; add clock")
+    parser.add_argument("--fast", action="store_true", help="reuse one joint_states message (benchmarks)")
     parser.add_argument("--wait-s", type=float, default=20.0, help="max wait for subscribers")
     args = parser.parse_args(rclpy.utilities.remove_ros_args(sys.argv[1:] if argv is None else argv))
     rclpy.init()
@@ -118,7 +119,12 @@ def main(argv: list[str] | None = None) -> int:
         if "clock" in pubs:
             pubs["clock"].publish(Clock(clock=stamp))
         if "joint_states" in pubs:
-            pubs["joint_states"].publish(_joint_states(t, stamp))
+            if args.fast:
+                fixed = fixed if i else _joint_states(0.0, stamp)
+                fixed.header.stamp = stamp
+                pubs["joint_states"].publish(fixed)
+            else:
+                pubs["joint_states"].publish(_joint_states(t, stamp))
         if "pose" in pubs:
             pubs["pose"].publish(_pose(t, stamp))
         if "force" in pubs:
