@@ -108,7 +108,9 @@ def _joint_state_cdr(sec: int, nsec: int) -> bytes:
     from rosbags.typesys import Stores, get_typestore
 
     ts = get_typestore(Stores.ROS2_JAZZY)
-    JS, Header, Time = (ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header", "builtin_interfaces/msg/Time"))
+    JS, Header, Time = (
+        ts.types[n] for n in ("sensor_msgs/msg/JointState", "std_msgs/msg/Header", "builtin_interfaces/msg/Time")
+    )
     import numpy as np
 
     msg = JS(

@@ -11,8 +11,8 @@ from collections import Counter
 import numpy as np
 import pytest
 
-from stewart_vibration.processes import start_python_module, wait_for
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, RunReader, dump_qos_profiles
+from stewart_vibration.processes import start_python_module, wait_for
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 REPLAY = "stewart_vibration.nodes.mcap_replay_node"
@@ -187,7 +187,8 @@ def test_replay_timing_bytes_and_rate(ros_domain, tmp_path):
     done, t1, data1 = _replay_into_recorder(tmp_path, env, src, 1.0, "rec_rate1")
     assert data1 == src_bytes  # the recorded bytes, republished as they are
     err = np.abs(np.diff(t1) - np.diff(t)) / 1e6
-    print(f"rate 1: interval error ms median {np.median(err):.3f} p99 {np.percentile(err, 99):.3f} max {err.max():.3f}; "
+    print(f"rate 1: interval error ms median {np.median(err):.3f} p99 {np.percentile(err, 99):.3f} "
+          f"max {err.max():.3f}; "
           f"replay lateness max {done['lateness_max_s'] * 1e3:.3f} ms")
     assert np.percentile(err, 99) < 1.0 and np.median(err) < 0.3
 

@@ -35,12 +35,12 @@ def _write_run(path, n=400, f_hz=20.0, dt=0.002):
         est = T["sensor_msgs/msg/JointState"](h, names[:6], np.zeros(0), np.zeros(0), effort[:6] + 0.5)
         w.submit("/legs/force_estimate", t_ns, bytes(ts.serialize_cdr(est, "sensor_msgs/msg/JointState")))
         p = 5e-4 * s * direction + np.array([0, 0, 0.25])
-        pose = T["geometry_msgs/msg/PoseStamped"](
-            h, T["geometry_msgs/msg/Pose"](T["geometry_msgs/msg/Point"](*p), T["geometry_msgs/msg/Quaternion"](0, 0, 0, 1))
-        )
+        point, quat = T["geometry_msgs/msg/Point"](*p), T["geometry_msgs/msg/Quaternion"](0, 0, 0, 1)
+        pose = T["geometry_msgs/msg/PoseStamped"](h, T["geometry_msgs/msg/Pose"](point, quat))
         w.submit("/platform/pose", t_ns, bytes(ts.serialize_cdr(pose, "geometry_msgs/msg/PoseStamped")))
         if k in (0, n - 1):
-            st = T["diagnostic_msgs/msg/DiagnosticStatus"](0, "vibration_planner", "started" if k == 0 else "stopped", "", [])
+            text = "started" if k == 0 else "stopped"
+            st = T["diagnostic_msgs/msg/DiagnosticStatus"](0, "vibration_planner", text, "", [])
             arr = T["diagnostic_msgs/msg/DiagnosticArray"](h, [st])
             w.submit("/diagnostics", t_ns, bytes(ts.serialize_cdr(arr, "diagnostic_msgs/msg/DiagnosticArray")))
     w.close()

@@ -16,6 +16,7 @@ SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.report_cmd",
     "stewart_vibration.cli.kinematics_cmd",
     "stewart_vibration.cli.scenario_cmd",
+    "stewart_vibration.cli.run_cmd",
     "stewart_vibration.cli.paper_cmd",
     "stewart_vibration.cli.validate_dynamics_cmd",
 ]

@@ -54,7 +54,9 @@ class VibrationBuffer:
             else np.zeros_like(pos)
         self._check_limits(times, pos, vel)
         if self.latched or self.ramp_start is not None:
-            if np.abs(pos[0]).max() > 1e-3 * self.limits.amplitude_max:
+            # from rest: displacement and velocity ~0 (a ramp-in), not merely a zero crossing
+            rest_speed = 1e-3 * self.limits.amplitude_max * 2 * np.pi * self.limits.frequency_max
+            if np.abs(pos[0]).max() > 1e-3 * self.limits.amplitude_max or np.abs(vel[0]).max() > rest_speed:
                 raise VibrationLimitError(
                     f"vibration is stopped ({self.ramp_reason}); a new command must start from rest",
                     limit_name="restart_from_rest",

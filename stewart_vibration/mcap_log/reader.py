@@ -6,9 +6,9 @@ crash (linear scan of the data section up to the last complete record).
 
 from __future__ import annotations
 
+from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -129,7 +129,7 @@ class RunReader:
             return
         with open(self.path, "rb") as f:
             reader = make_reader(f)
-            for _schema, channel, message in reader.iter_messages(
+            for _schema, _channel, message in reader.iter_messages(
                 topics=list(wanted) if wanted is not None else None, log_time_order=True
             ):
                 yield self._raw(message)

@@ -98,9 +98,11 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         fig, ax = plt.subplots(figsize=(11, 1.2 + 0.35 * min(len(events), 20)))
         levels = {0: "tab:green", 1: "tab:orange", 2: "tab:red", 3: "gray"}
         for k, e in enumerate(events[:20]):
-            color = levels.get(e["level"], "tab:red" if e["level"] >= 40 else "tab:orange" if e["level"] >= 30 else "tab:blue")
+            fallback = "tab:red" if e["level"] >= 40 else "tab:orange" if e["level"] >= 30 else "tab:blue"
+            color = levels.get(e["level"], fallback)
             ax.plot([e["t_s"]], [k], "o", color=color)
-            ax.annotate(f"{e['source']}: {e['text']}", (e["t_s"], k), xytext=(6, -3), textcoords="offset points", fontsize=8)
+            ax.annotate(f"{e['source']}: {e['text']}", (e["t_s"], k), xytext=(6, -3), textcoords="offset points",
+                        fontsize=8)
         ax.set_yticks([])
         ax.margins(x=0.3, y=0.4)
         ax.invert_yaxis()

@@ -86,7 +86,8 @@ def extract(reader: RunReader) -> dict:
             when = (raw.log_time - t0) / 1e9
             if topic == "/diagnostics":
                 for s in msg.status:
-                    events.append({"t_s": when, "source": s.name, "level": int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level), "text": s.message})
+                    level = int.from_bytes(s.level, "little") if isinstance(s.level, bytes) else int(s.level)
+                    events.append({"t_s": when, "source": s.name, "level": level, "text": s.message})
             elif int(msg.level) >= 30 or any(w in msg.msg.lower() for w in EVENT_WORDS):
                 events.append({"t_s": when, "source": msg.name, "level": int(msg.level), "text": msg.msg})
     data["events"] = events
@@ -135,7 +136,7 @@ def markdown(summary: dict, plots: list[str]) -> str:
     lines += [f"| {k} | {v['type']} | {v['count']} |" for k, v in summary["topics"].items()]
     if "vibration" in summary:
         lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
-        for i, (n, v) in enumerate(summary["vibration"].items()):
+        for i, (_n, v) in enumerate(summary["vibration"].items()):
             mean = summary.get("leg_length_mean_m", {}).get(LEGS[i], float("nan"))
             lines.append(f"| {i + 1} | {mean:.6f} | {v['amplitude_m']:.3e} | {v['frequency_hz']:.2f} |")
     if "platform" in summary:

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import signal
+import threading
+
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration as DurationMsg
@@ -12,6 +16,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
 from ..errors import InvalidInputError
 from ..rotations import pose_from_position_quaternion, pose_to_position_quaternion
+from .mcap_ros import make_executor
 
 LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
@@ -20,19 +25,32 @@ BASE_FRAME = "base"
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
 
-def run_node(factory, args=None) -> None:
-    """rclpy.init, spin the node from ``factory()`` until Ctrl-C / SIGTERM, clean up.
+def run_node(factory, args=None, executor: str = "events") -> None:
+    """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up.
 
-    A node may define ``shutdown()``; it runs before the node is destroyed
-    (e.g. to make the emulated robot safe or finish a file).
+    The signals only set a stop flag (no KeyboardInterrupt inside a callback);
+    the executor is spun in a spin_once loop that checks it.
+    ``executor="events"``: rclpy's EventsExecutor (half the CPU of the
+    SingleThreadedExecutor at the suite's 500 Hz state rate). Its sim-time
+    timers fire irregularly under load, so nodes whose timing matters (the
+    planner's streaming) pass ``executor="single"``; STEWART_EXECUTOR=single
+    forces it for every node. A node may define ``shutdown()``; it runs
+    before the node is destroyed (e.g. to stop a physics thread or finish a file).
     """
     rclpy.init(args=args)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(signum, lambda *_: stop.set())
     node = None
     try:
         node = factory()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
+        if executor == "single" or os.environ.get("STEWART_EXECUTOR") == "single":
+            spinner = SingleThreadedExecutor()
+        else:
+            spinner = make_executor()
+        spinner.add_node(node)
+        while not stop.is_set() and rclpy.ok():
+            spinner.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -34,7 +34,6 @@ from ..rotations import rotation_from_rpy
 from .common import (
     ERROR,
     OK,
-    WARN,
     Diagnostics,
     duration_seconds,
     float_param,
@@ -59,9 +58,11 @@ class HardwareEmulatorNode(Node):
         self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", True))
         self.declare_parameter("simulation_config", "", text_param("simulation YAML ('' = config/simulation.yaml)",
                                                                    True))
-        self.declare_parameter("physics_rate_hz", 1000.0, float_param("physics steps per simulated second", 200, 20000))
+        self.declare_parameter("physics_rate_hz", 2000.0, float_param("physics steps per simulated second", 200, 20000))
         self.declare_parameter("state_rate_hz", 500.0,
                                float_param("joint state / pose / clock rate (sim time)", 10, 5000))
+        self.declare_parameter("clock_rate_hz", 100.0, float_param(
+            "/clock rate (sim time); every sim-time node wakes for each tick, so keep it modest", 10, 5000))
         self.declare_parameter("real_time_factor", 1.0,
                                float_param("sim seconds per wall second; 0 = as fast as possible", 0.0, 100.0))
         self.declare_parameter("watchdog_s", 0.5, float_param("vibration ramps out after this long without commands",
@@ -136,6 +137,7 @@ class HardwareEmulatorNode(Node):
         period = 1.0 / self.get_parameter("state_rate_hz").value
         rtf = self.get_parameter("real_time_factor").value
         marker_every = self._marker_every(period)
+        clock_every = max(int(round(1.0 / (self.get_parameter("clock_rate_hz").value * period))), 1)
         wall0, sim0, cycle = time.monotonic(), self.emulator.time, 0
         self.publish_state()
         while self.running:
@@ -144,8 +146,10 @@ class HardwareEmulatorNode(Node):
                 state = self.emulator.joint_state()
                 pose = self.emulator.platform_pose()
                 now = self.emulator.time
-            self.publish_state(state, pose, now)
             cycle += 1
+            if not self.running:
+                break  # shutting down: the context may already be gone
+            self.publish_state(state, pose, now, clock=cycle % clock_every == 0)
             if marker_every and cycle % marker_every == 0:
                 self.publish_markers(pose, now)
             wall = time.monotonic() - wall0
@@ -162,12 +166,13 @@ class HardwareEmulatorNode(Node):
         rate = self.get_parameter("marker_rate_hz").value
         return max(int(round(1.0 / (rate * period))), 1) if rate > 0 else 0
 
-    def publish_state(self, state=None, pose=None, now=None) -> None:
+    def publish_state(self, state=None, pose=None, now=None, clock: bool = True) -> None:
         if state is None:
             with self.lock:
                 state, pose, now = self.emulator.joint_state(), self.emulator.platform_pose(), self.emulator.time
         stamp = sim_time_msg(now)
-        self.clock_pub.publish(Clock(clock=stamp))
+        if clock:
+            self.clock_pub.publish(Clock(clock=stamp))
         names, positions, velocities, efforts = state
         msg = JointState(name=names, position=positions.tolist(), velocity=velocities.tolist(),
                          effort=efforts.tolist())
@@ -198,7 +203,7 @@ class HardwareEmulatorNode(Node):
         """Stop physics; the emulated robot holds its last state (nothing moves after exit)."""
         self.running = False
         self.thread.join(timeout=2.0)
-        self.diagnostics.set(WARN, "shut down")
+        self.get_logger().info(f"stopped at sim time {self.emulator.time:.3f} s")
 
 
 def main(args=None) -> None:

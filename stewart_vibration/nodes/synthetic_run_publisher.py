@@ -109,6 +109,7 @@ def main(argv: list[str] | None = None) -> int:
     sent = {name: 0 for name in pubs}
     t0 = time.perf_counter()
     sim0 = 1_000_000_000_000  # 1000 s, a recognisable sim-time origin
+    fixed = None  # --fast: one JointState reused with a new stamp
     for i in range(args.count):
         target = t0 + i / args.rate
         while (now := time.perf_counter()) < target:
@@ -120,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
             pubs["clock"].publish(Clock(clock=stamp))
         if "joint_states" in pubs:
             if args.fast:
-                fixed = fixed if i else _joint_states(0.0, stamp)
+                fixed = fixed if fixed is not None else _joint_states(0.0, stamp)
                 fixed.header.stamp = stamp
                 pubs["joint_states"].publish(fixed)
             else:

@@ -358,7 +358,7 @@ class VibrationPlannerNode(Node):
 
 
 def main(args=None) -> None:
-    run_node(VibrationPlannerNode, args)
+    run_node(VibrationPlannerNode, args, executor="single")
 
 
 if __name__ == "__main__":

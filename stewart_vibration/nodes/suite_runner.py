@@ -1,0 +1,253 @@
+"""Bring-up of the whole suite in the pip world (what `stewart-vibration run` does).
+
+Starts every node as its own process on sim time in one namespace and ROS
+domain, waits until each is ready (topics flowing, services up: no fixed
+sleeps), runs a scenario (move, vibrate, return), stops the recorder so the
+MCAP is finished, stops every process (SIGINT, then SIGTERM/SIGKILL), and
+returns the MCAP path and the event times for the summary.
+"""
+
+from __future__ import annotations
+
+import glob
+import os
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.srv import SetParameters
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from ..processes import NodeProcess, ros_environment, start_python_module
+from ..robot import default_config_dir
+from ..scenario import MoveStep, Scenario, VibrateStep
+from . import ensure_ament_prefix_path
+from .common import pose_from_msg, pose_stamped
+
+NODES = [  # (process name, module)
+    ("hardware_emulator", "stewart_vibration.nodes.hardware_emulator_node"),
+    ("kinematics", "stewart_vibration.nodes.kinematics_node"),
+    ("vibration_planner", "stewart_vibration.nodes.vibration_planner_node"),
+    ("leg_force_estimator", "stewart_vibration.nodes.leg_force_estimator_node"),
+    ("mcap_recorder", "stewart_vibration.nodes.mcap_recorder_node"),
+]
+
+
+class StepFailed(RuntimeError):
+    """A scenario step did not complete (with the reason)."""
+
+
+@dataclass
+class RunOptions:
+    namespace: str = "/stewart"
+    domain_id: int = 42
+    real_time_factor: float = 1.0
+    out_dir: Path = Path("runs")
+    params_file: Path | None = None
+    settle_tolerance_m: float = 1e-5
+    settle_tolerance_rad: float = np.radians(0.01)
+    step_timeout_s: float = 120.0  # wall clock, per step
+    progress: object = print
+
+
+@dataclass
+class RunRecord:
+    """What happened: MCAP path, per-step results and event times (sim s)."""
+
+    mcap_path: Path | None = None
+    log_dir: Path | None = None
+    moves: list = field(default_factory=list)  # dicts: name, target, pose_error_m, pose_error_deg, time
+    vibrations: list = field(default_factory=list)  # dicts: parameters, start_time, stop_time, start_message
+    interrupted: bool = False
+    failures: list = field(default_factory=list)
+
+
+class SuiteRunner:
+    """Owns the child processes and a client node (own Context) in the suite's namespace."""
+
+    def __init__(self, options: RunOptions):
+        self.options = options
+        self.record = RunRecord()
+        self.procs: list[NodeProcess] = []
+        self.client = None
+
+    # -- processes -------------------------------------------------------------
+    def start(self) -> None:
+        opts = self.options
+        ensure_ament_prefix_path()
+        env = ros_environment(opts.domain_id)
+        opts.out_dir.mkdir(parents=True, exist_ok=True)
+        self.record.log_dir = opts.out_dir / "logs"
+        params = opts.params_file or default_config_dir() / "suite_params.yaml"
+        common = ["--ros-args", "-r", f"__ns:={opts.namespace}", "--params-file", str(params)]
+        extra = {
+            "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}"],
+            "mcap_recorder": ["-p", f"output_dir:={opts.out_dir.resolve()}"],
+        }
+        for name, module in NODES:
+            self.procs.append(start_python_module(name, module, common + extra.get(name, []), env,
+                                                  self.record.log_dir))
+        self.context = Context()
+        self.context.init(domain_id=opts.domain_id)
+        self.client = Node("suite_runner", namespace=opts.namespace, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.client)
+        self.clock = None
+        self.latest = {}
+        # depth 1: the runner only needs the latest sample and must not fall behind the suite
+        self.client.create_subscription(Clock, "/clock", self._on_clock, 1)
+        self.readiness_subs = []
+        for topic, kind in (("platform/pose", PoseStamped), ("platform/pose_estimate", PoseStamped),
+                            ("legs/force_estimate", JointState)):
+            sub = self.client.create_subscription(kind, topic, lambda m, t=topic: self.latest.__setitem__(t, m), 1)
+            if topic != "platform/pose":
+                self.readiness_subs.append(sub)
+        self.target_pub = self.client.create_publisher(PoseStamped, "platform/target_pose", 10)
+
+    def _on_clock(self, msg: Clock) -> None:
+        self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def stop(self) -> None:
+        """Stop the recorder (finishes the MCAP), then every process; close the client."""
+        if self.client is not None:
+            try:
+                res = self.call(Trigger, "mcap_recorder/stop", Trigger.Request(), timeout=10.0)
+                self.options.progress(f"recorder: {res.message}")
+            except (TimeoutError, RuntimeError) as exc:
+                self.options.progress(f"recorder stop service failed ({exc}); SIGINT finishes the file")
+        for proc in reversed(self.procs):
+            code = proc.stop(grace_s=10.0)
+            if code not in (0, None, -2, 130):
+                self.record.failures.append(f"{proc.name} exited with code {code} (log: {proc.log_path})")
+        if self.client is not None:
+            self.executor.shutdown()
+            self.client.destroy_node()
+            self.context.try_shutdown()
+            self.client = None
+        files = sorted(glob.glob(str(self.options.out_dir / "*.mcap")), key=os.path.getmtime)
+        self.record.mcap_path = Path(files[-1]) if files else None
+
+    # -- helpers -----------------------------------------------------------------
+    def spin_until(self, predicate, timeout: float, what: str) -> None:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            dead = [p.name for p in self.procs if not p.alive()]
+            if dead:
+                raise StepFailed(f"{', '.join(dead)} died while waiting for {what} (see {self.record.log_dir})")
+            if predicate():
+                return
+            self.executor.spin_once(timeout_sec=0.02)
+        raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
+
+    def call(self, srv_type, name: str, request, timeout: float = 30.0):
+        client = self.client.create_client(srv_type, name)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {name}")
+            future = client.call_async(request)
+            self.spin_until(future.done, timeout, f"answer of {name}")
+            return future.result()
+        finally:
+            self.client.destroy_client(client)
+
+    def wait_sim(self, seconds: float, what: str) -> None:
+        self.spin_until(lambda: self.clock is not None, 30, "/clock")
+        end = self.clock + seconds
+        rtf = max(self.options.real_time_factor, 0.05)
+        self.spin_until(lambda: self.clock >= end, seconds / rtf + 60, what)
+
+    # -- readiness ---------------------------------------------------------------
+    def wait_ready(self) -> None:
+        ns = self.options.namespace.rstrip("/")
+        progress = self.options.progress
+        self.spin_until(lambda: self.clock is not None, 60, "the emulator's /clock")
+        progress("ready: hardware_emulator (/clock)")
+        self.spin_until(lambda: "platform/pose_estimate" in self.latest, 60, "platform/pose_estimate")
+        progress("ready: kinematics (pose estimates)")
+        self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
+        progress("ready: leg_force_estimator (force estimates)")
+        for service in ("vibration_planner/start", "mcap_recorder/stop"):
+            client = self.client.create_client(Trigger, service)
+            self.spin_until(client.service_is_ready, 60, f"service {service}")
+            self.client.destroy_client(client)
+        progress("ready: vibration_planner, mcap_recorder (services)")
+
+        def recorder_subscribed():
+            infos = self.client.get_subscriptions_info_by_topic(f"{ns}/legs/joint_states")
+            return any(i.node_name == "mcap_recorder" for i in infos)
+
+        self.spin_until(recorder_subscribed, 60, "the recorder to subscribe to legs/joint_states")
+        progress("ready: mcap_recorder is recording the suite's topics")
+        for sub in self.readiness_subs:  # only the ground truth and /clock are needed from here on
+            self.client.destroy_subscription(sub)
+
+    # -- steps ---------------------------------------------------------------------
+    def run(self, scenario: Scenario) -> RunRecord:
+        for index, step in enumerate(scenario.steps, start=1):
+            label = f"step {index}/{len(scenario.steps)}"
+            if isinstance(step, MoveStep):
+                self.move_to(step, label)
+            elif isinstance(step, VibrateStep):
+                self.vibrate(step, label)
+        return self.record
+
+    def move_to(self, step: MoveStep, label: str) -> None:
+        opts = self.options
+        opts.progress(f"{label}: move to {step.name} {np.round(step.pose, 5).tolist()}")
+        start = self.clock
+        self.target_pub.publish(pose_stamped(step.pose, self.client.get_clock().now().to_msg()))
+        held_since = [None]
+
+        def settled():
+            msg = self.latest.get("platform/pose")
+            if msg is None or self.clock is None or self.clock < start + 0.1:
+                return False
+            err = pose_from_msg(msg.pose) - step.pose
+            ok = np.abs(err[:3]).max() < opts.settle_tolerance_m and np.abs(err[3:]).max() < opts.settle_tolerance_rad
+            if not ok:
+                held_since[0] = None
+                return False
+            held_since[0] = held_since[0] or self.clock
+            return self.clock - held_since[0] >= 0.5  # held for 0.5 s of sim time
+
+        self.spin_until(settled, opts.step_timeout_s, f"the platform to settle at {step.name}")
+        err = pose_from_msg(self.latest["platform/pose"].pose) - step.pose
+        self.record.moves.append({
+            "name": step.name, "target": step.pose.tolist(), "time": self.clock,
+            "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
+        })
+        opts.progress(f"{label}: settled at {step.name} in {self.clock - start:.2f} s sim; ground-truth error "
+                      f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
+
+    def vibrate(self, step: VibrateStep, label: str) -> None:
+        opts = self.options
+        params = []
+        for key, value in step.parameters.items():
+            value = [float(v) for v in value] if isinstance(value, list) else value
+            value = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+            params.append(Parameter(key, value=value).to_parameter_msg())
+        res = self.call(SetParameters, "vibration_planner/set_parameters", SetParameters.Request(parameters=params))
+        refused = [f"{p.name}: {r.reason}" for p, r in zip(params, res.results, strict=True) if not r.successful]
+        if refused:
+            raise StepFailed(f"planner refused parameters: {'; '.join(refused)}")
+        res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
+        if not res.success:
+            raise StepFailed(f"vibration start refused: {res.message}")
+        start = self.clock
+        opts.progress(f"{label}: vibrating: {res.message}")
+        self.wait_sim(step.duration + 0.3, "the vibration to finish")
+        stop = self.client.create_client(Trigger, "vibration_planner/stop")
+        if stop.service_is_ready():
+            stop.call_async(Trigger.Request())
+        self.client.destroy_client(stop)
+        self.wait_sim(step.ramp + 0.2, "the ramp-out")
+        self.record.vibrations.append({"parameters": dict(step.parameters), "start_time": start,
+                                       "stop_time": self.clock, "start_message": res.message})
+        opts.progress(f"{label}: vibration done ({self.clock - start:.2f} s sim)")
