@@ -86,7 +86,14 @@ def test_watchdog_ramps_to_zero_within_100_ms_and_latches(buffer):
     assert buffer.latched and "watchdog" in buffer.ramp_reason
     with pytest.raises(VibrationLimitError, match="start from rest"):
         buffer.add(window(0.0, 0.807, 1.4), now=0.75)  # mid-sine restart refused
-    buffer.add(window(0.8, 0.0, 0.5), now=0.75)  # starts at sin(0) = 0: accepted
+    with pytest.raises(VibrationLimitError, match="start from rest"):
+        buffer.add(window(0.8, 0.0, 0.5), now=0.75)  # a zero crossing is not rest: full speed there
+    t = np.arange(0.0, 0.5, 1e-3)
+    env, denv = np.minimum(t / 0.2, 1.0) ** 2, np.where(t < 0.2, 2 * t / 0.04, 0.0)
+    w = 2 * np.pi * F
+    pos = (A * env * np.sin(w * t))[:, None] * GAINS
+    vel = (A * (denv * np.sin(w * t) + env * w * np.cos(w * t)))[:, None] * GAINS
+    buffer.add(build_trajectory(VIB, VIB, 0.8, t, pos, vel), now=0.75)  # a ramp-in from rest: accepted
     assert not buffer.latched
 
 
