@@ -2,7 +2,8 @@
 
 Used by the bring-up and by integration tests. Each child runs in its own
 process group so a stop reaches everything it spawned; stop() sends SIGINT,
-then SIGTERM, then SIGKILL, each after a grace period.
+then SIGTERM, then SIGKILL, each after a grace period. A child also gets
+SIGTERM if its parent dies (even by SIGKILL), so nothing is orphaned.
 """
 
 from __future__ import annotations
@@ -66,6 +67,21 @@ class NodeProcess:
         return self.popen.poll()
 
 
+_PR_SET_PDEATHSIG = 1
+
+
+def _child_setup() -> None:
+    """In the child before exec: own session (a stop reaches its whole group) and SIGTERM when
+    the parent dies, even by SIGKILL, so no node outlives the bring-up (Linux prctl)."""
+    os.setsid()
+    try:
+        import ctypes
+
+        ctypes.CDLL(None, use_errno=True).prctl(_PR_SET_PDEATHSIG, signal.SIGTERM)
+    except (OSError, AttributeError):  # not Linux: the parent's stop() still cleans up
+        pass
+
+
 def start_python_module(
     name: str, module: str, args: list[str], env: dict, log_dir: Path
 ) -> NodeProcess:
@@ -79,7 +95,7 @@ def start_python_module(
         stdout=log_file,
         stderr=subprocess.STDOUT,
         stdin=subprocess.DEVNULL,
-        start_new_session=True,
+        preexec_fn=_child_setup,
     )
     return NodeProcess(name, popen, log_path, log_file)
 
