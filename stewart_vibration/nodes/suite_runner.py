@@ -29,16 +29,9 @@ from std_srvs.srv import Trigger
 from ..processes import NodeProcess, ros_environment, start_python_module
 from ..robot import default_config_dir
 from ..scenario import MoveStep, Scenario, VibrateStep
+from ..suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
 from . import ensure_ament_prefix_path
 from .common import pose_from_msg, pose_stamped
-
-NODES = [  # (process name, module)
-    ("hardware_emulator", "stewart_vibration.nodes.hardware_emulator_node"),
-    ("kinematics", "stewart_vibration.nodes.kinematics_node"),
-    ("vibration_planner", "stewart_vibration.nodes.vibration_planner_node"),
-    ("leg_force_estimator", "stewart_vibration.nodes.leg_force_estimator_node"),
-    ("mcap_recorder", "stewart_vibration.nodes.mcap_recorder_node"),
-]
 
 
 class StepFailed(RuntimeError):
@@ -47,7 +40,7 @@ class StepFailed(RuntimeError):
 
 @dataclass
 class RunOptions:
-    namespace: str = "/stewart"
+    namespace: str = DEFAULT_NAMESPACE
     domain_id: int = 42
     real_time_factor: float = 1.0
     out_dir: Path = Path("runs")
@@ -86,14 +79,14 @@ class SuiteRunner:
         env = ros_environment(opts.domain_id)
         opts.out_dir.mkdir(parents=True, exist_ok=True)
         self.record.log_dir = opts.out_dir / "logs"
-        params = opts.params_file or default_config_dir() / "suite_params.yaml"
+        params = opts.params_file or default_config_dir() / SUITE_PARAMS_FILE
         common = ["--ros-args", "-r", f"__ns:={opts.namespace}", "--params-file", str(params)]
         extra = {
             "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}"],
             "mcap_recorder": ["-p", f"output_dir:={opts.out_dir.resolve()}"],
         }
-        for name, module in NODES:
-            self.procs.append(start_python_module(name, module, common + extra.get(name, []), env,
+        for node in SUITE_NODES:
+            self.procs.append(start_python_module(node.name, node.module, common + extra.get(node.name, []), env,
                                                   self.record.log_dir))
         self.context = Context()
         self.context.init(domain_id=opts.domain_id)
