@@ -95,11 +95,11 @@ def test_parameter_validation_and_bad_starts(planner):
     nan.pose.position.x = float("nan")
     client.publisher("platform/pose_estimate", PoseStamped).publish(nan)
     client.spin_for(0.3)
-    response = trigger(client, "start")
-    assert not response.success and "no platform/pose_estimate" in response.message
+    response = trigger(client, "start")  # the NaN estimate is refused when a start needs it
+    assert not response.success and "pose estimate unusable" in response.message and "non-finite" in response.message
     assert trigger(client, "stop").success  # idle: nothing to do
     messages = [s.message for a in diagnostics for s in a.status]
-    assert any("rejected pose estimate" in m for m in messages), messages
+    assert any("rejected start: pose estimate unusable" in m for m in messages), messages
     assert proc.alive()
 
 

@@ -32,9 +32,11 @@ class HardwareEmulator:
     """
 
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
-                 vibration_ramp_s: float = 0.05):
+                 vibration_ramp_s: float = 0.05, gain_interval: int = 1):
         self.robot = robot
-        self.sim = StewartSim(robot, settings)
+        # gain_interval: steps between recomputations of the drive's 6x6 force-to-acceleration map
+        # (six extra mj_forward calls each); the map barely changes over a few ms of motion
+        self.sim = StewartSim(robot, settings, gain_interval=gain_interval)
         self.sim.reset(robot.home_pose)
         self.home_lengths = inverse_kinematics(robot, robot.home_pose)
         self.struts = TrajectoryFollower(self.home_lengths)

@@ -32,9 +32,10 @@ def run_node(factory, args=None, executor: str = "events") -> None:
     the executor is spun in a spin_once loop that checks it.
     ``executor="events"``: rclpy's EventsExecutor (half the CPU of the
     SingleThreadedExecutor at the suite's 500 Hz state rate). Its sim-time
-    timers fire irregularly under load, so nodes whose timing matters (the
-    planner's streaming) pass ``executor="single"``; STEWART_EXECUTOR=single
-    forces it for every node. A node may define ``shutdown()``; it runs
+    timers fire irregularly under load: timing-critical work (the planner's
+    streaming) polls the sim clock from a steady timer instead.
+    ``executor="single"`` or STEWART_EXECUTOR=single selects the
+    SingleThreadedExecutor. A node may define ``shutdown()``; it runs
     before the node is destroyed (e.g. to stop a physics thread or finish a file).
     """
     rclpy.init(args=args)

@@ -37,6 +37,7 @@ from .common import (
     Diagnostics,
     duration_seconds,
     float_param,
+    int_param,
     pose_stamped,
     reject,
     run_node,
@@ -68,12 +69,15 @@ class HardwareEmulatorNode(Node):
         self.declare_parameter("watchdog_s", 0.5, float_param("vibration ramps out after this long without commands",
                                                               0.02, 10.0))
         self.declare_parameter("vibration_ramp_s", 0.05, float_param("vibration ramp-out time, s", 0.005, 0.1))
+        self.declare_parameter("drive_gain_interval", 10, int_param(
+            "physics steps between recomputing the strut drive's force-to-acceleration map", 1, 1000))
         self.declare_parameter("marker_rate_hz", 10.0, float_param("MarkerArray rate (sim time)", 0.0, 100.0))
         param = self.get_parameter
         robot = load_robot(param("robot_config").value or None)
         settings = load_simulation_settings(param("simulation_config").value or None,
                                             timestep=1.0 / param("physics_rate_hz").value)
-        self.emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value)
+        self.emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
+                                         param("drive_gain_interval").value)
         self.lock = threading.Lock()
         self.diagnostics = Diagnostics(self, "hardware emulator")
         self.state_pub = self.create_publisher(JointState, "legs/joint_states", 50)

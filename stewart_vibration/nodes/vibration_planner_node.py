@@ -36,6 +36,7 @@ import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -59,6 +60,7 @@ from .common import (
     text_param,
 )
 
+POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 SMOOTHSTEP_RATE_MAX = 1.875  # max ds/dx of the quintic smoothstep
 SMOOTHSTEP_CURVATURE_MAX = 10.0 / math.sqrt(3.0)  # max |d2s/dx2|
 
@@ -118,7 +120,7 @@ class VibrationPlannerNode(Node):
         self.run = None  # dict of the running vibration's settings
         self.timer = None
         self.windows_sent = 0
-        self.pose = None
+        self.pose_msg = None
         self.pose_received_ns = None
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10)
@@ -186,12 +188,10 @@ class VibrationPlannerNode(Node):
         return self.get_clock().now().nanoseconds
 
     def on_pose(self, msg: PoseStamped) -> None:
-        try:
-            pose = pose_from_msg(msg.pose)
-        except StewartError as exc:
-            reject(self, self.diagnostics, "pose estimate", str(exc))
-            return
-        self.pose, self.pose_received_ns = pose, self.now_ns()
+        """Keep the latest estimate (500 Hz: converted only when a vibration starts)."""
+        self.pose_msg, self.pose_received_ns = msg, self.now_ns()
+
+
 
     def _report(self, level, message: str) -> None:
         self.diagnostics.set(level, message, state=self.state, last_error=self.last_error or "none",
@@ -208,8 +208,12 @@ class VibrationPlannerNode(Node):
     def on_start(self, request, response):
         if self.state != "idle":
             return self._fail(response, f"already running (state {self.state}); call stop first")
-        if self.pose is None:
+        if self.pose_msg is None:
             return self._fail(response, "no platform/pose_estimate received yet")
+        try:
+            pose = pose_from_msg(self.pose_msg.pose)
+        except StewartError as exc:
+            return self._fail(response, f"pose estimate unusable: {exc}")
         now = self.now_ns()
         if now <= 0:
             return self._fail(response, "clock not running (use_sim_time without /clock?)")
@@ -220,7 +224,7 @@ class VibrationPlannerNode(Node):
         use_amplitude = s["amplitude_m"] > 0
         try:
             plan = decompose_vibration(
-                self.robot, self.pose, list(s["direction"]),
+                self.robot, pose, list(s["direction"]),
                 amplitude=s["amplitude_m"] if use_amplitude else None,
                 acceleration_g=None if use_amplitude else s["acceleration_g"],
                 frequency=s["frequency_hz"], phase=s["phase_rad"], frame=s["frame"], method="exact",
@@ -240,7 +244,10 @@ class VibrationPlannerNode(Node):
                         end=s["duration_s"] if s["duration_s"] > 0 else None, stop_end=None, final_sent=False)
         self.state, self.last_error, self.windows_sent = "running", "", 0
         self.send_window(now)
-        self.timer = self.create_timer(s["window_period_s"], self.tick)
+        self.next_send_ns = now + int(round(s["window_period_s"] * 1e9))
+        # poll on a steady (wall) timer and send by the node clock (sim time): robust at any
+        # real-time factor, and independent of how an executor schedules sim-time timers
+        self.timer = self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         acc_g = plan.amplitude * (2 * math.pi * plan.frequency) ** 2 / STANDARD_GRAVITY
         text = (
             f"started: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um ({acc_g:.3f} g) "
@@ -302,7 +309,8 @@ class VibrationPlannerNode(Node):
                 self.timer = None
             self._report(OK, "idle")
             return
-        if not run["final_sent"]:
+        if not run["final_sent"] and now >= self.next_send_ns:
+            self.next_send_ns = now + int(round(run["window_period_s"] * 1e9))
             try:
                 self.send_window(now)
             except StewartError as exc:  # should not happen: start checked the peaks with the ramps
@@ -358,7 +366,7 @@ class VibrationPlannerNode(Node):
 
 
 def main(args=None) -> None:
-    run_node(VibrationPlannerNode, args, executor="single")
+    run_node(VibrationPlannerNode, args)
 
 
 if __name__ == "__main__":
