@@ -53,8 +53,8 @@ class ForwardKinematicsError(StewartError):
     """Newton forward kinematics did not converge or found another assembly mode."""
 
 
-class VibrationLimitError(StewartError, ValueError):
-    """A vibration request exceeds a vibration-unit or stroke limit.
+class LimitExceededError(StewartError, ValueError):
+    """A command exceeds a hardware limit.
 
     Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``.
     """
@@ -67,15 +67,9 @@ class VibrationLimitError(StewartError, ValueError):
         self.limit = limit
 
 
-class ActuatorLimitError(StewartError, ValueError):
-    """A strut command exceeds an actuator limit (velocity, force) or the emulator is stopped.
+class VibrationLimitError(LimitExceededError):
+    """A vibration request exceeds a vibration-unit or stroke limit."""
 
-    Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``.
-    """
 
-    def __init__(self, message: str, *, leg=None, limit_name=None, value=None, limit=None):
-        super().__init__(message)
-        self.leg = leg
-        self.limit_name = limit_name
-        self.value = value
-        self.limit = limit
+class ActuatorLimitError(LimitExceededError):
+    """A strut command exceeds an actuator limit (velocity, force) or the emulator is stopped."""

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from ros_client import RosTestClient
@@ -12,9 +13,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from stewart_vibration import pose_to_position_quaternion
 from stewart_vibration.emulation.emulator import VIB_NAMES
-from stewart_vibration.nodes.common import duration_msg, pose_from_msg
+from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.processes import ros_environment, start_python_module
 
@@ -59,12 +59,7 @@ def test_target_pose_reached_and_vibration_safety(robot, suite):
 
     # target pose -> ground truth within 10 um and 0.01 deg after settling
     target = paper_pose(robot)
-    msg = PoseStamped()
-    msg.header.frame_id = "base"
-    position, quat = pose_to_position_quaternion(target)
-    msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = map(float, position)
-    o = msg.pose.orientation
-    o.x, o.y, o.z, o.w = map(float, quat)
+    msg = pose_stamped(target, Time())
     client.publisher("platform/target_pose", PoseStamped).publish(msg)
     assert client.spin_until(lambda: len(clock) and sim_now(clock) > 1.0, 30)
     start = sim_now(clock)
