@@ -64,20 +64,27 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
                 ax.set_title("Platform position about its mean (platform/pose)")
         ax.set_xlabel("time (s)")
         ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-        ax3.plot(dev[:, 0], dev[:, 1], dev[:, 2], lw=0.8, color="gray")
-        p = summary.get("platform", {})
-        if p:
-            d = np.array(p["vibration_direction"]) * p["vibration_amplitude_m"] * 1e3
-            ax3.quiver(0, 0, 0, *d, color="red", lw=2)
-            ax3.set_title("Vibration path (mm, equal axes); red: direction ["
-                          + ", ".join(f"{x:.3f}" for x in p["vibration_direction"]) + "]", fontsize=10)
-        r = max(float(np.abs(dev).max()), 1e-6)
-        ax3.set_xlim(-r, r)
-        ax3.set_ylim(-r, r)
-        ax3.set_zlim(-r, r)
-        ax3.set_xlabel("x (mm)")
-        ax3.set_ylabel("y (mm)")
-        ax3.set_zlabel("z (mm)")
+        window = data.get("vibration_window")
+        if window:  # the vibration itself, in um, about its own mean
+            sel = (data["pose_t"] >= window[0]) & (data["pose_t"] <= window[1])
+            path = (data["pose_xyz"][sel] - data["pose_xyz"][sel].mean(axis=0)) * 1e6
+            ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=0.8, color="gray")
+            p = summary.get("platform", {})
+            if p:
+                d = np.array(p["vibration_direction"]) * p["vibration_amplitude_m"] * 1e6
+                ax3.quiver(0, 0, 0, *d, color="red", lw=2)
+                ax3.set_title(f"Vibration path {window[0]:.2f}-{window[1]:.2f} s (um, equal axes)\n"
+                              f"red: amplitude {p['vibration_amplitude_m'] * 1e6:.2f} um along ["
+                              + ", ".join(f"{x:.3f}" for x in p["vibration_direction"]) + "] (base frame)",
+                              fontsize=10)
+            r = max(float(np.abs(path).max()), 1e-6)
+            for setter in (ax3.set_xlim, ax3.set_ylim, ax3.set_zlim):
+                setter(-r, r)
+        else:
+            ax3.set_title("no vibration in this run", fontsize=10)
+        ax3.set_xlabel("x (um)")
+        ax3.set_ylabel("y (um)")
+        ax3.set_zlabel("z (um)")
         _save(fig, out, "platform.png", plots)
     if "force" in data or "est" in data:
         fig, axes = _legs_grid("Leg axial force: measured (legs/joint_states) vs estimated (legs/force_estimate)")
@@ -93,6 +100,23 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         for ax in axes[-2:]:
             ax.set_xlabel("time (s)")
         _save(fig, out, "forces.png", plots)
+        window = data.get("vibration_window")
+        if window and "force" in data and "est" in data:  # 0.1 s of the steady vibration, close up
+            mid = 0.5 * (window[0] + window[1])
+            fig, axes = _legs_grid(f"Leg axial force during the vibration, {mid:.2f}-{mid + 0.1:.2f} s: "
+                                   "measured (black) vs estimated (orange dashed)")
+            ms = (data["force_t"] >= mid) & (data["force_t"] <= mid + 0.1)
+            es = (data["est_t"] >= mid) & (data["est_t"] <= mid + 0.1)
+            for i, ax in enumerate(axes):
+                ax.plot(data["force_t"][ms], data["force"][ms, i], color="black", lw=1.2, label="measured")
+                ax.plot(data["est_t"][es], data["est"][es, i], color="tab:orange", lw=1.2, ls="--", label="estimated")
+                ax.set_title(f"leg_{i + 1}")
+                ax.set_ylabel("force (N)")
+                ax.grid(alpha=0.3)
+            axes[0].legend(loc="upper right")
+            for ax in axes[-2:]:
+                ax.set_xlabel("time (s)")
+            _save(fig, out, "forces_vibration.png", plots)
     events = data.get("events", [])
     if events:
         fig, ax = plt.subplots(figsize=(11, 1.2 + 0.35 * min(len(events), 20)))

@@ -35,7 +35,7 @@ def _joint_series(reader, topic, names, field):
         index = {n: i for i, n in enumerate(msg.name)}
         if not all(n in index and index[n] < len(values) for n in names):
             continue
-        t.append(raw.log_time)
+        t.append(raw.publish_time)  # the header stamp: when the sample is from, not when it arrived
         rows.append([values[index[n]] for n in names])
     return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, len(names))
 
@@ -50,6 +50,25 @@ def _dominant(t_s: np.ndarray, x: np.ndarray) -> tuple[float, float]:
     k = int(np.argmax(np.abs(spec[1:]))) + 1
     freq = k / (grid[-1] - grid[0]) * (len(grid) - 1) / len(grid)
     return float(np.sqrt(2.0) * np.std(y)), float(freq)
+
+
+def vibration_window(data: dict, ramp_trim_s: float = 0.25) -> tuple[float, float] | None:
+    """(start, end) s of the steady vibration: where any |vib_i| exceeds 2 % of its peak, minus
+    ``ramp_trim_s`` at both ends (the ramps) when the interval is long enough; None if no vibration."""
+    if "vib" not in data or not len(data["vib_t"]):
+        return None
+    level = np.abs(data["vib"]).max(axis=1)
+    if level.max() <= 0:
+        return None
+    active = np.flatnonzero(level > 0.02 * level.max())
+    t0, t1 = float(data["vib_t"][active[0]]), float(data["vib_t"][active[-1]])
+    if t1 - t0 > 4 * ramp_trim_s:
+        t0, t1 = t0 + ramp_trim_s, t1 - ramp_trim_s
+    return t0, t1
+
+
+def _within(t: np.ndarray, window) -> np.ndarray:
+    return np.ones(len(t), dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
 
 
 def extract(reader: RunReader) -> dict:
@@ -75,7 +94,7 @@ def extract(reader: RunReader) -> dict:
         t, xyz = [], []
         for raw, msg in reader.decoded([pose]):
             p = msg.pose.position
-            t.append(raw.log_time)
+            t.append(raw.publish_time)
             xyz.append([p.x, p.y, p.z])
         data["pose_t"], data["pose_xyz"] = (np.array(t) - t0) / 1e9, np.array(xyz)
     events = []
@@ -91,6 +110,7 @@ def extract(reader: RunReader) -> dict:
             elif int(msg.level) >= 30 or any(w in msg.msg.lower() for w in EVENT_WORDS):
                 events.append({"t_s": when, "source": msg.name, "level": int(msg.level), "text": msg.msg})
     data["events"] = events
+    data["vibration_window"] = vibration_window(data)
     return data
 
 
@@ -105,17 +125,21 @@ def summarize(reader: RunReader, data: dict) -> dict:
     }
     if "leg_lengths" in data:
         out["leg_length_mean_m"] = dict(zip(LEGS, np.mean(data["leg_lengths"], axis=0).tolist()))
-    if "vib" in data:
+    window = data.get("vibration_window")
+    out["vibration_window_s"] = list(window) if window else None
+    if "vib" in data and window:
+        sel = _within(data["vib_t"], window)
         out["vibration"] = {
-            n: dict(zip(("amplitude_m", "frequency_hz"), _dominant(data["vib_t"], data["vib"][:, i])))
+            n: dict(zip(("amplitude_m", "frequency_hz"), _dominant(data["vib_t"][sel], data["vib"][sel, i])))
             for i, n in enumerate(VIBS)
         }
-    if "pose_xyz" in data:
-        dev = data["pose_xyz"] - data["pose_xyz"].mean(axis=0)
+    if "pose_xyz" in data and window:
+        sel = _within(data["pose_t"], window)
+        dev = data["pose_xyz"][sel] - data["pose_xyz"][sel].mean(axis=0)
         _u, s, vt = np.linalg.svd(dev, full_matrices=False) if len(dev) > 1 else (None, [0.0], np.eye(3))
         direction = vt[0] * (1 if vt[0][np.argmax(np.abs(vt[0]))] > 0 else -1)
         out["platform"] = {
-            "mean_position_m": data["pose_xyz"].mean(axis=0).tolist(),
+            "mean_position_m": data["pose_xyz"][sel].mean(axis=0).tolist(),
             "vibration_direction": direction.tolist(),
             "vibration_amplitude_m": float(np.sqrt(2.0) * s[0] / np.sqrt(max(len(dev), 1))),
             "linearity": float(s[0] ** 2 / max(np.sum(np.square(s)), 1e-300)),
@@ -124,6 +148,9 @@ def summarize(reader: RunReader, data: dict) -> dict:
         measured = np.column_stack([np.interp(data["est_t"], data["force_t"], data["force"][:, i]) for i in range(6)])
         err = data["est"] - measured
         out["force_error_rms_n"] = dict(zip(LEGS, np.sqrt(np.mean(err**2, axis=0)).tolist()))
+        if window:
+            sel = _within(data["est_t"], window)
+            out["force_error_rms_n_vibration"] = dict(zip(LEGS, np.sqrt(np.mean(err[sel] ** 2, axis=0)).tolist()))
     out["events"] = data["events"]
     return out
 
@@ -134,6 +161,9 @@ def markdown(summary: dict, plots: list[str]) -> str:
     lines += [f"- complete file: {summary['complete']}", f"- messages: {summary['message_count']}", ""]
     lines += ["| topic | type | messages |", "|---|---|---|"]
     lines += [f"| {k} | {v['type']} | {v['count']} |" for k, v in summary["topics"].items()]
+    if summary.get("vibration_window_s"):
+        a, b = summary["vibration_window_s"]
+        lines += ["", f"Steady vibration from {a:.2f} s to {b:.2f} s (ramps excluded); figures below are over it."]
     if "vibration" in summary:
         lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
         for i, (_n, v) in enumerate(summary["vibration"].items()):
@@ -147,6 +177,9 @@ def markdown(summary: dict, plots: list[str]) -> str:
     if "force_error_rms_n" in summary:
         lines += ["", "Leg force estimate vs measured, RMS error (N): "
                   + ", ".join(f"{k} {v:.3f}" for k, v in summary["force_error_rms_n"].items())]
+    if "force_error_rms_n_vibration" in summary:
+        lines += ["", "During the steady vibration, RMS error (N): "
+                  + ", ".join(f"{k} {v:.4f}" for k, v in summary["force_error_rms_n_vibration"].items())]
     if summary["events"]:
         lines += ["", "| t (s) | source | level | event |", "|---|---|---|---|"]
         lines += [f"| {e['t_s']:.3f} | {e['source']} | {e['level']} | {e['text']} |" for e in summary["events"]]
