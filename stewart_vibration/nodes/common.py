@@ -143,8 +143,8 @@ def named_values(names, values, wanted) -> np.ndarray | None:
 
 
 def duration_msg(seconds: float) -> DurationMsg:
-    sec = int(np.floor(seconds))
-    return DurationMsg(sec=sec, nanosec=int(round((seconds - sec) * 1e9)) % 1_000_000_000)
+    sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)  # 0.9999999999 -> 1 s, not 0 s
+    return DurationMsg(sec=sec, nanosec=nanosec)
 
 
 def duration_seconds(msg) -> float:

@@ -47,8 +47,8 @@ from .common import (
 
 
 def sim_time_msg(seconds: float) -> Time:
-    sec = int(seconds)
-    return Time(sec=sec, nanosec=int(round((seconds - sec) * 1e9)) % 1_000_000_000)
+    sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)  # 4.9999999999 -> 5 s, not 4 s
+    return Time(sec=sec, nanosec=nanosec)
 
 
 class HardwareEmulatorNode(Node):
