@@ -14,13 +14,27 @@ GAINS = np.array([0.9, -0.7, 0.95, 0.88, -0.83, 0.94])
 F, A = 35.0, 60e-6
 
 
-def window(start, t0, t1, dt=1e-3, amp=A, gains=GAINS):
-    """Samples of amp * gains * sin(2 pi F t) on [t0, t1] (times relative to ``start``)."""
-    t = np.arange(t0, t1 + dt / 2, dt)
+RAMP = 0.1  # s, quintic smoothstep ramp-in from rest at t = 0
+
+
+def signal(t, amp=A, gains=GAINS, ramp=True):
+    """(position, velocity) [n, 6] of amp * e(t) * gains * sin(2 pi F t), e a smooth ramp-in from rest."""
+    t = np.asarray(t, dtype=float)
     w = 2 * np.pi * F
-    pos = amp * np.sin(w * t)[:, None] * gains
-    vel = amp * w * np.cos(w * t)[:, None] * gains
-    return build_trajectory(VIB, VIB, start, t, pos, vel)
+    if ramp:
+        x = np.clip(t / RAMP, 0.0, 1.0)
+        env, denv = x**3 * (10 - 15 * x + 6 * x * x), 30 * x**2 * (1 - x) ** 2 / RAMP
+    else:
+        env, denv = np.ones_like(t), np.zeros_like(t)
+    pos = amp * (env * np.sin(w * t))[:, None] * gains
+    vel = amp * (denv * np.sin(w * t) + env * w * np.cos(w * t))[:, None] * gains
+    return pos, vel
+
+
+def window(start, t0, t1, dt=1e-3, amp=A, gains=GAINS, ramp=True):
+    """Samples of ``signal`` on [t0, t1] (times relative to ``start``)."""
+    t = np.arange(t0, t1 + dt / 2, dt)
+    return build_trajectory(VIB, VIB, start, t, *signal(t, amp, gains, ramp))
 
 
 @pytest.fixture
@@ -33,10 +47,11 @@ def test_cubic_interpolation_reproduces_the_sine(buffer):
     t = np.linspace(10.01, 10.39, 777)  # before the watchdog (last receipt 9.9 + 0.5 s)
     pos, vel, acc = buffer.sample(t)
     w = 2 * np.pi * F
-    exact = A * np.sin(w * (t - 10.0))[:, None] * GAINS
+    exact, exact_vel = signal(t - 10.0)
     assert np.abs(pos - exact).max() < 1e-4 * A  # cubic Hermite at 28 samples/period
-    assert np.abs(vel - A * w * np.cos(w * (t - 10.0))[:, None] * GAINS).max() < 1e-2 * A * w
-    assert np.abs(acc + w * w * exact).max() < 0.1 * A * w * w  # cubic acceleration is piecewise linear
+    assert np.abs(vel - exact_vel).max() < 1e-2 * A * w
+    steady = t > 10.0 + RAMP
+    assert np.abs(acc[steady] + w * w * exact[steady]).max() < 0.1 * A * w * w  # cubic: piecewise-linear accel
 
 
 def test_new_window_replaces_from_its_first_sample(buffer):
@@ -87,7 +102,7 @@ def test_watchdog_ramps_to_zero_within_100_ms_and_latches(buffer):
     with pytest.raises(VibrationLimitError, match="start from rest"):
         buffer.add(window(0.0, 0.807, 1.4), now=0.75)  # mid-sine restart refused
     with pytest.raises(VibrationLimitError, match="start from rest"):
-        buffer.add(window(0.8, 0.0, 0.5), now=0.75)  # a zero crossing is not rest: full speed there
+        buffer.add(window(0.8, 0.0, 0.5, ramp=False), now=0.75)  # a zero crossing is not rest: full speed there
     t = np.arange(0.0, 0.5, 1e-3)
     env, denv = np.minimum(t / 0.2, 1.0) ** 2, np.where(t < 0.2, 2 * t / 0.04, 0.0)
     w = 2 * np.pi * F
@@ -102,6 +117,13 @@ def test_commands_running_out_ramp_to_zero(buffer):
     t, pos = ramp_checks(buffer, 0.0, 0.5)
     assert np.abs(pos[t >= 0.3 + 0.1]).max() == 0.0
     assert "ran out" in buffer.ramp_reason
+
+
+def test_a_late_first_window_is_refused_not_started_mid_ramp(buffer):
+    with pytest.raises(VibrationLimitError, match="after its first sample"):
+        buffer.add(window(100.0, 0.0, 0.6), now=100.05)  # half-way up the ramp-in when it arrives
+    buffer.add(window(100.0, 0.0, 0.6), now=99.95)  # on time: accepted
+    assert buffer.end == pytest.approx(100.6)
 
 
 def test_stop_ramps_from_now(buffer):

@@ -214,7 +214,7 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
             client.spin_for(0.0025)
         client.spin_for(0.2)
         stamp = windows[0].header.stamp
-        assert abs(stamp.sec + stamp.nanosec * 1e-9 - 100.1) < 1e-6  # t0 = sim now + lead_s
+        assert abs(stamp.sec + stamp.nanosec * 1e-9 - 100.3) < 1e-6  # t0 = sim now + lead_s (0.3 s)
         samples, worst = merged(windows)
         last = samples[max(samples)]
         assert worst < 1e-15 and abs(last[0] - 1.0) < 1e-9 and np.abs(last[1]).max() == 0.0  # ends at rest

@@ -53,12 +53,19 @@ class VibrationBuffer:
         vel = traj.velocities if traj.velocities is not None else np.gradient(pos, times, axis=0) if len(times) > 1 \
             else np.zeros_like(pos)
         self._check_limits(times, pos, vel)
-        if self.latched or self.ramp_start is not None:
-            # from rest: displacement and velocity ~0 (a ramp-in), not merely a zero crossing
+        if self.times.size == 0 or self.latched or self.ramp_start is not None:
+            # a (re)start must be at rest where it takes effect (its first sample, or now if that is
+            # already past: a late window would otherwise start mid-ramp, i.e. with a step)
+            effective = max(now, float(times[0]))
+            p_eff = np.array([np.interp(effective, times, pos[:, k]) for k in range(6)])
+            v_eff = np.array([np.interp(effective, times, vel[:, k]) for k in range(6)])
             rest_speed = 1e-3 * self.limits.amplitude_max * 2 * np.pi * self.limits.frequency_max
-            if np.abs(pos[0]).max() > 1e-3 * self.limits.amplitude_max or np.abs(vel[0]).max() > rest_speed:
+            if np.abs(p_eff).max() > 1e-3 * self.limits.amplitude_max or np.abs(v_eff).max() > rest_speed:
+                why = self.ramp_reason or "idle"
+                late = f", {now - times[0]:.3f} s after its first sample" if now > times[0] else ""
                 raise VibrationLimitError(
-                    f"vibration is stopped ({self.ramp_reason}); a new command must start from rest",
+                    f"vibration is stopped ({why}); a new command must start from rest (window arrived{late} "
+                    f"with {np.abs(p_eff).max() * 1e6:.2f} um / {np.abs(v_eff).max() * 1e3:.3f} mm/s there)",
                     limit_name="restart_from_rest",
                 )
             self.latched, self.ramp_start, self.ramp_reason = False, None, ""

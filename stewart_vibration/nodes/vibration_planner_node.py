@@ -105,7 +105,7 @@ class VibrationPlannerNode(Node):
         self.declare_parameter("window_period_s", 0.2, float_param(
             "period between windows, s (< the emulator's 0.5 s watchdog)", 0.01, 0.4))
         self.declare_parameter("sample_period_s", 0.001, float_param("sample spacing in a window, s", 1e-4, 0.05))
-        self.declare_parameter("lead_s", 0.1, float_param("windows start this far ahead of now, s", 0.0, 2.0))
+        self.declare_parameter("lead_s", 0.3, float_param("windows start this far ahead of now, s", 0.0, 2.0))
         self.declare_parameter("pose_timeout_s", 1.0, float_param(
             "start needs a pose estimate received within this time, s", 0.01, 60.0))
         self.add_on_set_parameters_callback(self.on_set_parameters)
