@@ -18,6 +18,10 @@ from ..errors import InvalidInputError
 from ..rotations import pose_from_position_quaternion, pose_to_position_quaternion
 from .mcap_ros import make_executor
 
+# History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
+# reader that stalls longer than depth / rate loses samples, so allow ~1 s of lag.
+STREAM_DEPTH = 500
+
 LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
 BASE_FRAME = "base"
@@ -156,6 +160,7 @@ def stamp_seconds(stamp) -> float:
 
 
 __all__ = [
+    "STREAM_DEPTH",
     "BASE_FRAME",
     "ERROR",
     "LEG_NAMES",

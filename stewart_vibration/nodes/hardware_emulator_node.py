@@ -34,6 +34,7 @@ from ..rotations import rotation_from_rpy
 from .common import (
     ERROR,
     OK,
+    STREAM_DEPTH,
     Diagnostics,
     duration_seconds,
     float_param,
@@ -80,8 +81,8 @@ class HardwareEmulatorNode(Node):
                                          param("drive_gain_interval").value)
         self.lock = threading.Lock()
         self.diagnostics = Diagnostics(self, "hardware emulator")
-        self.state_pub = self.create_publisher(JointState, "legs/joint_states", 50)
-        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", 50)
+        self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
+        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10)

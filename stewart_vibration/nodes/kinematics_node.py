@@ -23,6 +23,7 @@ from ..robot import load_robot
 from .common import (
     LEG_NAMES,
     OK,
+    STREAM_DEPTH,
     VIB_NAMES,
     WARN,
     Diagnostics,
@@ -60,9 +61,9 @@ class KinematicsNode(Node):
         self.pose = None  # latest pose estimate
         self.fk_failures = 0
         self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
-        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", 10)
+        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
         # 1 s of states at 500 Hz: under CPU load the executor stalls > 0.1 s and depth 50 lost estimates
-        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, 500)
+        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH)
         self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
         self.diagnostics.set(OK, "waiting for legs/joint_states")

@@ -41,6 +41,7 @@ from .common import (
     BASE_FRAME,
     LEG_NAMES,
     OK,
+    STREAM_DEPTH,
     VIB_NAMES,
     Diagnostics,
     duration_seconds,
@@ -82,9 +83,9 @@ class LegForceEstimatorNode(Node):
         self.errors = RunningForceError(self.get_parameter("rms_window_s").value)
         self.processed = 0
         self.last_reason = None
-        self.force_pub = self.create_publisher(JointState, "legs/force_estimate", 50)
-        self.wrench_pub = self.create_publisher(WrenchStamped, "platform/external_wrench_estimate", 50)
-        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, 200)
+        self.force_pub = self.create_publisher(JointState, "legs/force_estimate", STREAM_DEPTH)
+        self.wrench_pub = self.create_publisher(WrenchStamped, "platform/external_wrench_estimate", STREAM_DEPTH)
+        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 10)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10)
         self.create_timer(self.get_parameter("batch_period_s").value, self.process)
