@@ -14,6 +14,7 @@ exit_when_done (true). Prints ``MCAP_REPLAY_DONE {json}`` at the end.
 
 from __future__ import annotations
 
+import itertools
 import json
 import sys
 import threading
@@ -93,8 +94,12 @@ class McapReplayNode(Node):
             self._wait_for_subscribers()
             run_start = min((m.log_time for m in self.reader.messages()), default=0)
             while not self._stop.is_set():
-                pacer = Pacer()
-                for due, msg in schedule(self.reader.messages(), run_start, self.options):
+                items = schedule(self.reader.messages(), run_start, self.options)
+                first = next(items, None)  # open the file and decode the first chunk first
+                if first is None:
+                    break
+                pacer = Pacer()  # time zero of the replay is now
+                for due, msg in itertools.chain([first], items):
                     late = pacer.wait_until(due, self._stop.is_set)
                     self.lateness_s.append(late)
                     if self._stop.is_set():
@@ -136,10 +141,12 @@ def main(args=None) -> int:
     finally:
         node.stop()
         late = sorted(node.lateness_s) or [0.0]
+        worst = sorted(range(len(node.lateness_s)), key=node.lateness_s.__getitem__)[-5:]
         report = {
             "published": node.published,
             "lateness_max_s": late[-1],
             "lateness_p99_s": late[int(0.99 * (len(late) - 1))],
+            "lateness_worst": [[i, node.lateness_s[i]] for i in reversed(worst)],
         }
         print("MCAP_REPLAY_DONE " + json.dumps(report), flush=True)
         node.destroy_node()
