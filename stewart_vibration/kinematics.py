@@ -8,7 +8,6 @@ d_i = p + R a_i - b_i, l_i = |d_i|, n_i = d_i / l_i.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -21,6 +20,7 @@ from .errors import (
     StrokeLimitError,
     UnreachablePoseError,
 )
+from .kinematics_scalar import forward_kinematics_scalar
 from .robot import Robot
 from .rotations import rotation_from_rpy, rpy_from_rotation, so3_exp
 from .validation import as_batch, first_violation
@@ -473,86 +473,27 @@ def _solve_steps(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         return np.einsum("nij,nj->ni", np.linalg.pinv(jac), rhs)
 
 
-def _rotation_single(rpy: np.ndarray) -> np.ndarray:
-    """rotation_from_rpy for one pose with scalar math (low call overhead)."""
-    cr, sr = math.cos(rpy[0]), math.sin(rpy[0])
-    cp, sp = math.cos(rpy[1]), math.sin(rpy[1])
-    cy, sy = math.cos(rpy[2]), math.sin(rpy[2])
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
-
-
-def _rotate_single(phi: np.ndarray, rot: np.ndarray) -> np.ndarray:
-    """exp([phi]x) @ rot for one rotation vector phi (rad), with scalar math."""
-    x, y, z = float(phi[0]), float(phi[1]), float(phi[2])
-    t2 = x * x + y * y + z * z
-    if t2 < 1e-12:
-        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
-    else:
-        t = math.sqrt(t2)
-        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / t2
-    e = (
-        (1 - b * (y * y + z * z), -a * z + b * x * y, a * y + b * x * z),
-        (a * z + b * x * y, 1 - b * (x * x + z * z), -a * x + b * y * z),
-        (-a * y + b * x * z, a * x + b * y * z, 1 - b * (x * x + y * y)),
-    )
-    m = rot.tolist()
-    return np.array([[e[i][0] * m[0][j] + e[i][1] * m[1][j] + e[i][2] * m[2][j] for j in range(3)] for i in range(3)])
+def _scalar_geometry(robot: Robot):
+    """(platform hinges, base hinges) as tuples of floats for the scalar solver (cached)."""
+    cached = getattr(robot, "_scalar_geometry", None)
+    if cached is None:
+        cached = (
+            tuple(map(tuple, robot.platform_hinges.tolist())),
+            tuple(map(tuple, robot.base_hinges.tolist())),
+        )
+        object.__setattr__(robot, "_scalar_geometry", cached)
+    return cached
 
 
 def _forward_kinematics_single(robot, target, start, tol, max_iter, batch_shape) -> ForwardKinematicsResult:
     """Same Newton iteration as the batched path, for one warm-started solve (low latency)."""
-    hinges, base = robot.platform_hinges, robot.base_hinges
-    position, rotation = start[:3].copy(), _rotation_single(start[3:])
-
-    def evaluate(p, rot):
-        r = hinges @ rot.T
-        d = r + (p - base)
-        cur = np.sqrt((d * d).sum(axis=1))
-        g = cur - target
-        return d, r, cur, g, float(np.abs(g).max())
-
-    d, r, cur, g, res = evaluate(position, rotation)
-    iterations = 0
-    jac = np.empty((6, 6))
-    while res >= tol and iterations < max_iter:
-        n = d / cur[:, None]
-        jac[:, :3] = n
-        jac[:, 3] = r[:, 1] * n[:, 2] - r[:, 2] * n[:, 1]
-        jac[:, 4] = r[:, 2] * n[:, 0] - r[:, 0] * n[:, 2]
-        jac[:, 5] = r[:, 0] * n[:, 1] - r[:, 1] * n[:, 0]
-        try:
-            step = np.linalg.solve(jac, -g)
-        except np.linalg.LinAlgError:
-            step = np.linalg.lstsq(jac, -g, rcond=None)[0]
-        alpha = 1.0
-        for halving in range(11):
-            p_try = position + alpha * step[:3]
-            rot_try = _rotate_single(alpha * step[3:], rotation)
-            trial = evaluate(p_try, rot_try)
-            if trial[4] < res or trial[4] < tol or halving == 10:
-                break
-            alpha *= 0.5
-        position, rotation = p_try, rot_try
-        d, r, cur, g, res = trial
-        iterations += 1
-    if iterations == 0:
-        jac = jacobian_from_vectors(d, r, cur)
-    # the last Newton Jacobian is within one (converged) step of the solution,
-    # so its determinant sign identifies the assembly mode
-    home_det_sign = _home_cache(robot)[2]
-    assembly_ok = bool((d[:, 2] > 0).all() and np.sign(np.linalg.det(jac)) == home_det_sign)
-    r00, r10, r20, r21, r22 = rotation[0, 0], rotation[1, 0], rotation[2, 0], rotation[2, 1], rotation[2, 2]
-    rpy = (math.atan2(r21, r22), math.atan2(-r20, math.hypot(r00, r10)), math.atan2(r10, r00))
-    pose = np.array([position[0], position[1], position[2], *rpy])
+    hinges, base = _scalar_geometry(robot)
+    pose, rotation, iterations, res, assembly_ok = forward_kinematics_scalar(
+        hinges, base, target.tolist(), start.tolist(), tol, max_iter, float(_home_cache(robot)[2])
+    )
     return ForwardKinematicsResult(
-        pose=pose.reshape(batch_shape + (6,)),
-        rotation=rotation.reshape(batch_shape + (3, 3)),
+        pose=np.array(pose).reshape(batch_shape + (6,)),
+        rotation=np.array(rotation).reshape(batch_shape + (3, 3)),
         iterations=np.array(iterations).reshape(batch_shape),
         residual=np.array(res).reshape(batch_shape),
         converged=np.array(res < tol).reshape(batch_shape),

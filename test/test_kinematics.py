@@ -14,6 +14,7 @@ from stewart_vibration import (
     jacobian,
     load_robot,
 )
+from stewart_vibration.kinematics_scalar import solve_linear_6
 from stewart_vibration.robot import default_config_dir
 
 
@@ -147,15 +148,31 @@ def test_fk_round_trip_10000_poses(robot):
 
 
 def test_fk_single_warm_path_matches_batched(robot):
-    pose = random_workspace_poses(robot, 1, seed=6)[0]
-    lengths = inverse_kinematics(robot, pose)
-    guess = pose + 1e-5
-    single = forward_kinematics(robot, lengths, guess=guess)
-    batched = forward_kinematics(robot, lengths[None], guess=guess[None])
-    assert single.pose.shape == (6,) and batched.pose.shape == (1, 6)
-    assert np.abs(single.pose - pose).max() <= 1e-12
-    assert np.abs(single.pose - batched.pose[0]).max() <= 1e-12
-    assert int(single.iterations) == int(batched.iterations[0])
+    """The scalar single-solve path and the batched numpy path agree sample by sample."""
+    poses = random_workspace_poses(robot, 200, seed=6)
+    lengths = inverse_kinematics(robot, poses)
+    rng = np.random.default_rng(8)
+    guesses = poses + rng.normal(scale=[1e-3, 1e-3, 1e-3, 1e-2, 1e-2, 1e-2], size=poses.shape)
+    batched = forward_kinematics(robot, lengths, guess=guesses)
+    for k in range(len(poses)):
+        single = forward_kinematics(robot, lengths[k], guess=guesses[k])
+        assert single.pose.shape == (6,) and single.rotation.shape == (3, 3)
+        assert np.abs(single.pose - poses[k]).max() <= 1e-10
+        assert np.abs(single.pose - batched.pose[k]).max() <= 1e-12
+        assert int(single.iterations) == int(batched.iterations[k])
+        assert bool(single.converged) and bool(single.assembly_ok)
+
+
+def test_scalar_linear_solve_and_determinant_sign_match_numpy():
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        a = rng.normal(size=(6, 6))
+        b = rng.normal(size=6)
+        x, sign = solve_linear_6(a.tolist(), b.tolist())
+        assert np.allclose(x, np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
+        assert sign == np.sign(np.linalg.det(a))
+    singular = np.ones((6, 6))
+    assert solve_linear_6(singular.tolist(), [1.0] * 6) is None
 
 
 def test_fk_rejects_other_assembly_mode(robot):
