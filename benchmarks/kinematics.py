@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import time
 
 import numpy as np
 
 from stewart_vibration import forward_kinematics, inverse_kinematics, load_robot
+from stewart_vibration.parallel import worker_count
 
 
 def workspace_poses(robot, count, seed=0):
@@ -47,6 +49,14 @@ def main() -> int:
     loop_n = 20_000
     loop_time = best_of(lambda: [inverse_kinematics(robot, q) for q in poses[:loop_n]], 1)
     ik_loop = loop_n / loop_time
+    threads = worker_count()
+    saved = os.environ.get("STEWART_VIBRATION_THREADS")
+    os.environ["STEWART_VIBRATION_THREADS"] = "1"
+    ik_one_thread = args.ik_batch / best_of(lambda: inverse_kinematics(robot, poses), 3)
+    if saved is None:
+        del os.environ["STEWART_VIBRATION_THREADS"]
+    else:
+        os.environ["STEWART_VIBRATION_THREADS"] = saved
 
     fk_poses = poses[: args.fk_batch]
     lengths = inverse_kinematics(robot, fk_poses)
@@ -68,6 +78,8 @@ def main() -> int:
         "ik_poses_per_s_checked": ik_checked,
         "ik_poses_per_s_unchecked": ik_unchecked,
         "ik_poses_per_s_python_loop": ik_loop,
+        "ik_poses_per_s_checked_one_thread": ik_one_thread,
+        "batch_threads": threads,
         "ik_ratio_vs_loop": ik_checked / ik_loop,
         "fk_solves_per_s_batched_cold": fk_cold,
         "fk_solves_per_s_batched_warm": fk_warm,
@@ -91,6 +103,8 @@ def main() -> int:
         print(f"{name:44s} {value:14.4g} {target:12.4g} {ratio:8.2f}{'' if ratio >= 1 else '  (below target)'}")
     print(f"{'FK warm single solve p99 (us)':44s} {results['fk_warm_single_latency_us_p99']:14.4g}")
     print(f"{'IK per-pose Python loop (poses/s)':44s} {ik_loop:14.4g}")
+    print(f"{'IK poses/s checked, one thread':44s} {ik_one_thread:14.4g}")
+    print(f"batches split over {threads} thread(s) (STEWART_VIBRATION_THREADS; 1 = off)")
     return 0
 
 

@@ -21,6 +21,7 @@ from .errors import (
     UnreachablePoseError,
 )
 from .kinematics_scalar import forward_kinematics_scalar
+from .parallel import map_row_ranges
 from .robot import Robot
 from .rotations import rotation_from_rpy, rpy_from_rotation, so3_exp
 from .validation import as_batch, first_violation
@@ -72,7 +73,8 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
 
     With ``check_limits`` (default) raises StrokeLimitError / JointLimitError
     / UnreachablePoseError naming the sample and leg; nothing is clipped.
-    Large batches run through a cache-sized chunked path (see _ik_chunked).
+    Large batches run through a cache-sized chunked path (see _ik_rows),
+    split over the CPU cores (parallel.map_row_ranges).
     """
     poses = as_batch(poses, 6, "pose")
     flat = poses.reshape(-1, 6)
@@ -83,7 +85,13 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
         if check_limits:
             _check_reachable(robot, d, lengths, rot)
         return lengths
-    lengths, violated = _ik_chunked(robot, flat, check_limits)
+    lengths = np.empty_like(flat)
+    starts = map_row_ranges(
+        lambda start, stop: _ik_rows(robot, flat, lengths, start, stop, check_limits),
+        flat.shape[0],
+        align=_IK_CHUNK,
+    )
+    violated = min((s for s in starts if s is not None), default=None)
     if violated is not None:
         chunk = flat[violated : violated + _IK_CHUNK]
         rot = rotation_from_rpy(chunk[:, 3:])
@@ -100,50 +108,50 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
 _IK_CHUNK = 8192
 
 
-def _ik_matrix(robot: Robot) -> tuple[np.ndarray, np.ndarray]:
-    """(W^T (18, 21), c (6,)) for the chunked IK, cached on the robot.
+def _ik_matrix(robot: Robot) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Constant maps of the chunked IK, cached on the robot.
 
-    With features F = [p_m R_mk (9), R_mk (9), p_m (3)] per pose:
-    rows 0-5 give l_i^2 - |p|^2 - c_i, rows 6-11 d_i,z, rows 12-17 d_i . (R e_z)
-    (all linear in F because d_i = p - b_i + R a_i).
+    With features F = [p_m R_mk (9), R_mk (9), p_m (3)] per pose (row-major R):
+    W_len (6, 21) F = l_i^2 - |p|^2 - c_i (d_i = p - b_i + R a_i gives
+    l_i^2 = |p|^2 + |a_i|^2 + |b_i|^2 + 2 p.R a_i - 2 b_i.R a_i - 2 p.b_i).
+    W_chk (12, 9) R gives (R a_i)_z (rows 0-5) and -b_i . R e_z (rows 6-11),
+    so d_i,z = (R a_i)_z + p_z - b_i,z and d_i . R e_z = p . R e_z - b_i . R e_z + a_i,z.
+    Returns (W_len, c, W_chk, [-b_i,z ; a_i,z] (12,)).
     """
     cached = getattr(robot, "_ik_matrix", None)
     if cached is None:
         a, b = robot.platform_hinges, robot.base_hinges
-        w = np.zeros((21, 18))
+        w_len = np.zeros((6, 21))
+        w_chk = np.zeros((12, 9))
         for i in range(6):
             for m in range(3):
                 for k in range(3):
-                    w[3 * m + k, i] = 2 * a[i, k]  # 2 p.R a_i
-                    w[9 + 3 * m + k, i] = -2 * b[i, m] * a[i, k]  # -2 b_i.R a_i
-                w[18 + m, i] = -2 * b[i, m]  # -2 p.b_i
-                w[9 + 3 * m + 2, 12 + i] = -b[i, m]  # -b_i . R e_z
-                w[3 * m + 2, 12 + i] = 1.0  # p . R e_z
-            w[9 + 6 : 9 + 9, 6 + i] = a[i]  # (R a_i)_z
-            w[18 + 2, 6 + i] = 1.0  # p_z
-        const = np.concatenate([(a**2).sum(1) + (b**2).sum(1), -b[:, 2], a[:, 2]])
-        cached = (np.ascontiguousarray(w.T), const)
+                    w_len[i, 3 * m + k] = 2 * a[i, k]  # 2 p.R a_i
+                    w_len[i, 9 + 3 * m + k] = -2 * b[i, m] * a[i, k]  # -2 b_i.R a_i
+                w_len[i, 18 + m] = -2 * b[i, m]  # -2 p.b_i
+                w_chk[i, 6 + m] = a[i, m]  # (R a_i)_z = R_2m a_i,m
+                w_chk[6 + i, 3 * m + 2] = -b[i, m]  # -b_i . R e_z
+        const = (a**2).sum(1) + (b**2).sum(1)
+        cached = (w_len, const, w_chk, np.concatenate([-b[:, 2], a[:, 2]]))
         object.__setattr__(robot, "_ik_matrix", cached)
     return cached
 
 
-def _ik_chunked(robot: Robot, poses: np.ndarray, check: bool):
-    """Leg lengths (N, 6) for poses (N, 6) in cache-sized chunks, and the start
-    row of the first chunk with a limit violation (None if none or unchecked).
+def _ik_rows(robot: Robot, poses: np.ndarray, out: np.ndarray, first: int, stop: int, check: bool):
+    """Leg lengths into out[first:stop] (N, 6) for poses[first:stop] (N, 6) in
+    cache-sized chunks; returns the start row of the first chunk with a limit
+    violation (None if none or unchecked).
 
     Trigonometry dominates (scalar libm); for |angle| < 1.2 rad cos comes from
     sqrt(1 - sin^2) (cos > 0.36 there, so no precision loss).
     """
-    wt, const = _ik_matrix(robot)
+    w_len, const, w_chk, chk_const = _ik_matrix(robot)
     lim = robot.limits
     cos_u, cos_s = np.cos(lim.universal_joint_max), np.cos(lim.spherical_joint_max)
-    rows = 18 if check else 6
-    wt = wt[:rows]
-    n = poses.shape[0]
-    out = np.empty((n, 6))
     feat, trig, tmp = np.empty((21, _IK_CHUNK)), np.empty((6, _IK_CHUNK)), np.empty(_IK_CHUNK)
-    for start in range(0, n, _IK_CHUNK):
-        q = poses[start : start + _IK_CHUNK].T
+    chk, bound = np.empty((12, _IK_CHUNK)), np.empty((6, _IK_CHUNK))
+    for start in range(first, stop, _IK_CHUNK):
+        q = poses[start : min(start + _IK_CHUNK, stop)].T
         m = q.shape[1]
         f, t, tt = feat[:, :m], trig[:, :m], tmp[:m]
         angles = q[3:]
@@ -176,24 +184,32 @@ def _ik_chunked(robot: Robot, poses: np.ndarray, check: bool):
         for axis in range(3):
             np.multiply(rot[3 * axis : 3 * axis + 3], q[axis], out=f[3 * axis : 3 * axis + 3])
         f[18:21] = q[:3]
-        res = wt @ f
-        res += const[:rows, None]
+        sq = w_len @ f
+        sq += const[:, None]
         np.einsum("km,km->m", q[:3], q[:3], out=tt)
-        sq = res[:6]
         sq += tt
         np.sqrt(sq, out=sq)
         out[start : start + m] = sq.T
         if check:
+            c = np.matmul(w_chk, rot, out=chk[:, :m])
+            c += chk_const[:, None]
+            c[:6] += q[2]  # d_i,z
+            np.add(f[2], f[5], out=tt)
+            tt += f[8]  # p . R e_z
+            c[6:] += tt  # d_i . R e_z
+            lim_u = np.multiply(sq, cos_u, out=bound[:, :m])
             bad = (
-                (res[6:12] <= 0.0).any()
-                or (sq < lim.stroke_min).any()
-                or (sq > lim.stroke_max).any()
-                or (res[6:12] < cos_u * sq).any()
-                or (res[12:18] < cos_s * sq).any()
+                (c[:6] <= 0.0).any()
+                or sq.min() < lim.stroke_min
+                or sq.max() > lim.stroke_max
+                or (c[:6] < lim_u).any()
             )
+            if not bad:
+                lim_s = np.multiply(sq, cos_s, out=lim_u)
+                bad = (c[6:] < lim_s).any()
             if bad:
-                return out, start
-    return out, None
+                return start
+    return None
 
 
 def joint_angles(robot: Robot, poses) -> tuple[np.ndarray, np.ndarray]:
@@ -398,7 +414,7 @@ def forward_kinematics(
     batch_shape = lengths.shape[:-1]
     target = lengths.reshape(-1, 6)
     count = target.shape[0]
-    home_lengths, home_jinv, home_det_sign = _home_cache(robot)
+    home_lengths, home_jinv, _ = _home_cache(robot)
     if count == 1 and guess is not None:
         start = as_batch(guess, 6, "guess").reshape(-1, 6)
         if start.shape[0] == 1:
@@ -408,6 +424,27 @@ def forward_kinematics(
         start = robot.home_pose + (target - home_lengths) @ home_jinv.T
     else:
         start = np.broadcast_to(as_batch(guess, 6, "guess"), batch_shape + (6,)).reshape(-1, 6)
+    parts = map_row_ranges(
+        lambda first, stop: _newton_rows(robot, target[first:stop], start[first:stop], tol, max_iter),
+        count,
+        min_rows=4096,
+    )
+    pose, rotation, iterations, res, converged, assembly_ok = (np.concatenate(field) for field in zip(*parts))
+    return ForwardKinematicsResult(
+        pose=pose.reshape(batch_shape + (6,)),
+        rotation=rotation.reshape(batch_shape + (3, 3)),
+        iterations=iterations.reshape(batch_shape),
+        residual=res.reshape(batch_shape),
+        converged=converged.reshape(batch_shape),
+        assembly_ok=assembly_ok.reshape(batch_shape),
+    )
+
+
+def _newton_rows(robot: Robot, target: np.ndarray, start: np.ndarray, tol: float, max_iter: int):
+    """Batched Newton for target lengths (N, 6) from start poses (N, 6): flat
+    (pose, rotation, iterations, residual, converged, assembly_ok)."""
+    count = target.shape[0]
+    home_det_sign = _home_cache(robot)[2]
     position = start[:, :3].copy()
     rotation = rotation_from_rpy(start[:, 3:])
 
@@ -455,14 +492,7 @@ def forward_kinematics(
     det_sign = np.sign(np.linalg.det(jac_all))
     assembly_ok = (d[..., 2] > 0).all(axis=-1) & (det_sign == home_det_sign)
     pose = np.concatenate([position, rpy_from_rotation(rotation)], axis=-1)
-    return ForwardKinematicsResult(
-        pose=pose.reshape(batch_shape + (6,)),
-        rotation=rotation.reshape(batch_shape + (3, 3)),
-        iterations=iterations.reshape(batch_shape),
-        residual=res.reshape(batch_shape),
-        converged=converged.reshape(batch_shape),
-        assembly_ok=assembly_ok.reshape(batch_shape),
-    )
+    return pose, rotation, iterations, res, converged, assembly_ok
 
 
 def _solve_steps(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -8,6 +8,7 @@ import yaml
 from reference import reference_hinges, reference_lengths, reference_rotation, rodrigues
 
 from stewart_vibration import (
+    UnreachablePoseError,
     condition_number,
     forward_kinematics,
     inverse_kinematics,
@@ -15,7 +16,7 @@ from stewart_vibration import (
     load_robot,
 )
 from stewart_vibration.kinematics_scalar import solve_linear_6
-from stewart_vibration.robot import default_config_dir
+from stewart_vibration.robot import default_config_dir, robot_from_dict
 
 
 def random_workspace_poses(robot, count, seed=0):
@@ -204,3 +205,72 @@ def test_load_robot_explicit_path_equals_default(tmp_path):
     a, b = load_robot(path), load_robot()
     assert np.array_equal(a.base_hinges, b.base_hinges)
     assert np.array_equal(a.platform_hinges, b.platform_hinges)
+
+
+def _reference_validity(robot, poses):
+    """Per pose: every platform hinge above its base hinge, strokes and joint angles
+    within limits; textbook per-axis rotation matrices, explicit leg vectors."""
+    roll, pitch, yaw = poses[:, 3], poses[:, 4], poses[:, 5]
+    one, zero = np.ones_like(roll), np.zeros_like(roll)
+
+    def stack(rows):
+        return np.stack([np.stack(row, axis=-1) for row in rows], axis=-2)
+
+    rx = stack([[one, zero, zero], [zero, np.cos(roll), -np.sin(roll)], [zero, np.sin(roll), np.cos(roll)]])
+    ry = stack([[np.cos(pitch), zero, np.sin(pitch)], [zero, one, zero], [-np.sin(pitch), zero, np.cos(pitch)]])
+    rz = stack([[np.cos(yaw), -np.sin(yaw), zero], [np.sin(yaw), np.cos(yaw), zero], [zero, zero, one]])
+    rot = rz @ ry @ rx
+    legs = poses[:, None, :3] + np.einsum("nij,kj->nki", rot, robot.platform_hinges) - robot.base_hinges
+    lengths = np.linalg.norm(legs, axis=-1)
+    axis = legs / lengths[..., None]
+    universal = np.degrees(np.arccos(np.clip(axis[..., 2], -1, 1)))
+    spherical = np.degrees(np.arccos(np.clip(np.einsum("nki,ni->nk", axis, rot[:, :, 2]), -1, 1)))
+    lim = robot.limits
+    violations = {
+        "below base": ~(legs[..., 2] > 0),
+        "stroke": (lengths < lim.stroke_min) | (lengths > lim.stroke_max),
+        "universal": universal > np.degrees(lim.universal_joint_max),
+        "spherical": spherical > np.degrees(lim.spherical_joint_max),
+    }
+    violations = {kind: mask.any(axis=-1) for kind, mask in violations.items()}
+    valid = ~np.any(list(violations.values()), axis=0)
+    return valid, lengths, violations
+
+
+def test_large_batch_limit_checks_agree_with_reference():
+    """The chunked, multi-threaded IK flags exactly the poses the reference rejects,
+    and names the first bad sample wherever it lies in the batch."""
+    tree = yaml.safe_load((default_config_dir() / "robot.yaml").read_text())
+    tree["limits"].update(
+        universal_joint_max_deg=35.0, spherical_joint_max_deg=40.0, stroke_min_m=0.13, stroke_max_m=0.20
+    )
+    strict = robot_from_dict(tree)
+    rng = np.random.default_rng(10)
+    wide = strict.home_pose + rng.uniform(-1, 1, (40_000, 6)) * [0.03, 0.03, 0.03, 0.25, 0.25, 0.25]
+    valid, _, violations = _reference_validity(strict, wide)
+    good = wide[valid]
+    batch = good[rng.integers(0, len(good), 3 * 65_536)]
+    ref_valid, ref_lengths, _ = _reference_validity(strict, batch)
+    assert ref_valid.all()
+    assert np.abs(inverse_kinematics(strict, batch) - ref_lengths).max() <= 1e-12
+    # poses that break exactly one kind of limit, ten of each kind
+    only = {k: m & (np.sum(list(violations.values()), axis=0) == 1) for k, m in violations.items()}
+    examples = {k: wide[m][:10] for k, m in only.items() if k != "below base"}
+    assert all(len(e) == 10 for e in examples.values()), {k: len(e) for k, e in examples.items()}
+    for kind, poses in examples.items():
+        for pose in poses:
+            index = int(rng.integers(0, len(batch)))
+            trial = batch.copy()
+            trial[index] = pose
+            with pytest.raises(UnreachablePoseError) as info:
+                inverse_kinematics(strict, trial)
+            assert info.value.sample == index, kind
+    below = strict.home_pose.copy()
+    below[2] = -0.16
+    bad = [examples["stroke"][0], below]
+    first, second = 1000, len(batch) - 1000  # one in each thread's rows
+    trial = batch.copy()
+    trial[[first, second]] = bad
+    with pytest.raises(UnreachablePoseError) as info:
+        inverse_kinematics(strict, trial)
+    assert info.value.sample == first
