@@ -3,7 +3,8 @@
 Full model: platform + payload (one rigid body), cylinder and piston mass and
 transverse inertia, gravity, Coriolis and centripetal terms, optional external
 wrench (soft tissue) and optional strut friction. Batched over any leading
-dimensions, no Python loops over samples.
+dimensions, no Python loops over samples; large batches are split over
+the cores (parallel.map_row_ranges).
 
 Conventions (base frame, SI units): pose [..., 6] = [x, y, z, roll, pitch,
 yaw]; twist [..., 6] = [v, w] (velocity of the platform-frame origin, angular
@@ -29,11 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from .leg_kinematics import cross0, dot0, flat_inputs, hinge_motion, leg_axes, leg_motion_soa
+from .parallel import map_row_ranges
 from .robot import Robot
 from .rotations import rotation_from_rpy
 from .validation import as_batch
 
-CHUNK = 2048  # samples per vectorised block (measured fastest on the 2-core target)
+CHUNK = 8192  # samples per block: fastest measured here (2048: 0.9 M/s, 8192: 1.6 M/s, 16384: 0.7 M/s)
 
 
 @dataclass(frozen=True)
@@ -239,13 +241,17 @@ def _run_blocks(block, robot: Robot, pose, twist, accel, external_wrench, reacti
     p = leg_parts(robot)
     force, rate = np.empty((6, n)), np.empty((6, n))
     extra = [np.empty((3, 6, n)) for _ in range(3)] if reactions else None
-    for i in range(0, n, CHUNK):
-        sl = slice(i, i + CHUNK)
-        force[:, sl], rate[:, sl], parts = block(robot, p, pose[:, sl], twist[:, sl], accel[:, sl],
-                                                 wrench[:, sl], reactions)
-        if reactions:
-            for dst, src in zip(extra, parts):
-                dst[..., sl] = src
+
+    def run(first: int, stop: int) -> None:
+        for i in range(first, stop, CHUNK):
+            sl = slice(i, min(i + CHUNK, stop))
+            force[:, sl], rate[:, sl], parts = block(robot, p, pose[:, sl], twist[:, sl], accel[:, sl],
+                                                     wrench[:, sl], reactions)
+            if reactions:
+                for dst, src in zip(extra, parts):
+                    dst[..., sl] = src
+
+    map_row_ranges(run, n, min_rows=8 * CHUNK, align=CHUNK)  # blocks split over the cores
     return batch, force.T, rate.T, extra
 
 

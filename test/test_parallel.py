@@ -57,3 +57,19 @@ def test_threaded_ik_equals_single_thread(monkeypatch):
     monkeypatch.setenv("STEWART_VIBRATION_THREADS", "2")
     two = inverse_kinematics(robot, poses)
     assert np.array_equal(one, two)
+
+
+def test_threaded_leg_forces_equal_single_thread(monkeypatch):
+    from stewart_vibration.dynamics import leg_forces
+
+    robot = load_robot()
+    rng = np.random.default_rng(1)
+    n = 140_000  # above the threading threshold, not a multiple of the block size
+    poses = robot.home_pose + rng.uniform(-1, 1, (n, 6)) * [0.01, 0.01, 0.01, 0.1, 0.1, 0.1]
+    twist, accel = rng.normal(size=(n, 6)), rng.normal(size=(n, 6))
+    monkeypatch.setenv("STEWART_VIBRATION_THREADS", "1")
+    one = leg_forces(robot, poses, twist, accel, return_reactions=True)
+    monkeypatch.setenv("STEWART_VIBRATION_THREADS", "2")
+    two = leg_forces(robot, poses, twist, accel, return_reactions=True)
+    for a, b in zip((one.force, one.platform_joint, one.base_joint), (two.force, two.platform_joint, two.base_joint)):
+        assert np.array_equal(a, b)
