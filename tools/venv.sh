@@ -11,7 +11,9 @@ if [ ! -x "$VENV/bin/python" ]; then
   echo "[venv] creating $VENV" >&2
   "$PY" -m venv "$VENV"
 fi
-if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ]; then
+# reinstall also when the editable install's metadata is gone (e.g. a removed *.egg-info)
+if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || \
+   ! "$VENV/bin/python" -c "import importlib.metadata as m; m.distribution('stewart-vibration')" 2>/dev/null; then
   echo "[venv] installing requirements (first run takes about a minute)" >&2
   "$VENV/bin/python" -m pip install -q --disable-pip-version-check -r "$REPO/requirements-dev.txt" >&2
   "$VENV/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$REPO" >&2
