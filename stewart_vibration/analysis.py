@@ -49,6 +49,44 @@ def fit_sinusoid(times, signals, frequency: float, drift: bool = True) -> Sinuso
     )
 
 
+def dominant_sinusoid(times, signal) -> tuple[float, float]:
+    """(amplitude, frequency Hz) of the strongest sinusoid in ``signal`` [n] over ``times`` [n] (s).
+
+    The FFT peak of the (uniformly resampled, Hann-windowed) signal gives the
+    frequency to one bin, 1/T; a golden-section search within +-1 bin then
+    minimises the residual of the least-squares sinusoid fit (fit_sinusoid),
+    which resolves the frequency far below the bin width. (0, 0) for fewer than 8 samples.
+    """
+    t = np.asarray(times, dtype=float)
+    x = np.asarray(signal, dtype=float)
+    if t.size < 8 or t[-1] <= t[0]:
+        return 0.0, 0.0
+    grid = np.linspace(t[0], t[-1], t.size)
+    y = np.interp(grid, t, x) - x.mean()
+    spec = np.abs(np.fft.rfft(y * np.hanning(y.size)))
+    bin_hz = 1.0 / (grid[1] - grid[0]) / y.size
+    k = int(np.argmax(spec[1:])) + 1
+
+    def misfit(f: float) -> float:
+        return float(fit_sinusoid(t, x, f).residual_rms)
+
+    low, high = max((k - 1) * bin_hz, 0.5 * bin_hz), (k + 1) * bin_hz
+    ratio = (np.sqrt(5.0) - 1.0) / 2.0
+    a, b = high - ratio * (high - low), low + ratio * (high - low)
+    fa, fb = misfit(a), misfit(b)
+    while high - low > 1e-9 * max(high, 1.0):
+        if fa < fb:
+            high, b, fb = b, a, fa
+            a = high - ratio * (high - low)
+            fa = misfit(a)
+        else:
+            low, a, fa = a, b, fb
+            b = low + ratio * (high - low)
+            fb = misfit(b)
+    freq = 0.5 * (low + high)
+    return float(fit_sinusoid(t, x, freq).amplitude), float(freq)
+
+
 def wrap(angle):
     """Angle(s) wrapped to (-pi, pi]."""
     return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi

@@ -7,6 +7,7 @@ import pytest
 
 from stewart_vibration.analysis import (
     direction_error_deg,
+    dominant_sinusoid,
     fit_sinusoid,
     force_error,
     leg_phase_offsets_deg,
@@ -63,3 +64,19 @@ def test_force_error_relative_to_amplitude():
     out = force_error(t, est, t, meas, 35.0)
     assert np.allclose(out["rms_error_n"], 0.05)
     assert out["worst_leg_relative"] == pytest.approx(0.01, rel=1e-6)
+
+
+@pytest.mark.parametrize("frequency", [35.0, 33.37, 7.9])
+def test_dominant_sinusoid_resolves_frequency_far_below_the_fft_bin(frequency):
+    """2.5 s of jittered samples (FFT bin 0.4 Hz) with a 2 % second harmonic, an offset and noise."""
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 2.5, 1250))
+    x = 53e-6 * np.sin(2 * np.pi * frequency * t + 0.7) + 1e-6 * np.sin(2 * np.pi * 2 * frequency * t)
+    x += 1e-3 + rng.normal(scale=1e-7, size=t.size)
+    amplitude, found = dominant_sinusoid(t, x)
+    assert abs(found - frequency) < 1e-3
+    assert amplitude == pytest.approx(53e-6, rel=1e-3)
+
+
+def test_dominant_sinusoid_of_too_few_samples_is_zero():
+    assert dominant_sinusoid([0.0, 1.0], [1.0, 2.0]) == (0.0, 0.0)

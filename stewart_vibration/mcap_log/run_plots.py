@@ -45,7 +45,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         for i, ax in enumerate(axes):
             ax.plot(data["vib_t"], data["vib"][:, i] * 1e3, color=COLORS[i], lw=0.8)
             v = vib.get(f"vib_{i + 1}", {})
-            ax.set_title(f"vib_{i + 1}: {v.get('amplitude_m', 0) * 1e3:.3f} mm at {v.get('frequency_hz', 0):.1f} Hz")
+            ax.set_title(f"vib_{i + 1}: {v.get('amplitude_m', 0) * 1e3:.3f} mm at {v.get('frequency_hz', 0):.3f} Hz")
             ax.set_ylabel("displacement (mm)")
             ax.grid(alpha=0.3)
         for ax in axes[-2:]:

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..analysis import dominant_sinusoid
 from .reader import RunReader
 
 LEGS = [f"leg_{i}" for i in range(1, 7)]
@@ -38,18 +39,6 @@ def _joint_series(reader, topic, names, field):
         t.append(raw.publish_time)  # the header stamp: when the sample is from, not when it arrived
         rows.append([values[index[n]] for n in names])
     return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, len(names))
-
-
-def _dominant(t_s: np.ndarray, x: np.ndarray) -> tuple[float, float]:
-    """(amplitude, frequency Hz) of the strongest sinusoid in x (uniformly resampled)."""
-    if len(t_s) < 8 or t_s[-1] <= t_s[0]:
-        return 0.0, 0.0
-    grid = np.linspace(t_s[0], t_s[-1], len(t_s))
-    y = np.interp(grid, t_s, x) - np.mean(x)
-    spec = np.fft.rfft(y * np.hanning(len(y)))
-    k = int(np.argmax(np.abs(spec[1:]))) + 1
-    freq = k / (grid[-1] - grid[0]) * (len(grid) - 1) / len(grid)
-    return float(np.sqrt(2.0) * np.std(y)), float(freq)
 
 
 def vibration_window(data: dict, ramp_trim_s: float = 0.25) -> tuple[float, float] | None:
@@ -130,7 +119,7 @@ def summarize(reader: RunReader, data: dict) -> dict:
     if "vib" in data and window:
         sel = _within(data["vib_t"], window)
         out["vibration"] = {
-            n: dict(zip(("amplitude_m", "frequency_hz"), _dominant(data["vib_t"][sel], data["vib"][sel, i])))
+            n: dict(zip(("amplitude_m", "frequency_hz"), dominant_sinusoid(data["vib_t"][sel], data["vib"][sel, i])))
             for i, n in enumerate(VIBS)
         }
     if "pose_xyz" in data and window:
@@ -168,7 +157,7 @@ def markdown(summary: dict, plots: list[str]) -> str:
         lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
         for i, (_n, v) in enumerate(summary["vibration"].items()):
             mean = summary.get("leg_length_mean_m", {}).get(LEGS[i], float("nan"))
-            lines.append(f"| {i + 1} | {mean:.6f} | {v['amplitude_m']:.3e} | {v['frequency_hz']:.2f} |")
+            lines.append(f"| {i + 1} | {mean:.6f} | {v['amplitude_m']:.3e} | {v['frequency_hz']:.4f} |")
     if "platform" in summary:
         p = summary["platform"]
         d = ", ".join(f"{x:.4f}" for x in p["vibration_direction"])
