@@ -81,6 +81,7 @@ def test_parameter_validation_and_bad_starts(planner):
         {"duration_s": 0.1},  # shorter than the two 0.2 s ramps
         {"window_s": 0.1},  # not longer than window_period_s
         {"ramp_s": -1.0},
+        {"start_lead_s": 0.1},  # the first window would begin after t0 (lead_s 0.3)
     ]
     for values in bad:
         (result,) = set_params(client, **values)
@@ -207,16 +208,16 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
         client.spin_for(0.2)
         response = trigger(client, "start")
         assert response.success, response.message
-        while sim < 101.5:  # 1.5 s of sim time at ~4x wall speed
+        while sim < 102.5:  # 2.5 s of sim time at ~4x wall speed
             sim += 0.01
             ns = round(sim * 1e9)
             clock.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
             client.spin_for(0.0025)
         client.spin_for(0.2)
         stamp = windows[0].header.stamp
-        assert abs(stamp.sec + stamp.nanosec * 1e-9 - 100.3) < 1e-6  # t0 = sim now + lead_s (0.3 s)
+        assert abs(stamp.sec + stamp.nanosec * 1e-9 - 101.0) < 1e-6  # t0 = sim now + start_lead_s (1 s)
         samples, worst = merged(windows)
         last = samples[max(samples)]
         assert worst < 1e-15 and abs(last[0] - 1.0) < 1e-9 and np.abs(last[1]).max() == 0.0  # ends at rest
-        assert 2 <= len(windows) <= 6  # one per 0.2 s of sim time until the end is covered
+        assert 2 <= len(windows) <= 8  # one per 0.2 s of sim time until the end is covered
         assert trigger(client, "stop").message == "already idle"

@@ -17,7 +17,7 @@ from pathlib import Path
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.srv import SetParameters
+from rcl_interfaces.srv import GetParameters, SetParameters
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -98,11 +98,9 @@ class SuiteRunner:
         # depth 1: the runner only needs the latest sample and must not fall behind the suite
         self.client.create_subscription(Clock, "/clock", self._on_clock, 1)
         self.readiness_subs = []
-        for topic, kind in (("platform/pose", PoseStamped), ("platform/pose_estimate", PoseStamped),
-                            ("legs/force_estimate", JointState)):
+        for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState)):
             sub = self.client.create_subscription(kind, topic, lambda m, t=topic: self.latest.__setitem__(t, m), 1)
-            if topic != "platform/pose":
-                self.readiness_subs.append(sub)
+            self.readiness_subs.append(sub)
         self.target_pub = self.client.create_publisher(PoseStamped, "platform/target_pose", 10)
 
     def _on_clock(self, msg: Clock) -> None:
@@ -195,6 +193,18 @@ class SuiteRunner:
         opts = self.options
         opts.progress(f"{label}: move to {step.name} {np.round(step.pose, 5).tolist()}")
         start = self.clock
+        # the 500 Hz ground truth only while a move settles: the runner must not load the machine
+        self.latest.pop("platform/pose", None)
+        ground_truth = self.client.create_subscription(
+            PoseStamped, "platform/pose", lambda m: self.latest.__setitem__("platform/pose", m), 1)
+        try:
+            self._settle(step, label, start)
+        finally:
+            self.client.destroy_subscription(ground_truth)
+
+    def _settle(self, step: MoveStep, label: str, start: float) -> None:
+        """Send the target, then wait until the ground truth holds within tolerance for 0.5 s of sim time."""
+        opts = self.options
         self.target_pub.publish(pose_stamped(step.pose, self.client.get_clock().now().to_msg()))
         held_since = [None]
 
@@ -235,7 +245,10 @@ class SuiteRunner:
             raise StepFailed(f"vibration start refused: {res.message}")
         start = self.clock
         opts.progress(f"{label}: vibrating: {res.message}")
-        self.wait_sim(step.duration + 0.3, "the vibration to finish")
+        # the vibration begins start_lead_s after the start call and lasts step.duration
+        request = GetParameters.Request(names=["start_lead_s"])
+        lead = self.call(GetParameters, "vibration_planner/get_parameters", request).values[0].double_value
+        self.wait_sim(max(start + lead + step.duration - self.clock, 0.0), "the vibration to finish")
         stop = self.client.create_client(Trigger, "vibration_planner/stop")
         if stop.service_is_ready():
             stop.call_async(Trigger.Request())

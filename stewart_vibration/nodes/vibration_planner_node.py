@@ -12,10 +12,13 @@ Protocol (node clock, i.e. sim time under use_sim_time):
   "already running", call stop first): needs a pose estimate received within
   pose_timeout_s; decomposes the vibration at that pose (exact IK method,
   decompose_vibration with limit checks), checks the per-leg peaks including
-  the ramps, sets t0 = now + lead_s and streams.
+  the ramps, sets t0 = now + start_lead_s and streams. start_lead_s (1 s)
+  is the margin for the first window to reach the emulator before t0 even
+  when this node's clock lags the emulator's (a loaded machine): the emulator
+  refuses a first window that arrives after its vibration has begun.
 - windows: every window_period_s one message with the samples of the grid
-  t0 + k sample_period_s inside [now + lead_s, now + lead_s + window_s]
-  (clipped to [t0, t0 + duration]); consecutive windows overlap and agree
+  t0 + k sample_period_s inside [s, s + window_s], s = max(now + lead_s, t0)
+  (clipped to t0 + duration); consecutive windows overlap and agree
   sample for sample. The vibration ramps in from rest over ramp_s (first
   sample 0) and, with duration_s > 0, ramps out to 0 at t0 + duration_s.
 - stop: one last window from now + lead_s to now + lead_s + ramp_s in which
@@ -106,6 +109,8 @@ class VibrationPlannerNode(Node):
             "period between windows, s (< the emulator's 0.5 s watchdog)", 0.01, 0.4))
         self.declare_parameter("sample_period_s", 0.001, float_param("sample spacing in a window, s", 1e-4, 0.05))
         self.declare_parameter("lead_s", 0.3, float_param("windows start this far ahead of now, s", 0.0, 2.0))
+        self.declare_parameter("start_lead_s", 1.0, float_param(
+            "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0))
         self.declare_parameter("pose_timeout_s", 1.0, float_param(
             "start needs a pose estimate received within this time, s", 0.01, 60.0))
         self.add_on_set_parameters_callback(self.on_set_parameters)
@@ -131,7 +136,7 @@ class VibrationPlannerNode(Node):
 
     # -- parameters -----------------------------------------------------------
     NAMES = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s",
-             "ramp_s", "window_s", "window_period_s", "sample_period_s", "lead_s", "pose_timeout_s")
+             "ramp_s", "window_s", "window_period_s", "sample_period_s", "lead_s", "start_lead_s", "pose_timeout_s")
 
     def settings(self) -> dict:
         return {name: self.get_parameter(name).value for name in self.NAMES}
@@ -161,6 +166,8 @@ class VibrationPlannerNode(Node):
             return f"duration_s {s['duration_s']} must be 0 (until stop) or >= 2 ramp_s = {2 * s['ramp_s']}"
         if s["window_s"] <= s["window_period_s"]:
             return f"window_s {s['window_s']} must exceed window_period_s {s['window_period_s']} (gapless stream)"
+        if s["start_lead_s"] < s["lead_s"]:
+            return f"start_lead_s {s['start_lead_s']} must be >= lead_s {s['lead_s']} (the first window starts at t0)"
         if s["sample_period_s"] * 2 > s["window_s"]:
             return f"sample_period_s {s['sample_period_s']} must be <= window_s / 2"
         if s["sample_period_s"] * s["frequency_hz"] > 0.1:
@@ -240,7 +247,7 @@ class VibrationPlannerNode(Node):
         except StewartError as exc:
             return self._fail(response, f"infeasible vibration ({type(exc).__name__}): {exc}")
         self.plan = plan
-        self.run = dict(s, t0_ns=now + int(round(s["lead_s"] * 1e9)),
+        self.run = dict(s, t0_ns=now + int(round(s["start_lead_s"] * 1e9)),
                         end=s["duration_s"] if s["duration_s"] > 0 else None, stop_end=None, final_sent=False)
         self.state, self.last_error, self.windows_sent = "running", "", 0
         self.send_window(now)
@@ -321,12 +328,11 @@ class VibrationPlannerNode(Node):
         """Relative sample times (s from t0) of the window to send at ``now_ns``."""
         run = self.run
         dt = run["sample_period_s"]
-        start = (now_ns - run["t0_ns"]) * 1e-9 + run["lead_s"]
+        start = max((now_ns - run["t0_ns"]) * 1e-9 + run["lead_s"], 0.0)
         stop = start + run["window_s"]
         end = run["stop_end"] if run["stop_end"] is not None else run["end"]
         if run["stop_end"] is not None:
             stop = end
-        start = max(start, 0.0)
         if end is not None:
             stop = min(stop, end)
         k0, k1 = math.ceil(start / dt - 1e-6), math.floor(stop / dt + 1e-6)
