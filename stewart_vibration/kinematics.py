@@ -429,14 +429,18 @@ def forward_kinematics(
         count,
         min_rows=4096,
     )
-    pose, rotation, iterations, res, converged, assembly_ok = (np.concatenate(field) for field in zip(*parts))
+    return _fk_result(batch_shape, *(np.concatenate(field) for field in zip(*parts)))
+
+
+def _fk_result(batch_shape, pose, rotation, iterations, residual, converged, assembly_ok) -> ForwardKinematicsResult:
+    """Flat per-sample FK outputs (arrays or scalars) reshaped to the caller's batch shape."""
     return ForwardKinematicsResult(
-        pose=pose.reshape(batch_shape + (6,)),
-        rotation=rotation.reshape(batch_shape + (3, 3)),
-        iterations=iterations.reshape(batch_shape),
-        residual=res.reshape(batch_shape),
-        converged=converged.reshape(batch_shape),
-        assembly_ok=assembly_ok.reshape(batch_shape),
+        pose=np.asarray(pose).reshape(batch_shape + (6,)),
+        rotation=np.asarray(rotation).reshape(batch_shape + (3, 3)),
+        iterations=np.asarray(iterations).reshape(batch_shape),
+        residual=np.asarray(residual).reshape(batch_shape),
+        converged=np.asarray(converged).reshape(batch_shape),
+        assembly_ok=np.asarray(assembly_ok).reshape(batch_shape),
     )
 
 
@@ -521,11 +525,4 @@ def _forward_kinematics_single(robot, target, start, tol, max_iter, batch_shape)
     pose, rotation, iterations, res, assembly_ok = forward_kinematics_scalar(
         hinges, base, target.tolist(), start.tolist(), tol, max_iter, float(_home_cache(robot)[2])
     )
-    return ForwardKinematicsResult(
-        pose=np.array(pose).reshape(batch_shape + (6,)),
-        rotation=np.array(rotation).reshape(batch_shape + (3, 3)),
-        iterations=np.array(iterations).reshape(batch_shape),
-        residual=np.array(res).reshape(batch_shape),
-        converged=np.array(res < tol).reshape(batch_shape),
-        assembly_ok=np.array(assembly_ok).reshape(batch_shape),
-    )
+    return _fk_result(batch_shape, pose, rotation, iterations, res, res < tol, assembly_ok)

@@ -15,6 +15,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 Vector = tuple[float, float, float]
 Matrix = tuple[Vector, Vector, Vector]
 
@@ -135,8 +137,7 @@ def _jacobian_system(legs) -> tuple[list[list[float]], list[float]]:
 
 
 def _least_squares_step(rows, rhs) -> list[float]:
-    import numpy as np  # singular Jacobian: rare, so the numpy fallback may be slow
-
+    """Least-squares step for a singular Jacobian (rare, so numpy's overhead does not matter)."""
     return np.linalg.lstsq(np.array(rows), np.array(rhs), rcond=None)[0].tolist()
 
 

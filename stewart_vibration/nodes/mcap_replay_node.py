@@ -20,6 +20,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import rclpy
 import rclpy.executors
 from rclpy.node import Node
@@ -140,13 +141,13 @@ def main(args=None) -> int:
         pass
     finally:
         node.stop()
-        late = sorted(node.lateness_s) or [0.0]
-        worst = sorted(range(len(node.lateness_s)), key=node.lateness_s.__getitem__)[-5:]
+        late = np.asarray(node.lateness_s or [0.0])
+        order = np.argsort(late)  # message indices, least to most late
         report = {
             "published": node.published,
-            "lateness_max_s": late[-1],
-            "lateness_p99_s": late[int(0.99 * (len(late) - 1))],
-            "lateness_worst": [[i, node.lateness_s[i]] for i in reversed(worst)],
+            "lateness_max_s": float(late[order[-1]]),
+            "lateness_p99_s": float(late[order[int(0.99 * (len(late) - 1))]]),
+            "lateness_worst": [[int(i), float(late[i])] for i in order[::-1][:5]],
         }
         print("MCAP_REPLAY_DONE " + json.dumps(report), flush=True)
         node.destroy_node()
