@@ -31,7 +31,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 
 from stewart_vibration import inverse_kinematics, load_robot  # noqa: E402
 from stewart_vibration.nodes.common import duration_msg  # noqa: E402
-from stewart_vibration.processes import ros_environment, start_python_module  # noqa: E402
+from stewart_vibration.processes import claim_ros_domain, ros_environment, start_python_module  # noqa: E402
 from stewart_vibration.robot import default_config_dir  # noqa: E402
 
 LEGS = [f"leg_{i}" for i in range(1, 7)]
@@ -116,7 +116,7 @@ def main() -> int:
     parser.add_argument("--latency-samples", type=int, default=100)
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
-    domain = 150 + os.getpid() % 40
+    domain, _lock = claim_ros_domain()
     with tempfile.TemporaryDirectory() as tmp:
         fast = measure_rtf_and_rate(domain, 0.0, args.seconds, Path(tmp))
         real = measure_rtf_and_rate(domain, 1.0, args.seconds, Path(tmp))

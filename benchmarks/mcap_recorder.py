@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 
 from stewart_vibration.mcap_log import RunReader
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.processes import claim_ros_domain, ros_environment, start_python_module, wait_for
 
 
 def _tagged(text: str, tag: str):
@@ -31,8 +31,10 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--rate", type=float, default=5000.0, help="msg/s")
     ap.add_argument("--seconds", type=float, default=5.0)
-    ap.add_argument("--domain", type=int, default=90 + os.getpid() % 10)
+    ap.add_argument("--domain", type=int, default=None, help="ROS domain (default: a free one in 1..101)")
     args = ap.parse_args()
+    if args.domain is None:
+        args.domain, _lock = claim_ros_domain()
     env = ros_environment(args.domain)
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)

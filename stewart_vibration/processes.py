@@ -8,10 +8,12 @@ SIGTERM if its parent dies (even by SIGKILL), so nothing is orphaned.
 
 from __future__ import annotations
 
+import fcntl
 import os
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -28,6 +30,32 @@ def ros_environment(domain_id: int, base: dict | None = None) -> dict:
     if sys.prefix not in prefixes:
         env["AMENT_PREFIX_PATH"] = os.pathsep.join([sys.prefix, *prefixes])
     return env
+
+
+# ROS domain IDs the suite picks for itself stay within 1..101: above 101 Fast DDS ports fall in the
+# ephemeral range and discovery fails intermittently; 0 is the users' default domain.
+DOMAIN_RANGE = range(1, 102)
+_DOMAIN_LOCK_DIR = Path(tempfile.gettempdir()) / "stewart_vibration_ros_domains"
+
+
+def claim_ros_domain(avoid: tuple[int, ...] = ()):
+    """(domain id, open lock file) of a ROS domain in 1..101 that no other process of this machine holds.
+
+    Held by an exclusive lock file (flock) until the returned file is closed or the process exits, so
+    concurrent runs (tests, benchmarks, the main job) never share a domain. Raises RuntimeError if all are taken.
+    """
+    _DOMAIN_LOCK_DIR.mkdir(exist_ok=True)
+    ids = [d for d in DOMAIN_RANGE if d not in avoid]
+    start = os.getpid() % len(ids)
+    for domain in ids[start:] + ids[:start]:
+        handle = open(_DOMAIN_LOCK_DIR / f"{domain}.lock", "w")  # noqa: SIM115 - held until released
+        try:
+            fcntl.flock(handle, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            handle.close()
+            continue
+        return domain, handle
+    raise RuntimeError(f"no free ROS domain in {DOMAIN_RANGE.start}..{DOMAIN_RANGE.stop - 1}")
 
 
 @dataclass

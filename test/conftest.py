@@ -2,16 +2,10 @@
 
 from __future__ import annotations
 
-import itertools
-import os
-
 import pytest
 
 from stewart_vibration import load_robot
-
-# Each test that starts nodes takes its own ROS_DOMAIN_ID (pytest-xdist is not
-# used; the pid spreads concurrent pytest runs over different ranges).
-_DOMAIN_IDS = itertools.count(10 + (os.getpid() % 8) * 12)
+from stewart_vibration.processes import claim_ros_domain
 
 
 @pytest.fixture(scope="session")
@@ -21,8 +15,20 @@ def robot():
 
 @pytest.fixture
 def ros_domain(monkeypatch):
-    """A fresh ROS_DOMAIN_ID (localhost discovery) for this test and its child processes."""
-    domain = next(_DOMAIN_IDS) % 101 + 100  # 100..200, away from the default 0
+    """A ROS_DOMAIN_ID in 1..101 (localhost discovery) held by this test alone, for it and its children.
+
+    claim_ros_domain locks the ID, so concurrent pytest runs and benchmarks never share a domain.
+    """
+    domain, lock = claim_ros_domain()
     monkeypatch.setenv("ROS_DOMAIN_ID", str(domain))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    return domain
+    yield domain
+    lock.close()
+
+
+@pytest.fixture
+def second_ros_domain(ros_domain):
+    """Another held domain (1..101) for a test that needs two isolated graphs."""
+    domain, lock = claim_ros_domain(avoid=(ros_domain,))
+    yield domain
+    lock.close()

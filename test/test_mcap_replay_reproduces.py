@@ -222,8 +222,8 @@ def compare(original: Path, replayed: Path) -> dict:
     return result
 
 
-def test_replayed_run_reproduces_pose_and_force_estimates(tmp_path, ros_domain):
+def test_replayed_run_reproduces_pose_and_force_estimates(tmp_path, ros_domain, second_ros_domain):
     original = record_main_job(tmp_path / "run", ros_domain)
-    replay_domain = 100 + (ros_domain - 100 + 50) % 101  # fresh: nothing of the first run lives there
+    replay_domain = second_ros_domain  # fresh: nothing of the first run lives there
     replayed = replay_into_fresh_nodes(original, replay_domain, tmp_path / "replay")
     compare(original, replayed)
