@@ -7,8 +7,12 @@ multiplied in the paper's order, per-leg vector arithmetic.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
+import yaml
+
+CONFIG = Path(__file__).resolve().parents[1] / "config" / "robot.yaml"
 
 
 def rot_x(a):
@@ -33,6 +37,16 @@ def reference_rotation(roll, pitch, yaw):
 
 def reference_hinges(radius, angles_deg, z=0.0):
     return [np.array([radius * math.cos(math.radians(a)), radius * math.sin(math.radians(a)), z]) for a in angles_deg]
+
+
+def config_hinges(path=CONFIG):
+    """(base B_i, platform A_i) as [6, 3] arrays rebuilt from the YAML text, without the library's parser."""
+    geometry = yaml.safe_load(Path(path).read_text())["geometry"]
+    out = []
+    for side in (geometry["base"], geometry["platform"]):
+        angles = [float(a) for a in side["angles_deg"]]
+        out.append(np.array(reference_hinges(float(side["radius_m"]), angles, float(side["z_m"]))))
+    return tuple(out)
 
 
 def reference_lengths(base, platform, pose):

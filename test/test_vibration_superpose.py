@@ -7,6 +7,7 @@ import pytest
 from vibration_reference import jacobian_ref, line_angle, rpy_matrix
 
 from stewart_vibration import decompose_vibration, inverse_kinematics, superpose_vibration
+from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.paper import PAPER_AMPLITUDE_M, PAPER_FREQUENCY_HZ, PAPER_PHASE_RAD, paper_pose
 from stewart_vibration.vibration import classify_motion
 
@@ -164,7 +165,7 @@ def test_linear_method_skips_fk_and_classify_validates(robot, pose):
     table = np.column_stack([np.full(6, 5e-6), np.full(6, 5.0), np.zeros(6)])
     result = superpose_vibration(robot, pose, table, method="linear")
     assert result.exact is None and result.classification is result.classification_linear
-    with pytest.raises(ValueError):
+    with pytest.raises(InvalidInputError):
         classify_motion(np.zeros((10, 4)))
-    with pytest.raises(ValueError):
+    with pytest.raises(InvalidInputError):
         superpose_vibration(robot, pose, np.zeros((5, 3)))

@@ -1,12 +1,27 @@
 """Independent references for the vibration tests (no stewart_vibration.vibration code).
 
 Rotation, leg vectors and the Jacobian are rebuilt here from the hinge
-points in config/robot.yaml, so the tests compare against separate code.
+points in the robot's YAML file (yaml.safe_load and the hinge-circle formula
+of ``reference.config_hinges``, not the library's parser), so the tests
+compare against separate code.
 """
 
 from __future__ import annotations
 
+from functools import lru_cache
+
 import numpy as np
+from reference import config_hinges
+
+
+@lru_cache(maxsize=4)
+def _hinges(source: str):
+    return config_hinges(source)
+
+
+def hinges(robot):
+    """(B_i, A_i) [6, 3] rebuilt from the YAML file ``robot`` was loaded from (its ``source``)."""
+    return _hinges(robot.source)
 
 
 def rpy_matrix(roll: float, pitch: float, yaw: float) -> np.ndarray:
@@ -26,10 +41,11 @@ def rodrigues(axis, angle: float) -> np.ndarray:
 
 def legs(robot, position, rotation):
     """(d [6, 3], arms R a_i [6, 3], lengths [6], unit n_i [6, 3]) by a per-leg loop."""
+    base, platform = hinges(robot)
     d, arms = np.zeros((6, 3)), np.zeros((6, 3))
     for i in range(6):
-        arms[i] = rotation @ robot.platform_hinges[i]
-        d[i] = position + arms[i] - robot.base_hinges[i]
+        arms[i] = rotation @ platform[i]
+        d[i] = position + arms[i] - base[i]
     lengths = np.sqrt((d**2).sum(axis=1))
     return d, arms, lengths, d / lengths[:, None]
 
