@@ -9,6 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from reference import config_hinges, rot_y, rot_z
 
 from stewart_vibration.dynamics import Friction, leg_forces, leg_forces_paper
 from stewart_vibration.errors import InvalidInputError
@@ -139,8 +140,24 @@ def test_symmetric_pose_gives_equal_forces(robot):
     accel = np.array([0.0, 0.0, 3.0, 0.0, 0.0, 0.0])
     forces = leg_forces(robot, pose, twist, accel)
     assert np.ptp(forces) <= 1e-12 * np.abs(forces).max()
-    # weight check: six equal struts carry the whole (moving) mass vertically
-    assert forces.mean() > 0
+    # weight check, closed form: massless legs, six equal struts at s_z = z / l carry m (a_z - g_z)
+    base, platform = config_hinges(robot.source)
+    length = np.linalg.norm(pose[:3] + platform[0] - base[0])
+    s_z = pose[2] / length
+    lifted = robot.moving_body.mass * (accel[2] - robot.gravity[2])
+    light = leg_forces(massless_legs(robot), pose, twist, accel)
+    np.testing.assert_allclose(light, lifted / (6 * s_z), rtol=1e-12, atol=0)
+    # with the legs' mass: power balance at this instant, 6 F l_dot = dE/dt along z(t) = z0 + v t + a t^2 / 2
+    h = 1e-3
+    t = np.array([-2, -1, 1, 2]) * h
+    path = np.tile(pose, (4, 1))
+    path[:, 2] += twist[2] * t + 0.5 * accel[2] * t**2
+    rates = np.zeros((4, 6))
+    rates[:, 2] = twist[2] + accel[2] * t
+    e = energy(robot, path, rates)
+    de_dt = (e[0] - 8 * e[1] + 8 * e[2] - e[3]) / (12 * h)
+    np.testing.assert_allclose(forces, de_dt / (6 * s_z * twist[2]), rtol=1e-9, atol=0)
+    assert forces[0] > light[0]  # the legs' own weight adds to the platform's
     asym = leg_forces(robot, paper_pose(robot), twist, accel)
     assert np.ptp(asym) > 0.1
 
@@ -193,15 +210,39 @@ def test_external_wrench_sign_and_batch_shapes(robot):
         leg_forces(robot, pose, np.zeros(5), zero)
 
 
-def test_euler_rate_input_agrees_with_twist(robot):
+def euler_twist_reference(pose, rate, acc):
+    """Twist and accel [n, 6] from nested axes, one sample at a time (independent of the library's E(theta)).
+
+    R = Rz(yaw) Ry(pitch) Rx(roll): w = yaw' z + pitch' Rz y + roll' Rz Ry x; each axis turns with the
+    angular velocity of the rotations before it, so alpha adds pitch' (w_z x Rz y) + roll' (w_zy x Rz Ry x).
+    """
+    twist, accel = np.empty_like(pose), np.empty_like(pose)
+    for k, (q, qd, qdd) in enumerate(zip(pose, rate, acc)):
+        rz = rot_z(q[5])
+        z_axis, y_axis, x_axis = np.array([0.0, 0, 1]), rz[:, 1], (rz @ rot_y(q[4]))[:, 0]
+        w_z = qd[5] * z_axis
+        w_zy = w_z + qd[4] * y_axis
+        twist[k] = np.r_[qd[:3], w_zy + qd[3] * x_axis]
+        alpha = (qdd[5] * z_axis + qdd[4] * y_axis + qd[4] * np.cross(w_z, y_axis) + qdd[3] * x_axis
+                 + qd[3] * np.cross(w_zy, x_axis))
+        accel[k] = np.r_[qdd[:3], alpha]
+    return twist, accel
+
+
+@pytest.mark.parametrize("seed", [9, 10])
+def test_euler_rate_input_agrees_with_twist(robot, seed):
+    """twist_from_euler_rates against the nested-axes closed form; leg forces from either input agree."""
     from stewart_vibration.trajectory import twist_from_euler_rates
 
-    traj = random_trajectory(robot, 9)
-    t = np.linspace(0, 0.2, 4)
-    pose, rate, acc = traj.pose_derivatives(t)
+    traj = random_trajectory(robot, seed, scale=10.0)  # angles up to 0.5 rad, rates ~ 10 rad/s
+    pose, rate, acc = traj.pose_derivatives(np.linspace(0, 0.2, 9))
     twist, accel = twist_from_euler_rates(pose, rate, acc)
-    samp = traj.sample(t)
-    assert np.allclose(leg_forces(robot, pose, twist, accel), leg_forces(robot, samp.pose, samp.twist, samp.accel))
+    ref_twist, ref_accel = euler_twist_reference(pose, rate, acc)
+    assert np.abs(twist - ref_twist).max() <= 1e-13 * np.abs(ref_twist).max()
+    assert np.abs(accel - ref_accel).max() <= 1e-13 * np.abs(ref_accel).max()
+    forces = leg_forces(robot, pose, twist, accel)
+    ref = leg_forces(robot, pose, ref_twist, ref_accel)
+    assert np.abs(forces - ref).max() <= 1e-12 * np.abs(ref).max()
 
 
 def test_solver_falls_back_to_lapack_when_elimination_fails(robot, monkeypatch):
