@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
 from stewart_vibration.cli.main import main
 from stewart_vibration.mcap_log import McapRunWriter
@@ -54,10 +55,22 @@ def test_report_summary_and_plots(tmp_path, capsys):
     assert main(["report", str(path), "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["message_count"] == 400 * 3 + 2
+    # A clean, exactly sampled sine: the least-squares fit's golden-section search stops at a bracket of
+    # 1e-9 f around the true frequency, and at that frequency error the fitted amplitude is off by
+    # ~ (pi df T)^2 / 6 ~ 1e-18 relative; what is left is round-off.
+    assert sorted(summary["vibration"]) == [f"vib_{i}" for i in range(1, 7)]
     for v in summary["vibration"].values():
-        assert abs(v["amplitude_m"] - 5e-4) < 2e-5 and abs(v["frequency_hz"] - 20.0) < 0.5
-    d = np.array(summary["platform"]["vibration_direction"])
+        assert abs(v["frequency_hz"] - 20.0) <= 1e-9 * 20.0
+        assert abs(v["amplitude_m"] - 5e-4) <= 1e-9 * 5e-4
+    platform = summary["platform"]
+    d = np.array(platform["vibration_direction"])
     assert abs(abs(d @ direction) - 1.0) < 1e-9
+    assert platform["linearity"] == pytest.approx(1.0, abs=1e-12)  # a pure line
+    # sqrt(2) RMS over a window of T = 0.796 s that is not a whole number of periods: the mean of
+    # sin^2 is 1/2 +- 1 / (2 w T), so the amplitude is within 1 / (2 w T) (0.5 %) relative
+    t0, t1 = summary["vibration_window_s"]
+    bound = 1.0 / (2 * 2 * np.pi * 20.0 * (t1 - t0))
+    assert abs(platform["vibration_amplitude_m"] / 5e-4 - 1.0) <= bound
     assert all(abs(e - 0.5) < 1e-9 for e in summary["force_error_rms_n"].values())
     assert [e["text"] for e in summary["events"]] == ["started", "stopped"]
     for name in ("leg_lengths.png", "vibration.png", "platform.png", "forces.png", "events.png"):
