@@ -1,7 +1,10 @@
 """Entry point of ``stewart-vibration``: one subcommand module per job.
 
 Each module in SUBCOMMAND_MODULES has ``register(subparsers)`` which adds its
-parser and sets ``func(args) -> int`` (the exit code).
+parser and sets ``func(args) -> int`` (the exit code). Typed errors of the
+library (StewartError: bad input, unreachable or singular pose, unusable MCAP
+file) and OS errors on files print one ``error: ...`` line and exit 2; bad
+argument values are refused by argparse (exit 2).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.run_cmd",
     "stewart_vibration.cli.paper_cmd",
     "stewart_vibration.cli.validate_dynamics_cmd",
+    "stewart_vibration.cli.mcap_recover_cmd",
 ]
 
 
@@ -41,6 +45,10 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.func(args) or 0)
     except StewartError as exc:
         print(f"error: {type(exc).__name__}: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # a file or folder the command cannot read or write: one line, no traceback
+        where = f": {exc.filename}" if exc.filename else ""
+        print(f"error: {exc.strerror or exc}{where}", file=sys.stderr)
         return 2
 
 

@@ -1,4 +1,9 @@
-"""``stewart-vibration report RUN.mcap --out DIR``: summary (JSON, markdown) and PNG plots of a run."""
+"""``stewart-vibration report RUN --out DIR``: summary (JSON, markdown) and PNG plots of a run.
+
+RUN is a .mcap or a run folder (rosbag2 bag directory). A missing, empty,
+non-MCAP or truncated file is refused with one line and exit 2
+(``--allow-truncated`` reports what a cut file holds; ``mcap-recover`` rebuilds it).
+"""
 
 from __future__ import annotations
 
@@ -7,13 +12,15 @@ from ..mcap_log.run_report import write_report
 
 def register(subparsers) -> None:
     p = subparsers.add_parser("report", help="summary and plots of a recorded MCAP run")
-    p.add_argument("mcap", help="the run's .mcap file")
+    p.add_argument("mcap", metavar="RUN", help="the run's .mcap file or its folder (rosbag2 bag directory)")
     p.add_argument("--out", required=True, help="output directory (created)")
+    p.add_argument("--allow-truncated", action="store_true",
+                   help="report on a file cut short by a crash (whole chunks only) instead of refusing it")
     p.set_defaults(func=run)
 
 
 def run(args) -> int:
-    summary = write_report(args.mcap, args.out)
+    summary = write_report(args.mcap, args.out, allow_truncated=args.allow_truncated)
     print(f"report: {summary['message_count']} messages, {len(summary['topics'])} topics; "
           f"wrote summary.json, summary.md and {len(summary['plots'])} plots to {args.out}")
     return 0

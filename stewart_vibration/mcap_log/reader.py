@@ -2,6 +2,9 @@
 
 Works on complete files (summary and indexes) and on files cut short by a
 crash (linear scan of the data section up to the last complete record).
+``open_run`` is the entry point of the CLI and the replay node: it accepts a
+bag directory too and refuses a truncated file (McapFileError, pointing at
+``mcap-recover``); RunReader itself refuses only missing, empty and non-MCAP files.
 """
 
 from __future__ import annotations
@@ -14,6 +17,8 @@ from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
+
+from .files import check_readable, resolve_mcap, truncated_error
 
 
 @dataclass(frozen=True)
@@ -54,6 +59,7 @@ class RunReader:
         self._load()
 
     def _load(self) -> None:
+        check_readable(self.path)
         with open(self.path, "rb") as f:
             reader = make_reader(f)
             try:
@@ -92,6 +98,11 @@ class RunReader:
                 self.truncated = True
         messages.sort(key=lambda m: m.log_time)
         self._messages = messages
+
+    def check_complete(self) -> None:
+        """Raise McapFileError when the file was cut short (no summary), with how much is readable."""
+        if self.truncated:
+            raise truncated_error(self.path)
 
     def topics(self) -> list[TopicSummary]:
         """Every channel with its type, message count, QoS YAML and schema text."""
@@ -147,3 +158,11 @@ class RunReader:
                 dec = factory.decoder_for("cdr", by_type[raw.type_name])
                 decoders[raw.type_name] = dec
             yield raw, dec(raw.data)
+
+
+def open_run(path: str | Path, allow_truncated: bool = False) -> RunReader:
+    """RunReader of a .mcap or a bag directory; McapFileError (one clear line) if it cannot be used."""
+    reader = RunReader(resolve_mcap(path))
+    if not allow_truncated:
+        reader.check_complete()
+    return reader

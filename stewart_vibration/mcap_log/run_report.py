@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..analysis import dominant_sinusoid
-from .reader import RunReader
+from .reader import RunReader, open_run
 
 LEGS = [f"leg_{i}" for i in range(1, 7)]
 VIBS = [f"vib_{i}" for i in range(1, 7)]
@@ -176,13 +176,17 @@ def markdown(summary: dict, plots: list[str]) -> str:
     return "\n".join(lines)
 
 
-def write_report(mcap_path: str | Path, out_dir: str | Path) -> dict:
-    """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary."""
+def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bool = False) -> dict:
+    """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary.
+
+    ``mcap_path``: a .mcap or a bag directory. McapFileError (before anything is written)
+    for a missing, empty, foreign or, unless ``allow_truncated``, truncated file.
+    """
     from . import run_plots
 
+    reader = open_run(mcap_path, allow_truncated=allow_truncated)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    reader = RunReader(mcap_path)
     data = extract(reader)
     summary = summarize(reader, data)
     plots = run_plots.plot_all(data, summary, out)

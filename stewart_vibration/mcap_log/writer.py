@@ -6,14 +6,18 @@ profile ``ros2``, one schema per type (``pkg/msg/Type``, ``ros2msg``, full
 definition text), one channel per topic (``cdr``, ``offered_qos_profiles`` and
 ``topic_type_hash`` metadata), zstd chunks with chunk and message indexes,
 statistics, and at the end a ``rosbag2`` metadata record with the bag's
-``serialized_metadata`` (version 9) as ``ros2 bag`` writes it.
+``serialized_metadata`` (version 9) as ``ros2 bag`` writes it
+(stewart_vibration.mcap_log.bag_metadata; the recorder also writes it as the
+bag directory's ``metadata.yaml``).
 
-Crash safety: the file is unbuffered, a chunk is written as soon as it holds
-``chunk_size`` bytes or has been open ``flush_period_s`` seconds, so after a
-SIGKILL everything up to the last completed chunk is readable (a reader scans
-the data section without the summary). Worst-case loss: the open chunk
-(at most ``chunk_size`` bytes of messages and at most ``flush_period_s`` of
-recording) plus whatever was still queued.
+Crash safety: the file is unbuffered (each record group goes to the OS in one
+``write``), a chunk is written as soon as it holds ``chunk_size`` bytes or has
+been open ``flush_period_s`` seconds (checked by the writer thread at least
+every ``flush_period_s / 4``), so after a SIGKILL every chunk completed before
+it is on disk, whole, with its message indexes. ``stewart-vibration
+mcap-recover`` (mcap_log.recover) rebuilds a complete, indexed file from them.
+Worst-case loss: the open chunk (at most ``chunk_size`` bytes and about
+``flush_period_s`` of recording) plus whatever was still queued.
 """
 
 from __future__ import annotations
@@ -25,14 +29,13 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import yaml
 from mcap.writer import CompressionType, IndexType, Writer
 
+from .bag_metadata import BagFile, TopicCount, bag_metadata, dump_bag_metadata
 from .cdr import header_stamp_ns
 from .msg_definitions import full_message_definition, has_header_first
 
 LIBRARY = "stewart_vibration mcap_recorder (python mcap writer)"
-ROS_DISTRO = "jazzy"
 _STOP = object()
 
 
@@ -90,23 +93,19 @@ class WriterStats:
         return self.received - self.written - self.dropped
 
 
-class McapRunWriter:
-    """One MCAP file being written by a background thread."""
+class BagFileWriter:
+    """Synchronous rosbag2-layout MCAP file: schemas by type, channels by topic, bag metadata at the end.
 
-    def __init__(
-        self,
-        path: str | Path,
-        chunk_size: int = 256 * 1024,
-        flush_period_s: float = 0.5,
-        max_queue: int = 1_000_000,
-        compression: str = "zstd",
-    ):
+    Used by the recorder's writer thread and by ``mcap-recover``. The schema text
+    is the installed full ``ros2msg`` definition unless given (recovery keeps the
+    recorded one). ``finish`` writes the ``rosbag2`` metadata record, the summary
+    (statistics, chunk/message indexes) and closes the file.
+    """
+
+    def __init__(self, path: str | Path, chunk_size: int = 256 * 1024, compression: str = "zstd",
+                 library: str = LIBRARY):
         self.path = Path(path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        self.stats = WriterStats()
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
-        self._max_queue = int(max_queue)
-        self._flush_period_s = float(flush_period_s)
         self._topics: dict[str, _Topic] = {}
         self._schemas: dict[str, int] = {}
         self._sink = _UnbufferedSink(self.path)
@@ -116,9 +115,106 @@ class McapRunWriter:
             compression=CompressionType.ZSTD if compression == "zstd" else CompressionType.NONE,
             index_types=IndexType.ALL,
         )
-        self._writer.start(profile="ros2", library=LIBRARY)
+        self._writer.start(profile="ros2", library=library)
         self._t0: int | None = None
         self._t1 = 0
+        self._finished = False
+
+    def add_topic(self, topic: str, type_name: str, qos_yaml: str, type_hash: str = "",
+                  schema_text: str | None = None, schema_encoding: str = "ros2msg") -> None:
+        """Schema (once per type) and channel (once per topic) with rosbag2's channel metadata."""
+        if topic in self._topics:
+            return
+        schema_id = self._schemas.get(type_name)
+        if schema_id is None:
+            text = full_message_definition(type_name) if schema_text is None else schema_text
+            schema_id = self._writer.register_schema(type_name, schema_encoding, text.encode("utf-8"))
+            self._schemas[type_name] = schema_id
+        channel_id = self._writer.register_channel(
+            topic, "cdr", schema_id, {"offered_qos_profiles": qos_yaml, "topic_type_hash": type_hash}
+        )
+        self._topics[topic] = _Topic(topic, type_name, qos_yaml, type_hash, channel_id, has_header_first(type_name))
+
+    def has_topic(self, topic: str) -> bool:
+        return topic in self._topics
+
+    def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        self._writer.add_metadata(name, data)
+
+    def add_attachment(self, a) -> None:
+        """Copy an mcap.records.Attachment."""
+        self._writer.add_attachment(a.create_time, a.log_time, a.name, a.media_type, a.data)
+
+    def write(self, topic: str, log_time_ns: int, data: bytes, publish_time_ns: int | None = None,
+              sequence: int | None = None) -> int:
+        """One message; publish_time defaults to header.stamp (stamped types) or log time. Returns its count."""
+        t = self._topics[topic]
+        if publish_time_ns is None:
+            stamp = header_stamp_ns(data) if t.stamped else None
+            publish_time_ns = log_time_ns if stamp is None else stamp
+        t.count += 1
+        log_time_ns = int(log_time_ns)
+        if self._t0 is None or log_time_ns < self._t0:
+            self._t0 = log_time_ns
+        self._t1 = max(self._t1, log_time_ns)
+        self._writer.add_message(
+            t.channel_id,
+            log_time=log_time_ns,
+            data=bytes(data),
+            publish_time=int(publish_time_ns),
+            sequence=t.count if sequence is None else int(sequence),
+        )
+        return t.count
+
+    def flush(self) -> None:
+        """Close the open chunk and write it (with its message indexes) to the file."""
+        self._writer.flush()
+
+    def bag_file(self) -> BagFile:
+        """This file as one entry of a bag's metadata (name relative to its directory)."""
+        return BagFile(
+            self.path.name,
+            self._t0 or 0,
+            self._t1,
+            [TopicCount(t.name, t.type_name, t.qos_yaml, t.type_hash, t.count) for t in self._topics.values()],
+        )
+
+    def bag_metadata_yaml(self) -> str:
+        """rosbag2 BagMetadata (version 9) of this file, as ``ros2 bag`` embeds it (``serialized_metadata``)."""
+        return dump_bag_metadata(bag_metadata([self.bag_file()]), root=False)
+
+    def abort(self) -> None:
+        """Close the file without a summary (the caller deletes it)."""
+        self._finished = True
+        self._sink.close()
+
+    def finish(self) -> BagFile:
+        """Write the rosbag2 metadata record and the summary, close the file."""
+        if not self._finished:
+            self._finished = True
+            self._writer.add_metadata("rosbag2", {"serialized_metadata": self.bag_metadata_yaml()})
+            self._writer.finish()
+            self._sink.close()
+        return self.bag_file()
+
+
+class McapRunWriter:
+    """One MCAP file being written by a background thread (a BagFileWriter)."""
+
+    def __init__(
+        self,
+        path: str | Path,
+        chunk_size: int = 256 * 1024,
+        flush_period_s: float = 0.5,
+        max_queue: int = 1_000_000,
+        compression: str = "zstd",
+    ):
+        self.stats = WriterStats()
+        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._max_queue = int(max_queue)
+        self._flush_period_s = float(flush_period_s)
+        self._file = BagFileWriter(path, chunk_size=chunk_size, compression=compression)
+        self.path = self._file.path
         self._closed = False
         self._error: BaseException | None = None
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
@@ -148,12 +244,17 @@ class McapRunWriter:
             self._closed = True
             self._queue.put(_STOP)
             self._thread.join()
-            self._write_bag_metadata()
-            self._writer.finish()
-            self._sink.close()
+            self._file.finish()
         if self._error is not None:
             raise self._error
         return self.stats
+
+    def bag_file(self) -> BagFile:
+        """The file's entry for the bag directory's metadata.yaml (complete after close)."""
+        return self._file.bag_file()
+
+    def bag_metadata_yaml(self) -> str:
+        return self._file.bag_metadata_yaml()
 
     # -- writer thread ----------------------------------------------------------------
     def _run(self) -> None:
@@ -169,13 +270,15 @@ class McapRunWriter:
                     return
                 if item is not None:
                     if item[0] == "topic" and len(item) == 5:
-                        self._register(*item[1:])
+                        self._file.add_topic(*item[1:])
                     else:
-                        self._write(*item)
+                        topic, log_time_ns, data = item
+                        self.stats.per_topic[topic] = self._file.write(topic, log_time_ns, data)
+                        self.stats.written += 1
                         pending += 1
                 now = time.monotonic()
                 if pending and now - last_flush >= self._flush_period_s:
-                    self._writer.flush()
+                    self._file.flush()
                     self.stats.chunks_flushed_by_time += 1
                     pending = 0
                     last_flush = now
@@ -183,82 +286,3 @@ class McapRunWriter:
                     last_flush = now
         except BaseException as exc:  # surfaced by close()
             self._error = exc
-
-    def _register(self, topic: str, type_name: str, qos_yaml: str, type_hash: str) -> None:
-        if topic in self._topics:
-            return
-        schema_id = self._schemas.get(type_name)
-        if schema_id is None:
-            text = full_message_definition(type_name)
-            schema_id = self._writer.register_schema(type_name, "ros2msg", text.encode("utf-8"))
-            self._schemas[type_name] = schema_id
-        channel_id = self._writer.register_channel(
-            topic,
-            "cdr",
-            schema_id,
-            {"offered_qos_profiles": qos_yaml, "topic_type_hash": type_hash},
-        )
-        self._topics[topic] = _Topic(
-            topic, type_name, qos_yaml, type_hash, channel_id, has_header_first(type_name)
-        )
-
-    def _write(self, topic: str, log_time_ns: int, data: bytes) -> None:
-        t = self._topics[topic]
-        publish = header_stamp_ns(data) if t.stamped else None
-        t.count += 1
-        if self._t0 is None or log_time_ns < self._t0:
-            self._t0 = int(log_time_ns)
-        self._t1 = max(self._t1, int(log_time_ns))
-        self._writer.add_message(
-            t.channel_id,
-            log_time=int(log_time_ns),
-            data=bytes(data),
-            publish_time=int(log_time_ns if publish is None else publish),
-            sequence=t.count,
-        )
-        self.stats.written += 1
-        self.stats.per_topic[topic] = t.count
-
-    def _write_bag_metadata(self) -> None:
-        self._writer.add_metadata("rosbag2", {"serialized_metadata": self.bag_metadata_yaml()})
-
-    def bag_metadata_yaml(self) -> str:
-        """rosbag2 BagMetadata (version 9) as YAML, as ``ros2 bag`` stores it in the file."""
-        start, end = (self._t0 or 0), self._t1
-        duration = max(0, end - start)
-        topics = [
-            {
-                "topic_metadata": {
-                    "name": t.name,
-                    "type": t.type_name,
-                    "serialization_format": "cdr",
-                    "offered_qos_profiles": t.qos_yaml,
-                    "type_description_hash": t.type_hash,
-                },
-                "message_count": t.count,
-            }
-            for t in self._topics.values()
-        ]
-        count = sum(t.count for t in self._topics.values())
-        meta = {
-            "version": 9,
-            "storage_identifier": "mcap",
-            "duration": {"nanoseconds": duration},
-            "starting_time": {"nanoseconds_since_epoch": start},
-            "message_count": count,
-            "topics_with_message_count": topics,
-            "compression_format": "",
-            "compression_mode": "",
-            "relative_file_paths": [self.path.name],
-            "files": [
-                {
-                    "path": self.path.name,
-                    "starting_time": {"nanoseconds_since_epoch": start},
-                    "duration": {"nanoseconds": duration},
-                    "message_count": count,
-                }
-            ],
-            "custom_data": {},
-            "ros_distro": ROS_DISTRO,
-        }
-        return yaml.safe_dump(meta, sort_keys=False)
