@@ -14,6 +14,18 @@ true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
 262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
 Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
 SIGINT/SIGTERM: the file is finished (summary) before exit.
+
+Bag directory: ``output_dir`` is a rosbag2 bag directory. When a recording
+finishes, the recorder writes ``output_dir/metadata.yaml`` (rosbag2 version 9,
+as ``ros2 bag record`` does) listing the files this recorder process wrote
+there (one per ~/start..~/stop, like rosbag2's splits), so ``ros2 bag
+info/play output_dir`` and ``rosbags.rosbag2.Reader(output_dir)`` open it.
+While a file is being written the folder has no metadata.yaml (a
+metadata.yaml left by an earlier recording is removed when a recording starts;
+that recording's .mcap stays in the folder, unlisted). After a crash
+(SIGKILL) the folder has none until ``stewart-vibration mcap-recover`` rebuilds
+the cut file and writes one. Other files in the folder (logs/, report/,
+summary.json) are ignored by bag readers.
 """
 
 from __future__ import annotations
@@ -27,6 +39,7 @@ import rclpy
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
+from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
 from .mcap_ros import (
@@ -70,6 +83,7 @@ class McapRecorderNode(Node):
         self._known: dict[str, tuple[str, str, str]] = {}  # topic -> (type, qos yaml, hash)
         self._subs = {}
         self._writer: McapRunWriter | None = None
+        self._bag_files: dict[Path, list[BagFile]] = {}  # folder -> files this process finished there
         self._clock = self.get_clock()
         self.create_service(Trigger, "~/start", self._on_start)
         self.create_service(Trigger, "~/stop", self._on_stop)
@@ -92,8 +106,14 @@ class McapRecorderNode(Node):
     def start_recording(self) -> Path:
         """Open a new file (if not recording) and declare every topic already subscribed."""
         if self._writer is None:
+            path = self._next_path()
+            path.parent.mkdir(parents=True, exist_ok=True)
+            if remove_metadata_yaml(path.parent) and path.parent.resolve() not in self._bag_files:
+                self.get_logger().info(
+                    f"removed the metadata.yaml of an earlier recording in {path.parent}: the folder now holds "
+                    "this recording's bag (earlier .mcap files stay there, unlisted)")
             writer = McapRunWriter(
-                self._next_path(),
+                path,
                 chunk_size=int(self.get_parameter("chunk_size").value),
                 flush_period_s=float(self.get_parameter("flush_period_s").value),
             )
@@ -109,8 +129,14 @@ class McapRecorderNode(Node):
         if writer is None:
             return None
         stats = writer.close()
+        folder = writer.path.parent.resolve()
+        files = self._bag_files.setdefault(folder, [])
+        files.append(writer.bag_file())
+        metadata = write_metadata_yaml(folder, bag_metadata(files))
+        self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
         report = {
             "path": str(writer.path),
+            "metadata_yaml": str(metadata),
             "received": stats.received,
             "written": stats.written,
             "dropped": stats.dropped,

@@ -4,18 +4,29 @@ The recorded CDR bytes are published as they are (Publisher.publish(bytes), no
 re-serialisation), each topic with the QoS its publishers offered in the
 recording. Message k is published at (log_time_k - t0) / rate after the start.
 
-Parameters: path (str, the .mcap), rate (1.0), start_offset_s (0.0, s into the
-run), loop (false), publish_clock (false: publish /clock = log time of each
-message; the recorded /clock is then not replayed), topics (str[], empty =
-all), exclude_topics (str[]), wait_for_subscribers_s (0.0: wait up to this
-long for every replay publisher to be matched before starting),
-exit_when_done (true). Prints ``MCAP_REPLAY_DONE {json}`` at the end.
+Parameters (read once at start, so read-only; numbers accept integers):
+path (str: a .mcap or a run folder / rosbag2 bag directory), rate (1.0, > 0),
+start_offset_s (0.0, s into the run), loop (false), publish_clock (false:
+the recorded /clock, if any, is replayed as recorded; true: the node publishes
+/clock itself at clock_rate_hz and the recorded /clock is not replayed),
+clock_rate_hz (100.0 wall Hz; 0 = the rate of the recorded /clock, 100 Hz if
+none), topics (str[], empty = all), exclude_topics (str[]),
+wait_for_subscribers_s (0.0: wait up to this long for every replay publisher
+to be matched before starting), exit_when_done (true).
+
+A missing, empty, non-MCAP or truncated file, or a bad parameter, is one
+``mcap_replay: error: ...`` line on stderr and exit code 2 (a truncated file
+names ``stewart-vibration mcap-recover``). SIGINT/SIGTERM stop the replay
+thread before the node and the context are torn down, so stopping logs no
+error. Prints ``MCAP_REPLAY_DONE {json}`` at the end; exit 0, or 1 if the
+replay failed.
 """
 
 from __future__ import annotations
 
 import itertools
 import json
+import signal
 import sys
 import threading
 import time
@@ -26,10 +37,13 @@ import rclpy.executors
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 
+from ..errors import StewartError
 from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
-from ..mcap_log.reader import RunReader
-from ..mcap_log.replay_schedule import Pacer, ReplayOptions, schedule
-from .mcap_ros import make_executor, message_class, rclpy_profile, spin_until_shutdown
+from ..mcap_log.reader import open_run
+from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
+from .mcap_ros import declare_number, declare_read_only, make_executor, message_class, rclpy_profile
+
+DEFAULT_CLOCK_RATE_HZ = 100.0
 
 
 def _clock_msg(t_ns: int) -> Clock:
@@ -43,31 +57,29 @@ class McapReplayNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("mcap_replay", **kwargs)
-        self.declare_parameter("path", "")
-        self.declare_parameter("rate", 1.0)
-        self.declare_parameter("start_offset_s", 0.0)
-        self.declare_parameter("loop", False)
-        self.declare_parameter("publish_clock", False)
-        self.declare_parameter("topics", [""])
-        self.declare_parameter("exclude_topics", [""])
-        self.declare_parameter("wait_for_subscribers_s", 0.0)
-        self.declare_parameter("exit_when_done", True)
-        param = self.get_parameter
-        path = str(param("path").value)
+        path = declare_read_only(self, "path", "", "the .mcap (or run folder) to replay")
+        rate = declare_number(self, "rate", 1.0, 1e-3, 1e3, "replay speed: 2.0 = twice as fast")
+        offset = declare_number(self, "start_offset_s", 0.0, 0.0, 1e9, "skip this much of the run (s)")
+        self.loop = declare_read_only(self, "loop", False, "start again at the end")
+        self.publish_clock = declare_read_only(
+            self, "publish_clock", False, "publish /clock at clock_rate_hz (the recorded /clock is then not replayed)")
+        clock_rate = declare_number(self, "clock_rate_hz", DEFAULT_CLOCK_RATE_HZ, 0.0, 10_000.0,
+                                    "wall rate of the published /clock (0 = the recorded /clock's rate)")
+        include = [t for t in declare_read_only(self, "topics", [""], "topics to replay (empty = all)") if t]
+        exclude = [t for t in declare_read_only(self, "exclude_topics", [""], "topics not to replay") if t]
+        self.wait_s = declare_number(self, "wait_for_subscribers_s", 0.0, 0.0, 3600.0,
+                                     "wait up to this long for subscribers before starting (s)")
+        self.exit_when_done = declare_read_only(self, "exit_when_done", True, "exit after the last message")
         if not path:
-            raise ValueError("parameter 'path' (the .mcap to replay) is required")
-        self.reader = RunReader(path)
-        self.publish_clock = bool(param("publish_clock").value)
-        exclude = [t for t in param("exclude_topics").value if t]
+            raise ValueError("parameter 'path' (the .mcap or run folder to replay) is required")
+        self.reader = open_run(path)
         if self.publish_clock:
             exclude.append("/clock")
-        self.options = ReplayOptions(
-            rate=float(param("rate").value),
-            start_offset_s=float(param("start_offset_s").value),
-            include=tuple(t for t in param("topics").value if t),
-            exclude=tuple(exclude),
-        )
-        self.loop = bool(param("loop").value)
+            if clock_rate == 0:
+                recorded = recorded_rate_hz([m.log_time for m in self.reader.messages(["/clock"])])
+                clock_rate = recorded or DEFAULT_CLOCK_RATE_HZ
+        self.clock_rate_hz = clock_rate
+        self.options = ReplayOptions(rate=rate, start_offset_s=offset, include=tuple(include), exclude=tuple(exclude))
         self.pubs = {}
         for info in self.reader.topics():
             if not self.options.wants(info.topic) or info.message_count == 0:
@@ -76,45 +88,57 @@ class McapReplayNode(Node):
             self.pubs[info.topic] = self.create_publisher(message_class(info.type_name), info.topic, qos)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10) if self.publish_clock else None
         self.published = {t: 0 for t in self.pubs}
+        self.clocks_published = 0
         self.lateness_s: list[float] = []
+        self.failure: str | None = None
         self.done = threading.Event()
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._run, name="mcap-replay", daemon=True)
         self._thread.start()
 
     def _wait_for_subscribers(self) -> None:
-        deadline = time.monotonic() + float(self.get_parameter("wait_for_subscribers_s").value)
+        deadline = time.monotonic() + self.wait_s
         while time.monotonic() < deadline and not self._stop.is_set():
             if all(p.get_subscription_count() > 0 for p in self.pubs.values()):
                 time.sleep(0.3)  # finish the reliable handshake
                 return
             time.sleep(0.05)
 
+    def _items(self, run_start: int):
+        items = schedule(self.reader.messages(), run_start, self.options)
+        if self.clock_pub is None:
+            return items
+        return with_clock(items, self.options.start_ns(run_start), self.options, self.clock_rate_hz)
+
     def _run(self) -> None:
         try:
             self._wait_for_subscribers()
             run_start = min((m.log_time for m in self.reader.messages()), default=0)
             while not self._stop.is_set():
-                items = schedule(self.reader.messages(), run_start, self.options)
+                items = self._items(run_start)
                 first = next(items, None)  # open the file and decode the first chunk first
                 if first is None:
                     break
                 pacer = Pacer()  # time zero of the replay is now
-                for due, msg in itertools.chain([first], items):
+                for due, item in itertools.chain([first], items):
                     late = pacer.wait_until(due, self._stop.is_set)
-                    self.lateness_s.append(late)
                     if self._stop.is_set():
                         break
-                    if self.clock_pub is not None:
-                        self.clock_pub.publish(_clock_msg(msg.log_time))
-                    pub = self.pubs.get(msg.topic)
+                    if isinstance(item, ClockTick):
+                        self.clock_pub.publish(_clock_msg(item.clock_ns))
+                        self.clocks_published += 1
+                        continue
+                    self.lateness_s.append(late)
+                    pub = self.pubs.get(item.topic)
                     if pub is not None:
-                        pub.publish(msg.data)
-                        self.published[msg.topic] += 1
+                        pub.publish(item.data)
+                        self.published[item.topic] += 1
                 if not self.loop:
                     break
-        except Exception as exc:  # noqa: BLE001 - reported, then the node exits
-            self.get_logger().error(f"replay failed: {exc}")
+        except Exception as exc:  # noqa: BLE001 - reported (unless we are stopping), then the node exits
+            if not self._stop.is_set():
+                self.failure = f"{type(exc).__name__}: {exc}"
+                self.get_logger().error(f"replay failed: {self.failure}")
         finally:
             self.done.set()
 
@@ -123,36 +147,50 @@ class McapReplayNode(Node):
         self._thread.join(timeout=5.0)
 
 
+def _report(node: McapReplayNode) -> dict:
+    late = np.asarray(node.lateness_s or [0.0])
+    order = np.argsort(late)  # message indices, least to most late
+    return {
+        "published": node.published,
+        "clock_published": node.clocks_published,
+        "clock_rate_hz": node.clock_rate_hz if node.publish_clock else None,
+        "failure": node.failure,
+        "lateness_max_s": float(late[order[-1]]),
+        "lateness_p99_s": float(late[order[int(0.99 * (len(late) - 1))]]),
+        "lateness_worst": [[int(i), float(late[i])] for i in order[::-1][:5]],
+    }
+
+
 def main(args=None) -> int:
     # The replay thread must get the GIL back within well under 1 ms of its due time.
     sys.setswitchinterval(1e-4)
     rclpy.init(args=args)
-    node = McapReplayNode()
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):  # only a flag: teardown happens in order below
+        signal.signal(signum, lambda *_: stop.set())
+    try:
+        node = McapReplayNode()
+    except (StewartError, ValueError, rclpy.exceptions.ParameterException) as exc:
+        print(f"mcap_replay: error: {exc}", file=sys.stderr, flush=True)
+        rclpy.try_shutdown()
+        return 2
     executor = make_executor()
     executor.add_node(node)
     try:
-        if node.get_parameter("exit_when_done").value:
-            while rclpy.ok() and not node.done.is_set():
-                executor.spin_once(timeout_sec=0.05)
-            time.sleep(0.3)  # let reliable readers receive the tail
-        else:
-            spin_until_shutdown(executor)
+        while rclpy.ok() and not stop.is_set():
+            if node.exit_when_done and node.done.is_set():
+                time.sleep(0.3)  # let reliable readers receive the tail
+                break
+            executor.spin_once(timeout_sec=0.05)
     except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
         pass
     finally:
         node.stop()
-        late = np.asarray(node.lateness_s or [0.0])
-        order = np.argsort(late)  # message indices, least to most late
-        report = {
-            "published": node.published,
-            "lateness_max_s": float(late[order[-1]]),
-            "lateness_p99_s": float(late[order[int(0.99 * (len(late) - 1))]]),
-            "lateness_worst": [[int(i), float(late[i])] for i in order[::-1][:5]],
-        }
-        print("MCAP_REPLAY_DONE " + json.dumps(report), flush=True)
+        print("MCAP_REPLAY_DONE " + json.dumps(_report(node)), flush=True)
+        executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown()
-    return 0
+    return 1 if node.failure else 0
 
 
 if __name__ == "__main__":

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import importlib
 
+from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.duration import Duration
 from rclpy.qos import (
     DurabilityPolicy,
@@ -47,6 +48,25 @@ def rclpy_profile(p: QosProfile) -> QoSProfile:
     if 0 < p.deadline_ns < 2**63 - 1:
         qos.deadline = Duration(nanoseconds=p.deadline_ns)
     return qos
+
+
+def declare_read_only(node, name: str, default, description: str):
+    """Declare a parameter read once at start (``read_only``: ``ros2 param set`` is refused); its value."""
+    return node.declare_parameter(name, default, ParameterDescriptor(description=description, read_only=True)).value
+
+
+def declare_number(node, name: str, default: float, low: float, high: float, description: str) -> float:
+    """A read-only number in [low, high]; integers are accepted (``-p rate:=2``). ValueError with the reason."""
+    descriptor = ParameterDescriptor(
+        description=f"{description} [{low:g}, {high:g}]", read_only=True, dynamic_typing=True
+    )
+    value = node.declare_parameter(name, float(default), descriptor).value
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f"parameter {name!r} must be a number, got {value!r}")
+    value = float(value)
+    if not low <= value <= high:  # also refuses nan
+        raise ValueError(f"parameter {name!r} = {value:g} is outside [{low:g}, {high:g}] ({description})")
+    return value
 
 
 def message_class(type_name: str):
