@@ -73,6 +73,8 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
 
     With ``check_limits`` (default) raises StrokeLimitError / JointLimitError
     / UnreachablePoseError naming the sample and leg; nothing is clipped.
+    Conditioning is not checked here (an SVD per pose): ``check_pose`` runs
+    every check including SingularPoseError; use it for a pose from a user.
     Large batches run through a cache-sized chunked path (see _ik_rows),
     split over the CPU cores (parallel.map_row_ranges).
     """

@@ -1,11 +1,17 @@
-"""``stewart-vibration ik`` and ``fk``: kinematics from the command line."""
+"""``stewart-vibration ik`` and ``fk``: kinematics from the command line.
+
+``ik`` runs the library's full pose check (kinematics.check_pose: finite,
+above the base, strokes, joints, conditioning), so a pose the robot cannot take
+or a singular one is a typed error (exit 2), never a printed result.
+"""
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import condition_number, forward_kinematics, inverse_kinematics, joint_angles
+from ..kinematics import check_pose, condition_number, forward_kinematics, joint_angles
 from ..robot import load_robot
+from .arguments import finite_float, positive_float, positive_int
 from .output import format_table, print_json
 
 POSE_FIELDS = ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]
@@ -13,17 +19,18 @@ POSE_FIELDS = ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]
 
 def register(subparsers) -> None:
     ik = subparsers.add_parser("ik", help="inverse kinematics: pose -> six leg lengths")
-    ik.add_argument("pose", nargs=6, type=float, metavar="Q",
+    ik.add_argument("pose", nargs=6, type=finite_float, metavar="Q",
                     help="x y z (m) roll pitch yaw (rad, or deg with --deg); R = Rz(yaw) Ry(pitch) Rx(roll)")
     ik.add_argument("--deg", action="store_true", help="angles in degrees")
     ik.add_argument("--json", action="store_true", help="print JSON")
     ik.set_defaults(func=run_ik)
 
     fk = subparsers.add_parser("fk", help="forward kinematics (Newton): six leg lengths -> pose")
-    fk.add_argument("lengths", nargs=6, type=float, metavar="L", help="leg lengths l1..l6 (m)")
-    fk.add_argument("--guess", nargs=6, type=float, metavar="Q",
+    fk.add_argument("lengths", nargs=6, type=positive_float, metavar="L", help="leg lengths l1..l6 (m)")
+    fk.add_argument("--guess", nargs=6, type=finite_float, metavar="Q",
                     help="initial pose x y z roll pitch yaw (m, rad); default: from home")
-    fk.add_argument("--tol", type=float, default=1e-12, help="residual tolerance, m (default 1e-12)")
+    fk.add_argument("--tol", type=positive_float, default=1e-12, help="residual tolerance, m (> 0, default 1e-12)")
+    fk.add_argument("--max-iter", type=positive_int, default=50, help="Newton iterations at most (default 50)")
     fk.add_argument("--json", action="store_true", help="print JSON")
     fk.set_defaults(func=run_fk)
 
@@ -33,7 +40,7 @@ def run_ik(args) -> int:
     pose = np.array(args.pose)
     if args.deg:
         pose[3:] = np.radians(pose[3:])
-    lengths = inverse_kinematics(robot, pose)
+    lengths = check_pose(robot, pose)  # SingularPoseError / StrokeLimitError / ... name the reason
     universal, spherical = joint_angles(robot, pose)
     cond = float(condition_number(robot, pose))
     if args.json:
@@ -49,7 +56,8 @@ def run_ik(args) -> int:
 
 def run_fk(args) -> int:
     robot = load_robot(args.robot)
-    result = forward_kinematics(robot, np.array(args.lengths), guess=args.guess, tol=args.tol)
+    result = forward_kinematics(robot, np.array(args.lengths), guess=args.guess, tol=args.tol,
+                                max_iter=args.max_iter)
     payload = {"pose": dict(zip(POSE_FIELDS, result.pose)), "iterations": int(result.iterations),
                "residual_m": float(result.residual), "converged": bool(result.converged),
                "assembly_ok": bool(result.assembly_ok)}

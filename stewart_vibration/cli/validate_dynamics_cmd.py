@@ -9,10 +9,12 @@ from pathlib import Path
 import numpy as np
 
 from ..dynamics_validation import run_scenario
+from ..errors import InvalidInputError
 from ..mjcf import load_simulation_settings
 from ..mujoco_sim import StewartSim
 from ..paper import PAPER_OMEGA_RAD_S
 from ..robot import load_robot
+from .arguments import positive_float
 from .output import format_table, print_json, to_jsonable
 
 WORST_LEG_LIMIT = 1e-4  # acceptance: worst-leg RMS relative error
@@ -26,11 +28,11 @@ def register(subparsers) -> None:
     )
     cmd.add_argument("--json", action="store_true", help="print JSON")
     cmd.add_argument("--out", metavar="DIR", help="write Fig. 11/12-like plots (PNG) and a JSON report here")
-    cmd.add_argument("--paper-duration", type=float, default=2 * np.pi / PAPER_OMEGA_RAD_S,
+    cmd.add_argument("--paper-duration", type=positive_float, default=2 * np.pi / PAPER_OMEGA_RAD_S,
                      help="simulated time of the paper example, s (default: one period, pi s)")
-    cmd.add_argument("--clinical-duration", type=float, default=0.1,
+    cmd.add_argument("--clinical-duration", type=positive_float, default=0.1,
                      help="simulated time of the clinical case, s (default 0.1 = 3.5 periods)")
-    cmd.add_argument("--timestep", type=float, help="override config/simulation.yaml timestep_s (s)")
+    cmd.add_argument("--timestep", type=positive_float, help="override config/simulation.yaml timestep_s (s)")
     cmd.set_defaults(func=run)
 
 
@@ -56,6 +58,10 @@ def run(args) -> int:
     robot = load_robot(args.robot)
     overrides = {} if args.timestep is None else {"timestep": args.timestep}
     settings = load_simulation_settings(**overrides)
+    for flag, duration in (("--paper-duration", args.paper_duration), ("--clinical-duration", args.clinical_duration)):
+        if duration < 10 * settings.timestep:
+            raise InvalidInputError(f"{flag} {duration:g} s is shorter than 10 simulation steps "
+                                    f"({10 * settings.timestep:g} s at timestep {settings.timestep:g} s)")
     sim = StewartSim(robot, settings)
     report = {
         "what": "MuJoCo forward simulation (generated 6-UPS model, U-joints, computed-force strut drive) "
