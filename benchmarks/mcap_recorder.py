@@ -15,11 +15,19 @@ import re
 import signal
 import sys
 import tempfile
-import time
 from pathlib import Path
 
-from stewart_vibration.mcap_log import RunReader
-from stewart_vibration.processes import claim_ros_domain, ros_environment, start_python_module, wait_for
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
+
+from test_mcap_nodes import wait_on_disk  # noqa: E402
+
+from stewart_vibration.mcap_log import RunReader  # noqa: E402
+from stewart_vibration.processes import (  # noqa: E402
+    claim_ros_domain,
+    ros_environment,
+    start_python_module,
+    wait_for,
+)
 
 
 def _tagged(text: str, tag: str):
@@ -47,12 +55,15 @@ def main() -> int:
             "publisher", "stewart_vibration.nodes.synthetic_run_publisher",
             ["--count", str(count), "--rate", str(args.rate), "--topics", "joint_states", "--fast"], env, tmp,
         )
+        waits = {}
         try:
-            wait_for(lambda: not pub.alive(), args.seconds + 60)
+            waits["publisher_finished"] = wait_for(lambda: not pub.alive(), args.seconds + 60)
             pub.stop()
-            time.sleep(0.5)
+            # the tail has reached the recorder once it is on disk (a transport loss ends the wait at 30 s)
+            files = sorted((tmp / "out").glob("*.mcap"))
+            waits["tail_on_disk"] = bool(files) and wait_on_disk(files[0], {"/legs/joint_states": count}, 30.0)
             os.killpg(rec.popen.pid, signal.SIGINT)
-            wait_for(lambda: not rec.alive(), 30)
+            waits["recorder_finished"] = wait_for(lambda: not rec.alive(), 30)
         finally:
             rec.stop()
             pub.stop()
@@ -72,6 +83,7 @@ def main() -> int:
         "dropped_by_recorder": stats["dropped"],
         "lost_in_transport": sent["counts"]["/legs/joint_states"] - stats["per_topic"].get("/legs/joint_states", 0),
         "max_backlog_msgs": stats["max_backlog"],
+        "waits_ok": waits,
     }
     print(json.dumps(result))
     return 0
