@@ -38,7 +38,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
@@ -87,9 +86,14 @@ def record_main_job(out: Path, domain: int) -> Path:
     return files[0]
 
 
-def replay_into_fresh_nodes(src: Path, domain: int, work: Path) -> Path:
-    """Fresh kinematics + leg_force_estimator + recorder on ``domain``, fed by mcap_replay; returns the new MCAP."""
+def replay_into_fresh_nodes(src: Path, domain: int, work: Path, expected: dict) -> Path:
+    """Fresh kinematics + leg_force_estimator + recorder on ``domain``, fed by mcap_replay; returns the new MCAP.
+
+    The nodes are stopped once every estimate ``expected`` names (stamps by topic) is on disk in the
+    recorder's file, or after 60 s (then ``compare`` says which are missing).
+    """
     from ros_client import RosTestClient
+    from test_mcap_nodes import on_disk
 
     env = ros_environment(domain)
     logs = work / "logs"
@@ -118,11 +122,20 @@ def replay_into_fresh_nodes(src: Path, domain: int, work: Path) -> Path:
              "-p", "wait_for_subscribers_s:=30.0"], env, logs)
         procs.append(replay)
         assert wait_for(lambda: not replay.alive(), 120.0), replay.log_text()
-        time.sleep(0.5)  # the tail reaches the nodes and the recorder
         done = [line for line in replay.log_text().splitlines() if line.startswith("MCAP_REPLAY_DONE ")]
-        assert done, replay.log_text()
+        assert len(done) == 1, replay.log_text()
         report = json.loads(done[0].split(" ", 1)[1])
         print(f"replay: {report}")
+        assert report["failure"] is None and all(report["published"][t] > 0 for t in (STATES, VIB)), report
+
+        def tail_on_disk() -> bool:  # the tail has reached the nodes and the recorder
+            files = sorted((work / "out").glob("*.mcap"))
+            got = {topic: set() for topic in expected}
+            for m in on_disk(files[0], list(expected)) if files else []:
+                got[m.topic].add(m.publish_time)  # publish_time = header.stamp
+            return all(stamps <= got[topic] for topic, stamps in expected.items())
+
+        print(f"estimates on disk: {wait_for(tail_on_disk, 60.0, interval_s=0.5)}")
     finally:
         if client is not None:
             client.close()
@@ -173,26 +186,38 @@ def _late_spans(windows) -> list:
     return spans
 
 
-def compare(original: Path, replayed: Path) -> dict:
+def expectations(original: Path) -> dict:
+    """What the replay must reproduce, from the original run: the recorded state stamps, the pose
+    estimates of recorded states ("wanted") and the force estimates inside the vibration, away from
+    late window spans ("orig_in")."""
     states = sorted(_stamp_ns(m.header.stamp) for _r, m in RunReader(original).decoded([STATES]))
     state_set = set(states)
     assert len(state_set) == len(states), "duplicate joint_state stamps"
-
-    orig_pose, new_pose = _poses(original), _poses(replayed)
+    orig_pose = _poses(original)
     wanted = sorted(s for s in orig_pose if s in state_set)  # estimates of recorded (hence replayed) states
-    missing = [s for s in wanted if s not in new_pose]
-    assert not missing, f"{len(missing)} of {len(wanted)} pose estimates not reproduced, first at {missing[0]} ns"
-    pose_diff = np.array([np.abs(new_pose[s] - orig_pose[s]).max() for s in wanted])
-
     windows, legs = _vibration_windows(original)
     v0, v1 = min(w[1] for w in windows), max(w[2] for w in windows)
     for log_ns, duration in legs:  # no leg trajectory runs during the vibration (margin: receive-time jitter)
         assert log_ns + duration * 1e9 + ARRIVAL_MARGIN_NS < v0 or log_ns - ARRIVAL_MARGIN_NS > v1, \
             "a leg move overlaps the vibration"
     late = _late_spans(windows)
-    orig_force, new_force = _forces(original), _forces(replayed)
+    orig_force = _forces(original)
     window = [s for s in states if v0 <= s <= v1 and not any(a <= s <= b for a, b in late)]
     orig_in = [s for s in window if s in orig_force]
+    return {"states": states, "orig_pose": orig_pose, "wanted": wanted, "v0": v0, "v1": v1, "late": late,
+            "orig_force": orig_force, "window": window, "orig_in": orig_in}
+
+
+def compare(original: Path, replayed: Path, exp: dict) -> dict:
+    states, orig_pose, wanted = exp["states"], exp["orig_pose"], exp["wanted"]
+    v0, v1, late, window, orig_in = exp["v0"], exp["v1"], exp["late"], exp["window"], exp["orig_in"]
+    orig_force = exp["orig_force"]
+    new_pose = _poses(replayed)
+    missing = [s for s in wanted if s not in new_pose]
+    assert not missing, f"{len(missing)} of {len(wanted)} pose estimates not reproduced, first at {missing[0]} ns"
+    pose_diff = np.array([np.abs(new_pose[s] - orig_pose[s]).max() for s in wanted])
+
+    new_force = _forces(replayed)
     missing = [s for s in orig_in if s not in new_force]
     assert not missing, f"{len(missing)} of {len(orig_in)} force estimates not reproduced in the vibration"
     force_diff = np.array([np.abs(new_force[s] - orig_force[s]).max() for s in orig_in])
@@ -225,5 +250,7 @@ def compare(original: Path, replayed: Path) -> dict:
 def test_replayed_run_reproduces_pose_and_force_estimates(tmp_path, ros_domain, second_ros_domain):
     original = record_main_job(tmp_path / "run", ros_domain)
     replay_domain = second_ros_domain  # fresh: nothing of the first run lives there
-    replayed = replay_into_fresh_nodes(original, replay_domain, tmp_path / "replay")
-    compare(original, replayed)
+    exp = expectations(original)
+    replayed = replay_into_fresh_nodes(original, replay_domain, tmp_path / "replay",
+                                       {POSE: set(exp["wanted"]), FORCE: set(exp["window"])})
+    compare(original, replayed, exp)
