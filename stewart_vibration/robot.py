@@ -89,12 +89,14 @@ class Limits:
 
 @dataclass(frozen=True)
 class VibrationUnitLimits:
-    """Per-leg vibration unit: peak amplitude (m), frequency band (Hz), peak acceleration (m/s^2)."""
+    """Per-leg vibration unit: peak amplitude (m), frequency band (Hz), peak velocity (m/s) and
+    acceleration (m/s^2)."""
 
     amplitude_max: float
     frequency_min: float
     frequency_max: float
     acceleration_max: float
+    velocity_max: float
 
 
 @dataclass(frozen=True)
@@ -205,6 +207,7 @@ def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
         frequency_max=_number(tree, "vibration_unit.frequency_max_hz", positive=True),
         acceleration_max=_number(tree, "vibration_unit.acceleration_max_g", positive=True)
         * STANDARD_GRAVITY,
+        velocity_max=_number(tree, "vibration_unit.velocity_max_m_s", positive=True),
     )
     if vib.frequency_min >= vib.frequency_max:
         raise ConfigError("robot config: frequency_min_hz must be < frequency_max_hz")

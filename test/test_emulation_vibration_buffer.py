@@ -1,4 +1,8 @@
-"""Emulator vibration buffer: interpolation, replacement, limits, watchdog and stop ramps (issue 5)."""
+"""The vibration units' command buffer (issues 11 and 13): interpolation, continuous splices, refusals
+with reasons, safety ramps without latching, limits of any window, and the status classification.
+
+References are written here: an analytic ramped sine (not the library's waveform) sampled into windows.
+"""
 
 from __future__ import annotations
 
@@ -11,30 +15,38 @@ from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
 
 VIB = [f"vib_{i}" for i in range(1, 7)]
 GAINS = np.array([0.9, -0.7, 0.95, 0.88, -0.83, 0.94])
-F, A = 35.0, 60e-6
+F, A, RAMP = 35.0, 60e-6, 0.1  # Hz, m, s (quintic smoothstep ramps)
+W = 2 * np.pi * F
 
 
-RAMP = 0.1  # s, quintic smoothstep ramp-in from rest at t = 0
+def smooth(x):
+    """Quintic smoothstep s, s', s'' on x clipped to [0, 1]."""
+    x = np.clip(x, 0.0, 1.0)
+    return 10 * x**3 - 15 * x**4 + 6 * x**5, 30 * x**2 * (1 - x) ** 2, 60 * x * (1 - x) * (1 - 2 * x)
 
 
-def signal(t, amp=A, gains=GAINS, ramp=True):
-    """(position, velocity) [n, 6] of amp * e(t) * gains * sin(2 pi F t), e a smooth ramp-in from rest."""
+def signal(t, amp=A, tail=None):
+    """(p, v, a) [n, 6]: amp * e(t) * gains * sin(w t), e ramping in over [0, RAMP] and, with ``tail``,
+    out over [tail, tail + RAMP]."""
     t = np.asarray(t, dtype=float)
-    w = 2 * np.pi * F
-    if ramp:
-        x = np.clip(t / RAMP, 0.0, 1.0)
-        env, denv = x**3 * (10 - 15 * x + 6 * x * x), 30 * x**2 * (1 - x) ** 2 / RAMP
-    else:
-        env, denv = np.ones_like(t), np.zeros_like(t)
-    pos = amp * (env * np.sin(w * t))[:, None] * gains
-    vel = amp * (denv * np.sin(w * t) + env * w * np.cos(w * t))[:, None] * gains
-    return pos, vel
+    s, ds, dds = smooth(t / RAMP)
+    e, de, dde = s, ds / RAMP, dds / RAMP**2
+    if tail is not None:
+        g, dg, ddg = smooth((tail + RAMP - t) / RAMP)
+        dg, ddg = -dg / RAMP, ddg / RAMP**2
+        e, de, dde = e * g, de * g + e * dg, dde * g + 2 * de * dg + e * ddg
+    sn, cs = np.sin(W * t), np.cos(W * t)
+    x = amp * e * sn
+    xd = amp * (de * sn + e * W * cs)
+    xdd = amp * (dde * sn + 2 * de * W * cs - e * W * W * sn)
+    return x[:, None] * GAINS, xd[:, None] * GAINS, xdd[:, None] * GAINS
 
 
-def window(start, t0, t1, dt=1e-3, amp=A, gains=GAINS, ramp=True):
-    """Samples of ``signal`` on [t0, t1] (times relative to ``start``)."""
-    t = np.arange(t0, t1 + dt / 2, dt)
-    return build_trajectory(VIB, VIB, start, t, *signal(t, amp, gains, ramp))
+def window(stamp, t0, t1, amp=A, tail=None, accelerations=True, dt=1e-3):
+    """A window of ``signal`` on the grid [t0, t1] (s from the stamp)."""
+    t = np.arange(round(t0 / dt), round(t1 / dt) + 1) * dt
+    p, v, a = signal(t, amp, tail)
+    return build_trajectory(VIB, VIB, stamp, t, p, v, a if accelerations else None)
 
 
 @pytest.fixture
@@ -42,93 +54,165 @@ def buffer(robot):
     return VibrationBuffer(robot.vibration_unit, watchdog_s=0.5, ramp_s=0.05)
 
 
-def test_cubic_interpolation_reproduces_the_sine(buffer):
-    buffer.add(window(10.0, 0.0, 0.6), now=9.9)
-    t = np.linspace(10.01, 10.39, 777)  # before the watchdog (last receipt 9.9 + 0.5 s)
+def test_quintic_and_cubic_interpolation_reproduce_the_signal(buffer, robot):
+    buffer.add(window(10.0, 0.0, 0.6, tail=0.5), now=9.9)
+    t = np.linspace(10.0, 10.6, 2777)
     pos, vel, acc = buffer.sample(t)
-    w = 2 * np.pi * F
-    exact, exact_vel = signal(t - 10.0)
-    assert np.abs(pos - exact).max() < 1e-4 * A  # cubic Hermite at 28 samples/period
-    assert np.abs(vel - exact_vel).max() < 1e-2 * A * w
-    steady = t > 10.0 + RAMP
-    assert np.abs(acc[steady] + w * w * exact[steady]).max() < 0.1 * A * w * w  # cubic: piecewise-linear accel
+    exact = signal(t - 10.0, tail=0.5)
+    assert np.abs(pos - exact[0]).max() < 1e-7 * A  # quintic Hermite at 28 samples per period
+    assert np.abs(vel - exact[1]).max() < 1e-6 * A * W
+    assert np.abs(acc - exact[2]).max() < 1e-4 * A * W * W
+    cubic = VibrationBuffer(robot.vibration_unit)
+    cubic.add(window(10.0, 0.0, 0.6, tail=0.5, accelerations=False), now=9.9)
+    pos, vel, acc = cubic.sample(t)
+    assert np.abs(pos - exact[0]).max() < 1e-4 * A
+    assert 1e-3 * A * W * W < np.abs(acc - exact[2]).max() < 0.1 * A * W * W  # piecewise-linear acceleration
 
 
-def test_new_window_replaces_from_its_first_sample(buffer):
-    t0 = 100.0  # a stamp of 0 would mean "now"
-    buffer.add(window(t0, 0.0, 0.6), now=t0)
-    buffer.add(window(t0, 0.3, 0.9, amp=A / 2), now=t0 + 0.25)
-    assert buffer.end == pytest.approx(t0 + 0.9)
-    p_old, _, _ = buffer.sample([t0 + 0.2])
-    p_new, _, _ = buffer.sample([t0 + 0.4])
-    w = 2 * np.pi * F
-    assert np.allclose(p_old[0], A * np.sin(w * 0.2) * GAINS, atol=1e-9)
-    assert np.allclose(p_new[0], A / 2 * np.sin(w * 0.4) * GAINS, atol=1e-9)
-
-
-def test_amplitude_and_acceleration_limits_name_the_leg(robot, buffer):
-    too_big = robot.vibration_unit.amplitude_max * 1.5
-    gains = np.array([0.1, 0.1, 1.0, 0.1, 0.1, 0.1])
-    with pytest.raises(VibrationLimitError, match="vib_3") as info:
-        buffer.add(window(0.0, 0.0, 0.2, amp=too_big, gains=gains), now=0.0)
-    assert info.value.limit_name == "amplitude_max" and info.value.leg == 3
-    # acceleration: 90 um at 120 Hz is 51 m/s^2 peak, far above 1 g
-    w = 2 * np.pi * 120
-    t = np.arange(0, 0.1, 2e-4)
-    pos = 90e-6 * np.sin(w * t)[:, None] * np.eye(6)[4]
-    vel = 90e-6 * w * np.cos(w * t)[:, None] * np.eye(6)[4]
-    with pytest.raises(VibrationLimitError, match="vib_5") as info:
-        buffer.add(build_trajectory(VIB, VIB, 0.0, t, pos, vel), now=0.0)
-    assert info.value.limit_name == "acceleration_max"
-
-
-def ramp_checks(buffer, t_from, t_to):
-    t = np.arange(t_from, t_to, 1e-4)
+def test_continuing_window_splices_and_replaces_the_tail(buffer):
+    stamp = 100.0
+    buffer.add(window(stamp, 0.0, 0.7, tail=0.6), now=stamp - 0.3)
+    splice = buffer.add(window(stamp, 0.4, 1.5, tail=1.4), now=stamp + 0.1)  # arrives before its first sample
+    assert splice == pytest.approx(stamp + 0.4)
+    t = np.arange(stamp, stamp + 1.5, 1e-4)
     pos, vel, acc = buffer.sample(t)
-    step = np.abs(np.diff(pos, axis=0)).max()
-    dt = t[1] - t[0]
-    assert np.allclose(np.gradient(pos, dt, axis=0)[2:-2], vel[2:-2], atol=0.02 * A * 2 * np.pi * F)
-    assert step < 2 * np.pi * F * A * 1e-4 * 1.5  # never more than the sine's own slope per sample
-    return t, pos
+    exact = signal(t - stamp, tail=1.4)  # the first window's tail is gone
+    assert np.abs(pos - exact[0]).max() < 1e-7 * A
+    assert np.abs(vel - exact[1]).max() < 1e-6 * A * W
+    # a late window (first sample already past) splices at "now" where both agree
+    buffer.add(window(stamp, 0.9, 2.5, tail=2.4), now=stamp + 1.0)
+    t = np.arange(stamp + 0.95, stamp + 2.5, 1e-4)
+    assert np.abs(buffer.sample(t)[0] - signal(t - stamp, tail=2.4)[0]).max() < 1e-7 * A
 
 
-def test_watchdog_ramps_to_zero_within_100_ms_and_latches(buffer):
-    buffer.add(window(0.0, 0.0, 2.0), now=0.0)  # long window, then silence
-    t, pos = ramp_checks(buffer, 0.0, 0.7)
-    silent_since = 0.5  # watchdog time after the last receipt
-    assert np.abs(pos[t < silent_since]).max() > 0.5 * A
-    assert np.abs(pos[t >= silent_since + 0.1]).max() == 0.0
-    assert buffer.latched and "watchdog" in buffer.ramp_reason
-    with pytest.raises(VibrationLimitError, match="start from rest"):
-        buffer.add(window(0.0, 0.807, 1.4), now=0.75)  # mid-sine restart refused
-    with pytest.raises(VibrationLimitError, match="start from rest"):
-        buffer.add(window(0.8, 0.0, 0.5, ramp=False), now=0.75)  # a zero crossing is not rest: full speed there
-    t = np.arange(0.0, 0.5, 1e-3)
-    env, denv = np.minimum(t / 0.2, 1.0) ** 2, np.where(t < 0.2, 2 * t / 0.04, 0.0)
-    w = 2 * np.pi * F
-    pos = (A * env * np.sin(w * t))[:, None] * GAINS
-    vel = (A * (denv * np.sin(w * t) + env * w * np.cos(w * t)))[:, None] * GAINS
-    buffer.add(build_trajectory(VIB, VIB, 0.8, t, pos, vel), now=0.75)  # a ramp-in from rest: accepted
-    assert not buffer.latched
+def test_discontinuous_splice_is_refused_with_the_reason_and_changes_nothing(buffer):
+    stamp = 50.0
+    buffer.add(window(stamp, 0.0, 0.8, tail=0.7), now=stamp - 0.2)
+    t = np.linspace(stamp, stamp + 0.9, 500)
+    before = buffer.sample(t)
+    with pytest.raises(VibrationLimitError) as err:
+        buffer.add(window(stamp, 0.3, 1.2, amp=A / 2, tail=1.1), now=stamp + 0.1)
+    assert err.value.limit_name == "splice" and "discontinuous splice" in str(err.value) and "vib_" in str(err.value)
+    after = buffer.sample(t)
+    assert all(np.array_equal(x, y) for x, y in zip(before, after, strict=True))
 
 
-def test_commands_running_out_ramp_to_zero(buffer):
-    buffer.add(window(0.0, 0.0, 0.3), now=0.0)
-    t, pos = ramp_checks(buffer, 0.0, 0.5)
-    assert np.abs(pos[t >= 0.3 + 0.1]).max() == 0.0
-    assert "ran out" in buffer.ramp_reason
+def test_first_window_arriving_after_its_start_is_refused(buffer):
+    with pytest.raises(VibrationLimitError) as err:
+        buffer.add(window(20.0, 0.0, 1.0, tail=0.9), now=20.15)  # idle units; the window is mid ramp-in now
+    assert err.value.limit_name == "splice" and "0.150 s after its first sample" in str(err.value)
+    assert not buffer.times.size
 
 
-def test_a_late_first_window_is_refused_not_started_mid_ramp(buffer):
-    with pytest.raises(VibrationLimitError, match="after its first sample"):
-        buffer.add(window(100.0, 0.0, 0.6), now=100.05)  # half-way up the ramp-in when it arrives
-    buffer.add(window(100.0, 0.0, 0.6), now=99.95)  # on time: accepted
-    assert buffer.end == pytest.approx(100.6)
+def test_window_ending_at_rest_runs_out_smoothly_without_a_watchdog(buffer):
+    stamp = 5.0
+    buffer.add(window(stamp, 0.0, 0.5, tail=0.4), now=stamp - 0.2)
+    assert buffer.ramp() == (None, "")  # ends at rest: no safety ramp needed
+    t = np.arange(stamp, stamp + 1.5, 1e-4)
+    pos, vel, _ = buffer.sample(t)
+    assert np.abs(pos[t > stamp + 0.5]).max() == 0.0
+    assert np.abs(np.diff(pos, axis=0)).max() < 1.01 * A * W * 1e-4  # no step anywhere
+    status = buffer.status(stamp + 1.0)
+    assert status.state == "idle" and status.ramp_start is None
 
 
-def test_stop_ramps_from_now(buffer):
-    buffer.add(window(0.0, 0.0, 1.0), now=0.0)
-    buffer.sample(np.arange(0, 0.2, 1e-3))
-    buffer.stop(0.2, "emergency stop")
-    t, pos = ramp_checks(buffer, 0.2, 0.4)
-    assert np.abs(pos[t >= 0.2 + 0.05]).max() == 0.0
+def test_window_ending_away_from_rest_is_ramped_out_by_the_watchdog(buffer, robot):
+    stamp, now = 5.0, 4.8
+    buffer.add(window(stamp, 0.0, 0.3), now=now)  # steady amplitude at its end: not at rest
+    start, reason = buffer.ramp()
+    assert start == pytest.approx(max(stamp + 0.3, now + 0.5)) and "watchdog" in reason
+    t = np.arange(stamp, stamp + 1.0, 1e-4)
+    pos, vel, _ = buffer.sample(t)
+    assert np.abs(pos[t >= start + buffer.ramp_s + 1e-9]).max() == 0.0  # at rest ramp_s after the ramp start
+    assert buffer.ramp_s <= 0.1
+    steps = np.abs(np.diff(pos, axis=0)).max()
+    assert steps < 1.01 * robot.vibration_unit.velocity_max * 1e-4  # bounded velocity: no step
+    assert np.abs(vel).max() <= A * W * 1.5
+
+
+def test_no_latch_a_new_vibration_starts_after_any_ramp_out(buffer):
+    buffer.add(window(5.0, 0.0, 0.3), now=4.8)  # ends away from rest -> watchdog ramp (see above)
+    buffer.add(window(8.0, 0.0, 0.5, tail=0.4), now=7.5)  # from rest, later: accepted, no reset needed
+    t = np.arange(8.0, 8.5, 1e-4)
+    assert np.abs(buffer.sample(t)[0] - signal(t - 8.0, tail=0.4)[0]).max() < 1e-7 * A
+    buffer.stop(8.45, "emergency stop")  # an explicit ramp (as the e-stop), then again from rest
+    buffer.add(window(9.0, 0.0, 0.5, tail=0.4), now=8.8)
+    assert buffer.ramp() == (None, "")
+    assert np.abs(buffer.sample([9.25])[0]).max() > 0.5 * A * 0.7
+
+
+def test_window_while_a_safety_ramp_runs_is_refused(buffer):
+    buffer.add(window(5.0, 0.0, 1.0, tail=0.9), now=4.9)
+    buffer.stop(5.3, "emergency stop")
+    with pytest.raises(VibrationLimitError) as err:
+        buffer.add(window(5.0, 0.4, 1.5, tail=1.4), now=5.32)  # mid ramp: its full amplitude does not match
+    assert err.value.limit_name == "splice"
+
+
+@pytest.mark.parametrize("times,positions,velocities,limit", [
+    ([0.0, 0.01], [0.0, 2e-4], [0.0, 0.0], "amplitude_max"),  # from rest to 200 um: beyond the unit's 100 um
+    ([0.0, 0.001, 0.002], [0.0, 0.0, 1e-4], None, "velocity_max"),  # implied end velocity 0.1 m/s > 0.05
+    ([0.0, 0.002, 0.004], [0.0, 3e-5, 5e-5], [0.0, 0.06, 0.0], "velocity_max"),  # a given knot velocity
+    ([0.0, 0.002], [0.0, 2e-5], [0.0, 0.0], "acceleration_max"),  # cubic from rest: 6 dp / h^2 = 30 m/s^2
+    ([0.0], [5e-5], None, "splice"),  # one point away from rest: a step from the idle units
+])
+def test_short_windows_are_checked(buffer, times, positions, velocities, limit):
+    pos = np.zeros((len(times), 6))
+    pos[:, 2] = positions
+    vel = None
+    if velocities is not None:
+        vel = np.zeros((len(times), 6))
+        vel[:, 2] = velocities
+    with pytest.raises(VibrationLimitError) as err:
+        buffer.add(build_trajectory(VIB, VIB, 30.0, times, pos, vel), now=29.5)
+    assert err.value.limit_name == limit and err.value.leg == 3, str(err.value)
+
+
+def test_accepted_random_windows_never_exceed_a_limit(robot):
+    """Random short windows (1-6 points, with and without velocities/accelerations): whatever is accepted,
+    its densely sampled output stays within the unit's limits (the property the emulator relies on)."""
+    rng = np.random.default_rng(7)
+    unit = robot.vibration_unit
+    accepted = 0
+    for _ in range(400):
+        buf = VibrationBuffer(unit, watchdog_s=0.5, ramp_s=0.05)
+        n = int(rng.integers(1, 7))
+        times = np.cumsum(rng.uniform(0.0005, 0.05, n))
+        pos = rng.normal(0, 30e-6, (n, 6)) * rng.uniform(0, 1, (n, 1))
+        pos[0] = 0.0  # from rest, so the splice can succeed
+        vel = rng.normal(0, 5e-3, (n, 6)) if rng.random() < 0.7 else None
+        if vel is not None:
+            vel[0] = 0.0
+        acc = rng.normal(0, 2.0, (n, 6)) if vel is not None and rng.random() < 0.5 else None
+        try:
+            buf.add(build_trajectory(VIB, VIB, 1.0, times, pos, vel, acc), now=0.9)
+        except VibrationLimitError:
+            continue
+        accepted += 1
+        t = np.linspace(0.9, 1.0 + times[-1] + 1.0, 20000)
+        p, v, a = buf.sample(t)
+        assert np.abs(p).max() <= unit.amplitude_max * 1.001
+        assert np.abs(v).max() <= unit.velocity_max * 1.001
+        inside = t <= 1.0 + times[-1]  # the spline the window commands (the watchdog ramp after it is checked
+        assert np.abs(a[inside]).max() <= unit.acceleration_max * 1.001  # by the ramp tests above)
+    assert accepted > 40
+
+
+def test_max_lookahead(buffer):
+    buffer.max_lookahead_s = 2.0
+    with pytest.raises(VibrationLimitError) as err:
+        buffer.add(window(10.0, 0.0, 3.0, tail=2.9), now=9.5)
+    assert err.value.limit_name == "max_lookahead_s"
+
+
+def test_status_follows_the_vibration(buffer):
+    stamp = 10.0
+    buffer.add(window(stamp, 0.0, 1.2, tail=1.0), now=9.0)
+    states = {t: buffer.status(stamp + t).state for t in (-0.5, 0.05, 0.5, 1.05, 1.5)}
+    assert states == {-0.5: "pending", 0.05: "ramping_in", 0.5: "running", 1.05: "ramping_out", 1.5: "idle"}
+    amplitude = buffer.status(stamp + 0.5).amplitude
+    np.testing.assert_allclose(amplitude, A * np.abs(GAINS), rtol=0.02)
+    buffer.stop(stamp + 0.6, "emergency stop")
+    status = buffer.status(stamp + 0.62)
+    assert status.state == "ramping_out" and status.ramp_reason == "emergency stop"
+    assert buffer.status(stamp + 0.8).state == "idle"

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..hermite import cubic_hermite, quintic_hermite
 
 
 @dataclass(frozen=True)
@@ -55,6 +56,13 @@ def build_trajectory(
     def table(values, what):
         if values is None:
             return None
+        if isinstance(values, np.ndarray) and values.ndim == 2:  # already a table (decoded from CDR)
+            if values.shape[1] != len(names):
+                raise InvalidInputError(f"every point needs {len(names)} {what}")
+            arr = values.astype(float, copy=False)[:, order]
+            if not np.isfinite(arr).all():
+                raise InvalidInputError(f"non-finite {what}")
+            return arr
         rows = [list(v) for v in values]
         if all(len(r) == 0 for r in rows):
             return None
@@ -72,44 +80,6 @@ def build_trajectory(
     if acc is not None and vel is None:
         raise InvalidInputError("accelerations given without velocities")
     return JointTrajectory(float(start), times, pos, vel, acc)
-
-
-def _quintic(s, h, p0, v0, a0, p1, v1, a1):
-    """Quintic Hermite on s in [0, 1] over duration h -> (p, v, a)."""
-    s2, s3, s4, s5 = s * s, s**3, s**4, s**5
-    p = (
-        (1 - 10 * s3 + 15 * s4 - 6 * s5) * p0
-        + (s - 6 * s3 + 8 * s4 - 3 * s5) * h * v0
-        + (0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5) * h * h * a0
-        + (10 * s3 - 15 * s4 + 6 * s5) * p1
-        + (-4 * s3 + 7 * s4 - 3 * s5) * h * v1
-        + (0.5 * s3 - s4 + 0.5 * s5) * h * h * a1
-    )
-    dp = (-30 * s2 + 60 * s3 - 30 * s4) * (p0 - p1) / h
-    v = (
-        dp
-        + (1 - 18 * s2 + 32 * s3 - 15 * s4) * v0
-        + (s - 4.5 * s2 + 6 * s3 - 2.5 * s4) * h * a0
-        + (-12 * s2 + 28 * s3 - 15 * s4) * v1
-        + (1.5 * s2 - 4 * s3 + 2.5 * s4) * h * a1
-    )
-    a = (
-        (-60 * s + 180 * s2 - 120 * s3) * (p0 - p1) / h**2
-        + (-36 * s + 96 * s2 - 60 * s3) * v0 / h
-        + (1 - 9 * s + 18 * s2 - 10 * s3) * a0
-        + (-24 * s + 84 * s2 - 60 * s3) * v1 / h
-        + (3 * s - 12 * s2 + 10 * s3) * a1
-    )
-    return p, v, a
-
-
-def _cubic(s, h, p0, v0, p1, v1):
-    """Cubic Hermite on s in [0, 1] over duration h -> (p, v, a)."""
-    s2, s3 = s * s, s**3
-    p = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * v1
-    v = (6 * s2 - 6 * s) * (p0 - p1) / h + (3 * s2 - 4 * s + 1) * v0 + (3 * s2 - 2 * s) * v1
-    a = (12 * s - 6) * (p0 - p1) / h**2 + (6 * s - 4) * v0 / h + (6 * s - 2) * v1 / h
-    return p, v, a
 
 
 class TrajectoryFollower:
@@ -177,9 +147,9 @@ class TrajectoryFollower:
             v[inside] = (kp[seg + 1] - kp[seg]) / h
             a[inside] = 0.0
         elif ka is None:
-            p[inside], v[inside], a[inside] = _cubic(s, h, kp[seg], kv[seg], kp[seg + 1], kv[seg + 1])
+            p[inside], v[inside], a[inside] = cubic_hermite(s, h, kp[seg], kv[seg], kp[seg + 1], kv[seg + 1])
         else:
-            p[inside], v[inside], a[inside] = _quintic(
+            p[inside], v[inside], a[inside] = quintic_hermite(
                 s, h, kp[seg], kv[seg], ka[seg], kp[seg + 1], kv[seg + 1], ka[seg + 1]
             )
         return p, v, a

@@ -1,154 +1,258 @@
-"""Vibration-unit command buffer of the emulator: vib_* windows on one time base,
-limit checks, and a watchdog that ramps the vibration to zero (pure numpy).
+"""The one model of the vibration units' command buffer (pure numpy): the emulator follows it and
+the leg-force estimator mirrors it, so both agree on what the units were commanded to do.
 
-The planner streams windows of samples (JointTrajectory with names vib_1..6,
-header stamp = the vibration's common start time, time_from_start per
-sample). A new window replaces buffered samples from its first time on.
-The output ramps to zero with a quintic smoothstep over ``ramp_s`` (no step)
-when commands run out (past the last sample), when none arrived for
-``watchdog_s``, or on stop()/emergency stop. After such a ramp the buffer
-is latched off: it accepts a new window only if it starts from rest.
+Commands are vib_* windows (JointTrajectory: header stamp = the vibration's common start t0,
+time_from_start per sample, positions m, velocities m/s and optionally accelerations m/s^2).
+Between samples the command is a Hermite spline as joint_trajectory_controller interpolates:
+quintic where the samples carry accelerations (position, velocity and acceleration continuous:
+the vibration planner's windows), cubic otherwise. Protocol:
+
+- A window is checked whole before it is accepted: displacement, velocity and acceleration of
+  the spline it produces (``vibration.feasibility.check_command_limits``), and how far ahead it
+  reaches (``max_lookahead_s``).
+- A window *splices* onto what is buffered at s = max(now, its first sample): the buffered
+  command and the new window must agree there in position and velocity (within 0.1 % of the unit's limits);
+  from its first sample on the window replaces the buffer. When nothing is buffered the command
+  is at rest, so a first window must start from rest (a ramp-in). A discontinuous splice is
+  refused with the reason; nothing is ever latched: once the output is back at rest, any window
+  that starts from rest is accepted.
+- Safety ramps (quintic smoothstep to zero over ``ramp_s``, no step): ``stop`` (e-stop, reset)
+  starts one at a given time; and when the buffer runs out with the units not at rest (a window
+  that does not end in a ramp to zero), they brake to a stop (exponential, starting at the
+  acceleration limit) and the watchdog ramps the held offset to zero once no new window has arrived
+  for ``watchdog_s`` (at the end of the buffer at the latest if the last window is older than that).
+  A window whose end would brake the units beyond their amplitude is refused. Windows of the
+  vibration planner always end at rest, so they run out smoothly on their own.
+
+``sample`` is a pure read; ``status`` classifies what the units do at a time (idle, pending,
+ramping_in, running, ramping_out) with the active amplitudes.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from ..errors import VibrationLimitError
+from ..hermite import spline_segments
 from ..robot import VibrationUnitLimits
-from ..vibration.waveform import envelope
-from .trajectory import JointTrajectory, _cubic
+from ..vibration.feasibility import check_command_limits
+from ..vibration.waveform import fade_out, product_rule
+from .trajectory import JointTrajectory
 
-ACCELERATION_TOLERANCE = 1.05  # sampled windows may overshoot the analytic peak slightly
+HISTORY_S = 1.0  # buffered samples kept behind the newest window's first sample
+STATUS_SPAN_S = 0.1  # span behind/ahead of "now" over which the status measures the amplitude envelope
+
+
+@dataclass(frozen=True)
+class BufferStatus:
+    """What the vibration units do at ``time`` (s).
+
+    state: idle | pending (a window starts later) | ramping_in | running | ramping_out;
+    amplitude: (6,) peak |displacement| over the last STATUS_SPAN_S (m); commanded_until: time
+    after which the buffered command is at rest (s; -inf if nothing is buffered); ramp_start /
+    ramp_reason: the active or next safety ramp (None / "" if none)."""
+
+    time: float
+    state: str
+    amplitude: np.ndarray
+    commanded_until: float
+    ramp_start: float | None
+    ramp_reason: str
+
+
+def window_arrays(traj: JointTrajectory, now: float):
+    """(absolute times [n], positions, velocities, accelerations [n, 6]) of a vib_* trajectory; start
+    0 = now. Without velocities the knots get finite-difference velocities (zero for a single point);
+    accelerations are NaN rows where the trajectory has none (cubic segments)."""
+    start = now if traj.start <= 0 else traj.start
+    times = start + traj.times
+    pos = traj.positions
+    if traj.velocities is not None:
+        vel = traj.velocities
+    elif len(times) > 1:
+        vel = np.gradient(pos, times, axis=0)
+    else:
+        vel = np.zeros_like(pos)
+    acc = traj.accelerations if traj.accelerations is not None else np.full_like(pos, np.nan)
+    return times, pos, vel, acc
 
 
 class VibrationBuffer:
-    """Buffered vib_* displacement commands (m) with safety ramp; see module docstring."""
+    """Buffered vib_* displacement commands (m) with safety ramps; see the module docstring."""
 
-    def __init__(self, limits: VibrationUnitLimits, watchdog_s: float = 0.5, ramp_s: float = 0.05):
+    def __init__(self, limits: VibrationUnitLimits, watchdog_s: float = 0.5, ramp_s: float = 0.05,
+                 max_lookahead_s: float = 30.0, check_limits: bool = True):
         self.limits, self.watchdog_s, self.ramp_s = limits, float(watchdog_s), float(ramp_s)
+        self.max_lookahead_s = float(max_lookahead_s)
+        self.check_limits = check_limits  # False for a mirror of a buffer that checks (the estimator's)
+        # "at rest": within 0.1 % of the unit's amplitude and of its largest vibration velocity
+        self.rest_position = 1e-3 * limits.amplitude_max
+        self.rest_velocity = 1e-3 * limits.velocity_max
         self.clear()
 
     def clear(self) -> None:
-        """Forget everything (reset): zero output, not latched."""
+        """Forget everything: zero output, no ramp."""
         self.times = np.empty(0)
         self.positions = np.empty((0, 6))
         self.velocities = np.empty((0, 6))
+        self.accelerations = np.empty((0, 6))
         self.last_receive = -np.inf
-        self.ramp_start: float | None = None
-        self.ramp_reason = ""
-        self.latched = False
+        self.stop_start: float | None = None
+        self.stop_reason = ""
 
+    # -- commands -----------------------------------------------------------------------
     @property
     def end(self) -> float:
+        """Time of the last buffered sample (s); -inf if empty."""
         return float(self.times[-1]) if self.times.size else -np.inf
 
-    def add(self, traj: JointTrajectory, now: float) -> None:
-        """Accept a validated vib_* window (start 0 = now). Raises VibrationLimitError with the leg
-        and limit if a sample exceeds the unit's amplitude or acceleration, or if the buffer is
-        latched off and the window does not start from rest."""
-        start = now if traj.start <= 0 else traj.start
-        times = start + traj.times
-        pos = traj.positions
-        vel = traj.velocities if traj.velocities is not None else np.gradient(pos, times, axis=0) if len(times) > 1 \
-            else np.zeros_like(pos)
-        self._check_limits(times, pos, vel)
-        if self.times.size == 0 or self.latched or self.ramp_start is not None:
-            # a (re)start must be at rest where it takes effect (its first sample, or now if that is
-            # already past: a late window would otherwise start mid-ramp, i.e. with a step)
-            effective = max(now, float(times[0]))
-            p_eff = np.array([np.interp(effective, times, pos[:, k]) for k in range(6)])
-            v_eff = np.array([np.interp(effective, times, vel[:, k]) for k in range(6)])
-            rest_speed = 1e-3 * self.limits.amplitude_max * 2 * np.pi * self.limits.frequency_max
-            if np.abs(p_eff).max() > 1e-3 * self.limits.amplitude_max or np.abs(v_eff).max() > rest_speed:
-                why = self.ramp_reason or "idle"
-                late = f", {now - times[0]:.3f} s after its first sample" if now > times[0] else ""
-                raise VibrationLimitError(
-                    f"vibration is stopped ({why}); a new command must start from rest (window arrived{late} "
-                    f"with {np.abs(p_eff).max() * 1e6:.2f} um / {np.abs(v_eff).max() * 1e3:.3f} mm/s there)",
-                    limit_name="restart_from_rest",
-                )
-            self.latched, self.ramp_start, self.ramp_reason = False, None, ""
-            self.times, self.positions, self.velocities = np.empty(0), np.empty((0, 6)), np.empty((0, 6))
-        keep = self.times < times[0]
-        keep &= self.times >= now - 1.0  # drop history older than a second
-        self.times = np.concatenate([self.times[keep], times])
-        self.positions = np.vstack([self.positions[keep], pos])
-        self.velocities = np.vstack([self.velocities[keep], vel])
-        self.last_receive = now
+    def add(self, traj: JointTrajectory, now: float) -> float:
+        """Accept a vib_* window (start 0 = now) received at ``now``; returns the splice time (s).
 
-    def _check_limits(self, times, pos, vel) -> None:
-        lim = self.limits
-        peak = np.abs(pos).max(axis=0)
-        if (peak > lim.amplitude_max * (1 + 1e-9)).any():
-            leg = int(np.argmax(peak))
+        Raises VibrationLimitError with the reason (limit_name amplitude_max / velocity_max /
+        acceleration_max / max_lookahead_s / splice) and changes nothing then.
+        """
+        times, pos, vel, acc = window_arrays(traj, now)
+        if times[-1] > now + self.max_lookahead_s:
             raise VibrationLimitError(
-                f"vib_{leg + 1}: displacement {peak[leg] * 1e6:.1f} um exceeds the unit's "
-                f"{lim.amplitude_max * 1e6:.1f} um",
-                leg=leg + 1, limit_name="amplitude_max", value=float(peak[leg]), limit=lim.amplitude_max,
-            )
-        if len(times) > 2:
-            acc = np.abs(np.diff(vel, axis=0) / np.diff(times)[:, None]).max(axis=0)
-            if (acc > lim.acceleration_max * ACCELERATION_TOLERANCE).any():
-                leg = int(np.argmax(acc))
+                f"window reaches {times[-1] - now:.3f} s ahead; at most max_lookahead_s {self.max_lookahead_s:g} s",
+                limit_name="max_lookahead_s", value=float(times[-1] - now), limit=self.max_lookahead_s)
+        if times[-1] < now:
+            raise VibrationLimitError(
+                f"window ended {now - times[-1]:.3f} s before it arrived (its first sample is "
+                f"{now - times[0]:.3f} s old)", limit_name="splice", value=float(now - times[-1]), limit=0.0)
+        keep = (self.times < times[0]) & (self.times >= times[0] - HISTORY_S)
+        new_t = np.concatenate([self.times[keep], times])
+        new_p = np.vstack([self.positions[keep], pos])
+        new_v = np.vstack([self.velocities[keep], vel])
+        new_a = np.vstack([self.accelerations[keep], acc])
+        splice = max(now, float(times[0]))
+        self._check_splice(splice, times, pos, vel, acc, now)
+        if self.check_limits:
+            # the spline that will be followed, from the last kept sample (the join segment) on, and where
+            # the units come to a stop if nothing follows (braking at the acceleration limit)
+            first = max(int(keep.sum()) - 1, 0)
+            check_command_limits(self.limits, new_t[first:], new_p[first:], new_v[first:], new_a[first:])
+            settle = np.abs(pos[-1] + vel[-1] * self.braking_time(vel[-1]))
+            if (settle > self.limits.amplitude_max).any():
+                leg = int(np.argmax(settle))
                 raise VibrationLimitError(
-                    f"vib_{leg + 1}: acceleration {acc[leg]:.2f} m/s^2 exceeds the unit's "
-                    f"{lim.acceleration_max:.2f} m/s^2",
-                    leg=leg + 1, limit_name="acceleration_max", value=float(acc[leg]), limit=lim.acceleration_max,
-                )
+                    f"vib_{leg + 1}: the window ends moving at {vel[-1, leg] * 1e3:.3f} mm/s; if nothing follows, "
+                    f"the unit would settle at {settle[leg] * 1e6:.1f} um, beyond its amplitude_max "
+                    f"{self.limits.amplitude_max * 1e6:.1f} um", leg=leg + 1, limit_name="amplitude_max",
+                    value=float(settle[leg]), limit=self.limits.amplitude_max)
+        if self.stop_start is not None and splice >= self.stop_start + self.ramp_s:
+            self.stop_start, self.stop_reason = None, ""  # the ramped-out units are at rest: a new vibration
+        self.times, self.positions, self.velocities, self.accelerations = new_t, new_p, new_v, new_a
+        self.last_receive = now
+        return splice
 
-    def stop(self, now: float, reason: str = "stop") -> None:
-        """Start the ramp to zero now (if not already ramping)."""
-        if self.ramp_start is None or self.ramp_start > now:
-            self.ramp_start, self.ramp_reason = now, reason
+    def _check_splice(self, splice: float, times, pos, vel, acc, now: float) -> None:
+        old_p, old_v, _ = self.sample([splice])
+        if splice <= times[0]:
+            new_p, new_v = pos[0], vel[0]
+        else:
+            p, v, _ = spline_segments(times, pos, vel, acc, np.array([splice]))
+            new_p, new_v = p[0], v[0]
+        jump_p, jump_v = np.abs(new_p - old_p[0]), np.abs(new_v - old_v[0])
+        if (jump_p > self.rest_position).any() or (jump_v > self.rest_velocity).any():
+            leg = int(np.argmax(np.maximum(jump_p / self.rest_position, jump_v / self.rest_velocity)))
+            state = self.status(now).state
+            late = f"; it arrived {now - times[0]:.3f} s after its first sample" if now > times[0] else ""
+            raise VibrationLimitError(
+                f"discontinuous splice at t = {splice:.4f} s (units {state}): vib_{leg + 1} would jump "
+                f"{jump_p[leg] * 1e6:.3f} um / {jump_v[leg] * 1e3:.3f} mm/s; a window must continue the buffered "
+                f"command, or start from rest when the units are at rest{late}",
+                leg=leg + 1, limit_name="splice", value=float(jump_p[leg]), limit=self.rest_position)
 
-    def active(self, now: float) -> bool:
-        """True while the output can be non-zero."""
-        return self.times.size > 0 and not self.latched and now < self.end + self.ramp_s
+    def stop(self, when: float, reason: str = "stop") -> None:
+        """Ramp the output to zero from ``when`` (s) over ramp_s (unless a ramp already started earlier)."""
+        if self.stop_start is None or self.stop_start > when:
+            self.stop_start, self.stop_reason = float(when), reason
+
+    def braking_time(self, velocity) -> np.ndarray:
+        """Time constant (s) per unit of the exponential stop from ``velocity`` (m/s) past the last sample:
+        |v| / acceleration_max, so it starts at the acceleration limit (at least 0.1 ms)."""
+        return np.maximum(np.abs(velocity) / self.limits.acceleration_max, 1e-4)
+
+    # -- read-back ------------------------------------------------------------------------
+    def _tail_at_rest(self) -> bool:
+        return bool(np.abs(self.positions[-1]).max() <= self.rest_position
+                    and np.abs(self.velocities[-1]).max() <= self.rest_velocity)
+
+    def ramp(self) -> tuple[float | None, str]:
+        """(start s, reason) of the safety ramp in force: the explicit stop, or the watchdog's ramp when
+        the buffer runs out with the units not at rest; (None, "") if none."""
+        start, reason = self.stop_start, self.stop_reason
+        if self.times.size and not self._tail_at_rest():
+            due = max(self.end, self.last_receive + self.watchdog_s)
+            if start is None or due < start:
+                start = due
+                reason = (f"watchdog: the commands ran out at {self.end:.3f} s away from rest and no new window "
+                          f"arrived within watchdog_s {self.watchdog_s:g} s")
+        return start, reason
+
+    def commanded_until(self) -> float:
+        """Time (s) from which the command is at rest: the end of the buffer, or of the safety ramp."""
+        if not self.times.size:
+            return -np.inf
+        start, _ = self.ramp()
+        if start is None:
+            return self.end
+        return start + self.ramp_s if not self._tail_at_rest() else min(self.end, start + self.ramp_s)
 
     def sample(self, times):
-        """(displacement, velocity, acceleration) [n, 6] (m, m/s, m/s^2) at increasing absolute times [n] (s)."""
+        """(displacement, velocity, acceleration) [n, 6] (m, m/s, m/s^2) at absolute times [n] (s)."""
         times = np.atleast_1d(np.asarray(times, dtype=float))
         pos = np.zeros((times.size, 6))
         vel = np.zeros((times.size, 6))
         acc = np.zeros((times.size, 6))
-        if self.times.size == 0 or self.latched:
-            return pos, vel, acc
-        # watchdog: latch the ramp start once sampling passes it
-        if self.ramp_start is None:
-            due = min(self.last_receive + self.watchdog_s, self.end)
-            if times[-1] >= due:
-                self.ramp_start = due
-                self.ramp_reason = "commands ran out" if due == self.end else "no commands within the watchdog time"
         bt = self.times
+        if bt.size == 0:
+            return pos, vel, acc
         inside = (times >= bt[0]) & (times <= bt[-1])
         if inside.any() and bt.size > 1:
-            t = times[inside]
-            seg = np.clip(np.searchsorted(bt, t, side="right") - 1, 0, bt.size - 2)
-            h = (bt[seg + 1] - bt[seg])[:, None]
-            s = ((t - bt[seg])[:, None]) / h
-            p, v, a = _cubic(s, h, self.positions[seg], self.velocities[seg], self.positions[seg + 1],
-                             self.velocities[seg + 1])
+            p, v, a = spline_segments(bt, self.positions, self.velocities, self.accelerations, times[inside])
             pos[inside], vel[inside], acc[inside] = p, v, a
         elif inside.any():
             pos[inside] = self.positions[0]
         after = times > bt[-1]
         if after.any():
-            # past the last sample: let the last velocity decay (time constant ramp_s / 5) so the
-            # velocity stays continuous; the ramp below takes the (bounded) result to zero
-            tau = self.ramp_s / 5.0
-            decay = np.exp(-(times[after] - bt[-1]) / tau)[:, None]
+            # past the last sample the units brake: the velocity decays exponentially, starting at the
+            # acceleration limit (continuous position and velocity, stopped within v^2 / a_max)
             v_end = self.velocities[-1]
+            tau = self.braking_time(v_end)
+            decay = np.exp(-(times[after] - bt[-1])[:, None] / tau)
             pos[after] = self.positions[-1] + v_end * tau * (1.0 - decay)
             vel[after] = v_end * decay
             acc[after] = -v_end / tau * decay
-        if self.ramp_start is not None:
-            # output g(t) p(t) with g falling 1 -> 0; envelope of the reversed time gives g, -dg/dt, d2g/dt2
-            gain, rate, curve = envelope(self.ramp_start + self.ramp_s - times, None, self.ramp_s)
-            g, dg, ddg = gain[:, None], -rate[:, None], curve[:, None]
-            acc = acc * g + 2 * vel * dg + pos * ddg
-            vel = vel * g + pos * dg
-            pos = pos * g
-            if times[-1] >= self.ramp_start + self.ramp_s:
-                self.latched = True
+        start, _ = self.ramp()
+        if start is not None:
+            fade = tuple(x[:, None] for x in fade_out(times, start, self.ramp_s))
+            pos, vel, acc = product_rule((pos, vel, acc), fade)
         return pos, vel, acc
+
+    def status(self, now: float) -> BufferStatus:
+        """Classify the output around ``now`` (s): see BufferStatus."""
+        start, reason = self.ramp()
+        until = self.commanded_until()
+        span = STATUS_SPAN_S
+        grid = now + np.linspace(-span, span, 41)
+        pos = np.abs(self.sample(grid)[0])
+        past = pos[:21].max(axis=0)
+        ahead = pos[20:].max(axis=0)
+        horizon = until if start is None else min(until, start)
+        future = (self.times > now) & (self.times < horizon)
+        later = np.abs(self.positions[future]).max(axis=0) if future.any() else np.zeros(6)
+        rest = self.rest_position
+        if past.max() <= rest:
+            state = "pending" if max(ahead.max(), later.max()) > rest else "idle"
+        elif ahead.max() < 0.97 * past.max():
+            state = "ramping_out"
+        elif past.max() < 0.97 * max(ahead.max(), later.max()):
+            state = "ramping_in"
+        else:
+            state = "running"
+        return BufferStatus(now, state, past, until, start, reason)

@@ -48,16 +48,16 @@ class PlatformVibrationMotion:
     angular_acceleration: np.ndarray
 
 
-def _waveform(plan: VibrationDecomposition, times, duration, ramp_time):
+def _waveform(plan: VibrationDecomposition, times, duration, ramp_time, fade=None):
     t = np.asarray(times, dtype=float)
     if t.ndim != 1 or not np.isfinite(t).all():
         raise InvalidInputError("times must be a finite 1-D array (s)")
-    return t, sinusoid(t, plan.amplitude, plan.frequency, plan.phase, duration, ramp_time)
+    return t, sinusoid(t, plan.amplitude, plan.frequency, plan.phase, duration, ramp_time, fade)
 
 
 def sample_leg_vibration(
     robot, plan: VibrationDecomposition, times, *, duration: float | None = None,
-    ramp_time: float = 0.0, method: str = "exact",
+    ramp_time: float = 0.0, method: str = "exact", fade=None,
 ) -> LegVibrationSamples:
     """Leg vibration displacement vib_i(t) [N, 6] (m) with velocity and acceleration.
 
@@ -65,9 +65,10 @@ def sample_leg_vibration(
     end); ``ramp_time`` (s) smooth quintic ramp-in/out of the platform
     displacement. method "exact": IK difference of the displaced poses
     (velocity l' delta', acceleration l' delta'' + l'' delta'^2, analytic);
-    "linear": k_i delta(t).
+    "linear": k_i delta(t). ``fade``: an extra envelope (g, g', g'') [N] on delta
+    (``waveform.fade_out``: the ramp-out that ends a streamed window or a stop).
     """
-    t, (delta, rate, accel) = _waveform(plan, times, duration, ramp_time)
+    t, (delta, rate, accel) = _waveform(plan, times, duration, ramp_time, fade)
     if method == "linear":
         k = plan.gains
         return LegVibrationSamples(t, delta[:, None] * k, rate[:, None] * k, accel[:, None] * k)

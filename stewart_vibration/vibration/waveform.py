@@ -57,13 +57,33 @@ def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
     return value, first, second
 
 
-def sinusoid(times, amplitude: float, frequency: float, phase: float, duration=None, ramp_time: float = 0.0):
-    """delta, d delta/dt, d2 delta/dt2 [N] of e(t) A sin(2 pi f t + phase) (units of A per s^k)."""
+def product_rule(f, g):
+    """(f g, (f g)', (f g)'') from (f, f', f'') and (g, g', g'') (arrays that broadcast)."""
+    f0, f1, f2 = f
+    g0, g1, g2 = g
+    return f0 * g0, f1 * g0 + f0 * g1, f2 * g0 + 2.0 * f1 * g1 + f0 * g2
+
+
+def fade_out(times, start: float, ramp_time: float):
+    """Falling envelope g(t), dg/dt, d2g/dt2 [N]: 1 before ``start``, a quintic smoothstep to 0 over
+    ``ramp_time`` (s), 0 after. Times and start in the same time base (s)."""
+    g, rate, curve = envelope(start + ramp_time - np.asarray(times, dtype=float), None, ramp_time)
+    return g, -rate, curve
+
+
+def sinusoid(times, amplitude: float, frequency: float, phase: float, duration=None, ramp_time: float = 0.0,
+             fade=None):
+    """delta, d delta/dt, d2 delta/dt2 [N] of e(t) A sin(2 pi f t + phase) (units of A per s^k).
+
+    ``fade``: an optional extra envelope (g, g', g'') [N] multiplied onto e(t) (e.g. ``fade_out``).
+    """
     t = np.asarray(times, dtype=float)
     omega = 2.0 * np.pi * frequency
     angle = omega * t + phase
     s, c = np.sin(angle), np.cos(angle)
     e, de, dde = envelope(t, duration, ramp_time)
+    if fade is not None:
+        e, de, dde = product_rule((e, de, dde), fade)
     delta = amplitude * e * s
     velocity = amplitude * (de * s + e * omega * c)
     acceleration = amplitude * (dde * s + 2.0 * de * omega * c - e * omega**2 * s)

@@ -1,0 +1,129 @@
+"""What the vibration units are really doing, as the emulator reports it (pure; vibration/status).
+
+``VibrationStatusTracker`` turns the command buffer's classification (idle, pending, ramping_in,
+running, ramping_out), the e-stop and the command events (window accepted / refused, safety ramps)
+into one report with a state that names why it stopped, the time it entered that state and an
+event counter, so a reader (planner, runner, estimator, UI) can tell a normal end from a watchdog,
+an e-stop or a refused window.
+
+States: idle, pending (a window starts later), ramping_in, running, ramping_out, stopped (at rest
+after a safety ramp: watchdog, stop), estopped (latched until reset).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .vibration_buffer import BufferStatus
+
+OK, WARN, ERROR = "ok", "warn", "error"
+
+
+@dataclass(frozen=True)
+class VibrationReport:
+    """One vibration/status message (times in s of the emulator's clock)."""
+
+    state: str
+    level: str
+    reason: str
+    since: float
+    time: float
+    amplitude: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    commanded_until: float = float("-inf")
+    ramp_start: float | None = None
+    ramp_reason: str = ""
+    event_seq: int = 0
+    event: str = ""
+    event_stamp: float | None = None
+    event_time: float | None = None
+    accepted: int = 0
+    refused: int = 0
+
+    @property
+    def message(self) -> str:
+        return f"{self.state}: {self.reason}" if self.reason else self.state
+
+    def as_values(self) -> dict[str, str]:
+        """Key/value strings (DiagnosticStatus values)."""
+        def num(x):
+            return "" if x is None or not np.isfinite(x) else f"{x:.6f}"
+
+        return {
+            "state": self.state, "reason": self.reason, "since_s": num(self.since), "time_s": num(self.time),
+            "amplitude_um": ",".join(f"{a * 1e6:.3f}" for a in self.amplitude),
+            "commanded_until_s": num(self.commanded_until), "ramp_start_s": num(self.ramp_start),
+            "ramp_reason": self.ramp_reason, "event_seq": str(self.event_seq), "event": self.event,
+            "event_stamp_s": num(self.event_stamp), "event_time_s": num(self.event_time),
+            "accepted_windows": str(self.accepted), "refused_windows": str(self.refused),
+        }
+
+
+def report_from_values(level: str, values: dict[str, str]) -> VibrationReport:
+    """Inverse of ``VibrationReport.as_values`` (for readers of vibration/status)."""
+    def num(key, default=None):
+        text = values.get(key, "")
+        return float(text) if text else default
+
+    amplitude = np.array([float(a) * 1e-6 for a in values.get("amplitude_um", "").split(",") if a] or [0.0] * 6)
+    return VibrationReport(
+        state=values.get("state", ""), level=level, reason=values.get("reason", ""), since=num("since_s", 0.0),
+        time=num("time_s", 0.0), amplitude=amplitude, commanded_until=num("commanded_until_s", float("-inf")),
+        ramp_start=num("ramp_start_s"), ramp_reason=values.get("ramp_reason", ""),
+        event_seq=int(values.get("event_seq", "0") or 0), event=values.get("event", ""),
+        event_stamp=num("event_stamp_s"), event_time=num("event_time_s"),
+        accepted=int(values.get("accepted_windows", "0") or 0), refused=int(values.get("refused_windows", "0") or 0))
+
+
+class VibrationStatusTracker:
+    """Keeps the current report; ``update`` and the event methods return it (and whether it changed)."""
+
+    def __init__(self):
+        self.report = VibrationReport(state="idle", level=OK, reason="no vibration commanded yet", since=0.0,
+                                      time=0.0)
+        self._stopped_reason = ""  # reason of the last safety ramp, until a new vibration starts
+
+    def _event(self, now: float, event: str, stamp: float | None = None, **counts) -> VibrationReport:
+        r = self.report
+        self.report = replace(r, event_seq=r.event_seq + 1, event=event, event_stamp=stamp, event_time=now, **counts)
+        return self.report
+
+    def accepted(self, now: float, stamp: float) -> VibrationReport:
+        self._stopped_reason = ""
+        return self._event(now, "accepted", stamp, accepted=self.report.accepted + 1)
+
+    def refused(self, now: float, stamp: float, reason: str) -> VibrationReport:
+        return self._event(now, f"refused: {reason}", stamp, refused=self.report.refused + 1)
+
+    def safety_ramp(self, now: float, reason: str) -> VibrationReport:
+        self._stopped_reason = reason
+        return self._event(now, f"ramp to zero: {reason}")
+
+    def update(self, buffer: BufferStatus, estopped: bool, now: float) -> tuple[VibrationReport, bool]:
+        """Fold the buffer's classification at ``now`` into the report; (report, state changed)."""
+        r = self.report
+        if buffer.ramp_start is not None and buffer.ramp_start <= now and buffer.ramp_reason:
+            self._stopped_reason = self._stopped_reason or buffer.ramp_reason
+        if estopped:
+            state, level = "estopped", ERROR
+            reason = "emergency stop latched (vibration ramped to zero, pose held); call hardware_emulator/reset"
+        elif buffer.state == "idle" and self._stopped_reason:
+            state, level, reason = "stopped", WARN, self._stopped_reason
+        elif buffer.state == "idle":
+            state, level = "idle", OK
+            reason = (f"commands ended at {buffer.commanded_until:.3f} s" if np.isfinite(buffer.commanded_until)
+                      else "no vibration commanded yet")
+        elif buffer.state == "ramping_out" and buffer.ramp_start is not None and buffer.ramp_start <= now:
+            state, level, reason = "ramping_out", WARN, buffer.ramp_reason
+        elif buffer.state == "ramping_out":
+            state, level, reason = "ramping_out", OK, f"commands end at {buffer.commanded_until:.3f} s"
+        else:
+            state, level = buffer.state, OK
+            reason = f"commanded until {buffer.commanded_until:.3f} s"
+        changed = state != r.state or level != r.level
+        since = now if changed else r.since
+        self.report = replace(r, state=state, level=level, reason=reason, since=since, time=now,
+                              amplitude=buffer.amplitude, commanded_until=buffer.commanded_until,
+                              ramp_start=buffer.ramp_start, ramp_reason=buffer.ramp_reason)
+        return self.report, changed

@@ -1,0 +1,75 @@
+"""Hermite splines (pure numpy): the interpolation of joint trajectories and vibration windows.
+
+As ros2_control's joint_trajectory_controller: between two knots a cubic segment when they carry
+positions and velocities, a quintic one when they also carry accelerations. s in [0, 1] is the
+normalised time within a segment of duration h (s); values broadcast over joints.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def quintic_hermite(s, h, p0, v0, a0, p1, v1, a1):
+    """Quintic Hermite on s in [0, 1] over duration h -> (p, v, a)."""
+    s2, s3, s4, s5 = s * s, s**3, s**4, s**5
+    p = (
+        (1 - 10 * s3 + 15 * s4 - 6 * s5) * p0
+        + (s - 6 * s3 + 8 * s4 - 3 * s5) * h * v0
+        + (0.5 * s2 - 1.5 * s3 + 1.5 * s4 - 0.5 * s5) * h * h * a0
+        + (10 * s3 - 15 * s4 + 6 * s5) * p1
+        + (-4 * s3 + 7 * s4 - 3 * s5) * h * v1
+        + (0.5 * s3 - s4 + 0.5 * s5) * h * h * a1
+    )
+    dp = (-30 * s2 + 60 * s3 - 30 * s4) * (p0 - p1) / h
+    v = (
+        dp
+        + (1 - 18 * s2 + 32 * s3 - 15 * s4) * v0
+        + (s - 4.5 * s2 + 6 * s3 - 2.5 * s4) * h * a0
+        + (-12 * s2 + 28 * s3 - 15 * s4) * v1
+        + (1.5 * s2 - 4 * s3 + 2.5 * s4) * h * a1
+    )
+    a = (
+        (-60 * s + 180 * s2 - 120 * s3) * (p0 - p1) / h**2
+        + (-36 * s + 96 * s2 - 60 * s3) * v0 / h
+        + (1 - 9 * s + 18 * s2 - 10 * s3) * a0
+        + (-24 * s + 84 * s2 - 60 * s3) * v1 / h
+        + (3 * s - 12 * s2 + 10 * s3) * a1
+    )
+    return p, v, a
+
+
+def cubic_hermite(s, h, p0, v0, p1, v1):
+    """Cubic Hermite on s in [0, 1] over duration h -> (p, v, a)."""
+    s2, s3 = s * s, s**3
+    p = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * h * v0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * h * v1
+    v = (6 * s2 - 6 * s) * (p0 - p1) / h + (3 * s2 - 4 * s + 1) * v0 + (3 * s2 - 2 * s) * v1
+    a = (12 * s - 6) * (p0 - p1) / h**2 + (6 * s - 4) * v0 / h + (6 * s - 2) * v1 / h
+    return p, v, a
+
+
+def spline_segments(knot_times, positions, velocities, accelerations, times, segments=None):
+    """(p, v, a) [m, k] of the Hermite spline through the knots at ``times`` [m] within
+    [knot_times[0], knot_times[-1]]: per segment cubic (positions + velocities), or quintic when
+    both of its knots carry accelerations (``accelerations`` [n, k] with NaN rows where a knot has
+    none; None = none at all), as joint_trajectory_controller interpolates. ``segments`` [m]: the
+    segment of each time (default: the one it falls in; a time on a knot starts the next segment)."""
+    kt = knot_times
+    seg = np.clip(np.searchsorted(kt, times, side="right") - 1, 0, kt.size - 2) if segments is None \
+        else np.asarray(segments)
+    h = (kt[seg + 1] - kt[seg])[:, None]
+    s = (times - kt[seg])[:, None] / h
+    p0, v0, p1, v1 = positions[seg], velocities[seg], positions[seg + 1], velocities[seg + 1]
+    if accelerations is None:
+        return cubic_hermite(s, h, p0, v0, p1, v1)
+    a0, a1 = accelerations[seg], accelerations[seg + 1]
+    quintic = ~(np.isnan(a0[:, 0]) | np.isnan(a1[:, 0]))
+    if quintic.all():
+        return quintic_hermite(s, h, p0, v0, a0, p1, v1, a1)
+    out = cubic_hermite(s, h, p0, v0, p1, v1)
+    if quintic.any():
+        q = quintic
+        quin = quintic_hermite(s[q], h[q], p0[q], v0[q], a0[q], p1[q], v1[q], a1[q])
+        for full, part in zip(out, quin, strict=True):
+            full[q] = part
+    return out
