@@ -7,9 +7,12 @@ hardware emulator):
   (hinges ``u1_i``, ``u2_i``, both normal to the home leg axis) or, with
   ``base_joint="ball"``, a ball joint ``ball_i``; child body ``piston_i`` on
   the slide joint ``leg_i`` along the leg. The slide's position IS the strut
-  length (m, hinge centre to hinge centre, ``ref`` = home length). Motor
-  actuator ``leg_i`` (gear 1: ctrl = axial force, N, positive extends) and
-  sensor ``force_leg_i`` (actuatorfrc).
+  length (m, hinge centre to hinge centre, ``ref`` = home length). Actuator
+  ``leg_i``: a ``general`` actuator with force = ctrl + b1 q + b2 q_dot (gear 1,
+  N, positive extends); the model has b1 = b2 = 0, i.e. a pure force motor
+  (ctrl = axial force); the hardware emulator's servo drive sets b1 = -kp,
+  b2 = -kv at run time (``emulation.servo_drive``). Sensor ``force_leg_i``
+  (actuatorfrc) reads the applied force.
 - body ``platform`` (platform + payload, one rigid body, platform frame) on a
   free joint ``platform``.
 - equality ``connect`` between site ``tip_i`` (on the piston, at A_i) and
@@ -52,6 +55,8 @@ class SimulationSettings:
     solver_tolerance: float = 1.0e-12
     drive_bandwidth_hz: float = 50.0
     drive_damping_ratio: float = 1.0
+    emulator_integrator: str = "Euler"
+    servo_bandwidth_hz: float = 10.0
 
     @property
     def solref(self) -> tuple[float, float]:
@@ -65,6 +70,7 @@ _YAML_KEYS = {
     "solimp": "solimp", "armature": "armature", "solver": "solver",
     "solver_iterations": "solver_iterations", "solver_tolerance": "solver_tolerance",
     "drive_bandwidth_hz": "drive_bandwidth_hz", "drive_damping_ratio": "drive_damping_ratio",
+    "emulator_integrator": "emulator_integrator", "servo_bandwidth_hz": "servo_bandwidth_hz",
 }
 
 
@@ -169,7 +175,8 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
     lines += ['    </body>', '  </worldbody>', '  <equality>']
     lines += [f'    <connect name="hinge_{i + 1}" site1="tip_{i + 1}" site2="a_{i + 1}"/>' for i in range(6)]
     lines += ['  </equality>', '  <actuator>']
-    lines += [f'    <motor name="leg_{i + 1}" joint="leg_{i + 1}" gear="1"/>' for i in range(6)]
+    lines += [f'    <general name="leg_{i + 1}" joint="leg_{i + 1}" gear="1" gainprm="1" biastype="affine" '
+              'biasprm="0 0 0"/>' for i in range(6)]
     lines += ['  </actuator>', '  <sensor>']
     lines += [f'    <actuatorfrc name="force_leg_{i + 1}" actuator="leg_{i + 1}"/>' for i in range(6)]
     lines += ['  </sensor>', '</mujoco>']

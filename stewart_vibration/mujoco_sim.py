@@ -192,6 +192,13 @@ class StewartSim:
         mujoco.mju_quat2Mat(rot, quat / np.linalg.norm(quat))
         return np.r_[data.qpos[self.free_qpos:self.free_qpos + 3], rpy_from_rotation(rot.reshape(3, 3))]
 
+    def platform_position_quaternion(self, data=None) -> tuple[np.ndarray, np.ndarray]:
+        """(position (3,) m, unit quaternion (4,) [x, y, z, w]) of the platform frame (base frame)."""
+        data = self.data if data is None else data
+        q = data.qpos[self.free_qpos:self.free_qpos + 7]
+        wxyz = q[3:] / np.linalg.norm(q[3:])
+        return q[:3].copy(), np.array([wxyz[1], wxyz[2], wxyz[3], wxyz[0]])
+
     def platform_twist(self, data=None) -> np.ndarray:
         """[v, w] (6,) of the platform origin, base frame (MuJoCo stores w in the body frame)."""
         data = self.data if data is None else data

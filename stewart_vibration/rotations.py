@@ -110,6 +110,18 @@ def quaternion_from_rpy(rpy) -> np.ndarray:
     )
 
 
+def rotation_from_quaternion(quat) -> np.ndarray:
+    """Rotation matrices [..., 3, 3] of unit quaternions [..., 4] [x, y, z, w] (not renormalised)."""
+    q = np.asarray(quat, dtype=float)
+    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    rows = [
+        [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+        [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+        [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
+    ]
+    return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
 def rpy_from_quaternion(quat, *, unit_tolerance: float = 1e-6) -> np.ndarray:
     """[x, y, z, w] -> [roll, pitch, yaw]. Rejects non-unit quaternions (|q| off by > tolerance)."""
     q = as_batch(quat, 4, "quaternion")

@@ -8,10 +8,8 @@ from reference import config_hinges, reference_lengths
 
 from stewart_vibration import decompose_vibration, inverse_kinematics, jacobian, platform_vibration_motion
 from stewart_vibration.dynamics import leg_forces
-from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.estimation import (
     RunningForceError,
-    VibrationCommandBuffer,
     external_wrench,
     platform_accel,
     platform_twist,
@@ -106,30 +104,6 @@ def test_external_wrench_inverts_leg_forces(robot):
     model = leg_forces(robot, s.pose, s.twist, s.accel)
     np.testing.assert_allclose(external_wrench(robot, s.pose, with_wrench, model), np.tile(wrench, (5, 1)),
                                atol=1e-9)
-
-
-def test_vibration_buffer_interpolates_and_replaces():
-    f = 35.0
-    w = 2 * np.pi * f
-    dt = 1e-3
-    gains = np.linspace(-1, 1, 6) * 1e-5
-    times = np.arange(0, 0.6, dt) + 100.0
-    buf = VibrationCommandBuffer()
-    buf.add(times, np.sin(w * times)[:, None] * gains, (w * np.cos(w * times))[:, None] * gains)
-    probe = np.linspace(100.1, 100.5, 97)
-    pos, vel, acc = buf.sample(probe)
-    np.testing.assert_allclose(pos, np.sin(w * probe)[:, None] * gains, atol=1e-4 * 1e-5)
-    # cubic Hermite acceleration error ~ (w dt)^2 / 12 relative (what the emulator follows)
-    np.testing.assert_allclose(acc, (-w * w * np.sin(w * probe))[:, None] * gains, atol=0.01 * w * w * 1e-5)
-    # a new window replaces from its first point on: zeros after 100.3
-    later = times[times >= 100.3]
-    buf.add(later, np.zeros((later.size, 6)), np.zeros((later.size, 6)))
-    pos, _, acc = buf.sample(np.array([100.2, 100.4, 101.0, 99.0]))
-    assert np.abs(pos[0]).max() > 0 and np.abs(pos[1:]).max() == 0 and np.abs(acc[1:]).max() == 0
-    with pytest.raises(InvalidInputError):
-        buf.add(np.array([1.0, 1.0]), np.zeros((2, 6)), np.zeros((2, 6)))
-    with pytest.raises(InvalidInputError):
-        buf.add(np.array([1.0, 2.0]), np.full((2, 6), np.nan), np.zeros((2, 6)))
 
 
 def test_running_force_error():

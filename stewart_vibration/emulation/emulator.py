@@ -1,12 +1,19 @@
-"""The emulated robot (no rclpy): MuJoCo model + strut trajectory follower +
-vibration buffer + safety. The hardware_emulator node only converts messages.
+"""The emulated robot (no rclpy): MuJoCo model + strut servos + strut trajectory follower +
+vibration command buffer + safety. The hardware_emulator node only converts messages.
 
-Each leg is strut + vibration unit in series: the simulated slide is the total
-hinge-to-hinge length; the joint state reports leg_i = total - vib_i (strut)
-and vib_i (the unit's displacement), both with the same axial force.
+Each leg is strut + vibration unit in series: the simulated slide is the total hinge-to-hinge
+length; the joint state reports leg_i = total - vib_i (strut) and vib_i (the unit's displacement),
+both with the same axial force.
+
+Stepping: ``advance(duration)`` runs one block of physics steps (the state period, e.g. 2 ms = 4
+steps at 2 kHz) with controls planned for the whole block (``servo_drive``); the references of the
+strut trajectory and the vibration buffer are sampled for ``reference_horizon_s`` at a time in one
+vectorised call and reused until a command changes them.
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -16,8 +23,10 @@ from ..mjcf import SimulationSettings
 from ..motion_profiles import minimum_jerk, minimum_jerk_duration
 from ..mujoco_sim import StewartSim
 from ..robot import Robot
+from .servo_drive import ServoDrive
 from .trajectory import JointTrajectory, TrajectoryFollower, build_trajectory
 from .vibration_buffer import VibrationBuffer
+from .vibration_status import VibrationReport, VibrationStatusTracker
 
 LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
@@ -27,26 +36,26 @@ SPEED_TOLERANCE = 1.0 + 1e-6
 class HardwareEmulator:
     """Step the robot in MuJoCo while following strut and vibration commands safely.
 
-    Time is simulation time (s, starts at 0). ``advance(duration)`` runs whole
-    physics steps; commands are sampled at each step's start time.
+    Time is simulation time (s, starts at 0). Commands take effect from the next block.
     """
 
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
-                 vibration_ramp_s: float = 0.05, gain_interval: int = 1):
+                 vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
+                 reference_horizon_s: float = 0.05):
         self.robot = robot
-        # gain_interval: steps between recomputations of the drive's 6x6 force-to-acceleration map
-        # (six extra mj_forward calls each); the map barely changes over a few ms of motion
-        self.sim = StewartSim(robot, settings, gain_interval=gain_interval)
+        self.sim = StewartSim(robot, replace(settings, integrator=settings.emulator_integrator))
         self.sim.reset(robot.home_pose)
+        self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio, gain_interval)
         self.home_lengths = inverse_kinematics(robot, robot.home_pose)
         self.struts = TrajectoryFollower(self.home_lengths)
-        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s)
+        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s)
+        self.status = VibrationStatusTracker()
         self.forces = np.zeros(6)
         self.estopped = False
-        self._version = 0  # bumped by every accepted command: the cached next-step forces are stale then
-        self._pending_time = None
-        self._pending_version = -1
-        self._next_forces = np.zeros(6)
+        self.reference_horizon_s = float(reference_horizon_s)
+        self._version = 0  # bumped by every accepted command: cached references and planned controls are stale
+        self._refs = None  # (version, first step time, arrays) of the sampled references
+        self._planned = None  # (version, time, controls) for the block starting at ``time``
 
     @property
     def time(self) -> float:
@@ -64,7 +73,7 @@ class HardwareEmulator:
             raise ActuatorLimitError("emergency stop is active: call reset first", limit_name="emergency_stop")
         traj = build_trajectory(names, LEG_NAMES, start, times, positions, velocities, accelerations)
         self._check_strut_limits(traj)
-        self._version += 1
+        self._changed()
         return self.struts.replace(traj, self.time)
 
     def _check_strut_limits(self, traj: JointTrajectory) -> None:
@@ -95,27 +104,43 @@ class HardwareEmulator:
                 f"{lim.strut_velocity_max:.4g} m/s", leg=leg + 1, limit_name="strut_velocity_max",
                 value=float(peak[leg]), limit=lim.strut_velocity_max)
 
-    def command_vibration(self, names, start, times, positions, velocities=None) -> None:
-        """Validate and buffer a vib_* window. Raises InvalidInputError / VibrationLimitError /
-        ActuatorLimitError (e-stop active) with the reason."""
-        if self.estopped:
-            raise ActuatorLimitError("emergency stop is active: call reset first", limit_name="emergency_stop")
-        traj = build_trajectory(names, VIB_NAMES, start, times, positions, velocities)
-        self.vibration.add(traj, self.time)
-        self._version += 1
+    def command_vibration(self, names, start, times, positions, velocities=None, accelerations=None) -> float:
+        """Validate and splice a vib_* window onto the buffer; returns the splice time (s). Raises
+        InvalidInputError / VibrationLimitError / ActuatorLimitError (e-stop active) with the reason;
+        the refusal is also recorded in the vibration status."""
+        now = self.time
+        try:
+            if self.estopped:
+                raise ActuatorLimitError("emergency stop is active: call hardware_emulator/reset first",
+                                         limit_name="emergency_stop")
+            traj = build_trajectory(names, VIB_NAMES, start, times, positions, velocities, accelerations)
+            splice = self.vibration.add(traj, now)
+        except Exception as exc:
+            self.status.refused(now, float(start), str(exc))
+            raise
+        self.status.accepted(now, float(start))
+        self._changed()
+        return splice
 
     def emergency_stop(self) -> None:
         """Ramp the vibration to zero and hold the strut lengths commanded now; latched until reset()."""
         now = self.time
         self.vibration.stop(now, "emergency stop")
         self.struts.hold(self.struts.sample([now])[0][0])
+        if not self.estopped:
+            self.status.safety_ramp(now, "emergency stop")
         self.estopped = True
-        self._version += 1
+        self._changed()
 
     def reset(self) -> float:
-        """Clear the e-stop, ramp any vibration out, and move smoothly home; returns the move's duration (s)."""
+        """Clear a latched e-stop and move smoothly home; returns the move's duration (s).
+
+        Raises ActuatorLimitError (limit_name "reset") when no e-stop is latched: reset moves the
+        robot, so it only acts as the way out of an e-stop."""
+        if not self.estopped:
+            raise ActuatorLimitError("no emergency stop is latched: reset only clears an e-stop (it moves the "
+                                     "robot home)", limit_name="reset")
         now = self.time
-        self.vibration.stop(now, "reset")
         self.estopped = False
         current = self.struts.sample([now])[0][0]
         duration = minimum_jerk_duration(current, self.home_lengths, 0.5 * self.robot.limits.strut_velocity_max, 0.5)
@@ -123,47 +148,64 @@ class HardwareEmulator:
         pos, vel, acc = minimum_jerk(current, self.home_lengths, duration, times)
         self.struts.hold(current)
         self.struts.replace(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, pos, vel, acc), now)
-        self._version += 1
+        self._changed()
         return duration
 
-    # -- stepping ----------------------------------------------------------------
-    def advance(self, duration: float) -> int:
-        """Run round(duration / dt) physics steps; returns the number of steps.
+    def _changed(self) -> None:
+        self._version += 1
 
-        Afterwards ``forces`` holds the axial forces at the new time (interpolated from the
-        step forces, see below); the next step's forces are computed once and reused.
+    # -- stepping ----------------------------------------------------------------
+    def _references(self, time: float, steps: int):
+        """(lengths, rates at t - dt/2, accelerations, vib positions, vib velocities) [steps + 1, 6] at the
+        step times time + k dt, k = 0..steps (the last row is the block's end), from the cache.
+
+        The servos' references come from the commanded hinge lengths L (strut + vibration) on the step
+        grid: the acceleration of step k is the second difference (L[k+1] - 2 L[k] + L[k-1]) / dt^2 and
+        the rate (L[k] - L[k-1]) / dt, the values with which semi-implicit Euler reproduces L at every
+        step (its velocities live half a step back)."""
+        dt = self.dt
+        cache = self._refs
+        if cache is not None and cache[0] == self._version:
+            first = int(round((time - cache[1]) / dt))
+            if 0 <= first and first + steps < len(cache[2][0]):
+                return tuple(a[first:first + steps + 1] for a in cache[2])
+        count = max(steps, int(round(self.reference_horizon_s / dt))) + 1
+        t = time + dt * np.arange(-1, count + 1)  # one step before and after for the differences
+        strut = self.struts.sample(t)[0]
+        vib, vib_rate, _ = self.vibration.sample(t)
+        length = strut + vib
+        accel = (length[2:] - 2.0 * length[1:-1] + length[:-2]) / dt**2
+        rates_half = (length[1:-1] - length[:-2]) / dt
+        arrays = (length[1:-1], rates_half, accel, vib[1:-1], vib_rate[1:-1])
+        self._refs = (self._version, time, arrays)
+        return tuple(a[:steps + 1] for a in arrays)
+
+    def _controls(self, time: float, steps: int) -> np.ndarray:
+        planned = self._planned
+        if planned is not None and planned[0] == self._version and planned[1] == time and len(planned[2]) == steps:
+            return planned[2]
+        lengths, rates_half, accels, _, _ = self._references(time, steps)
+        return self.drive.plan(time, lengths[:steps], rates_half[:steps], accels[:steps])
+
+    def advance(self, duration: float) -> int:
+        """Run round(duration / dt) physics steps as one block; returns the number of steps.
+
+        Afterwards ``forces`` holds the axial forces at the new time: those of the step that starts
+        there (the next block's controls are planned now and reused if no command arrives).
         """
         steps = max(int(round(duration / self.dt)), 1)
-        t = self.time + self.dt * np.arange(steps + 1)
-        # positions/rates at each step start (the drive's feedback); the feedforward acceleration at the
-        # step midpoint, because the force is held over the step (sampling it at the start delays it by
-        # dt/2: a 3 % amplitude error at 35 Hz with 1 ms steps)
-        p, v, _ = self.struts.sample(t)
-        a = self.struts.sample(t + 0.5 * self.dt)[2]
-        vp, vv, _ = self.vibration.sample(t)
-        va = self.vibration.sample(t + 0.5 * self.dt)[2]
-        length, rate, accel = p + vp, v + vv, a + va
-        for k in range(steps):
-            if k == 0 and self._pending_time == self.time and self._pending_version == self._version:
-                forces = self._next_forces
-            else:
-                forces = self.sim.drive_forces(length[k], rate[k], accel[k])
-            self.sim.step(forces)
-        self._next_forces = self.sim.drive_forces(length[steps], rate[steps], accel[steps])
-        self._pending_time, self._pending_version = self.time, self._version
-        # Each force is held over one step and aims at the acceleration at that step's midpoint, so the
-        # last and the next are samples of the continuous axial force at t - dt/2 and t + dt/2; their
-        # mean is the force at t (what a load cell reads) to second order: a sinusoid's amplitude is
-        # read cos(w dt / 2) low (0.15 % at 35 Hz, 2 kHz). Higher-order interpolation was tried and
-        # amplifies the drive's step-to-step jitter.
-        self.forces = 0.5 * (forces + self._next_forces)
+        self.drive.run(self._controls(self.time, steps))
+        now = self.time
+        controls = self._controls(now, steps)
+        self._planned = (self._version, now, controls)
+        self.forces = self.drive.first_force(controls)
         return steps
 
     # -- read-back ---------------------------------------------------------------
     def joint_state(self):
         """(names, positions, velocities, efforts) for leg_1..6, vib_1..6 at the current time."""
-        total, rate = self.sim.leg_lengths(), self.sim.leg_velocities()
-        vib, vib_rate, _ = self.vibration.sample([self.time])
+        total, rate = self.drive.lengths(), self.drive.rates()
+        _, _, _, vib, vib_rate = self._references(self.time, 0)
         vib, vib_rate = vib[0], vib_rate[0]
         positions = np.concatenate([total - vib, vib])
         velocities = np.concatenate([rate - vib_rate, vib_rate])
@@ -172,3 +214,7 @@ class HardwareEmulator:
 
     def platform_pose(self) -> np.ndarray:
         return self.sim.platform_pose()
+
+    def vibration_report(self) -> tuple[VibrationReport, bool]:
+        """(report, state changed) of what the vibration units do now (see vibration_status)."""
+        return self.status.update(self.vibration.status(self.time), self.estopped, self.time)

@@ -239,10 +239,10 @@ class VibrationBuffer:
         start, reason = self.ramp()
         until = self.commanded_until()
         span = STATUS_SPAN_S
-        grid = now + np.linspace(-span, span, 41)
+        grid = now + np.linspace(-span, span, 201)  # 1 ms apart: a sinusoid's peak within 0.6 % up to 35 Hz
         pos = np.abs(self.sample(grid)[0])
-        past = pos[:21].max(axis=0)
-        ahead = pos[20:].max(axis=0)
+        past = pos[:101].max(axis=0)
+        ahead = pos[100:].max(axis=0)
         horizon = until if start is None else min(until, start)
         future = (self.times > now) & (self.times < horizon)
         later = np.abs(self.positions[future]).max(axis=0) if future.any() else np.zeros(6)

@@ -1,0 +1,169 @@
+"""The leg-force estimator's per-run state (pure numpy; the node only converts messages).
+
+``ForceEstimator`` keeps what the emulator follows -- the vib_* window buffer and the leg_*
+trajectory, with the emulator's own models (emulation.vibration_buffer, emulation.trajectory) and
+its safety ramps as the emulator reports them on vibration/status -- and turns batches of joint
+states into modelled leg forces and the external wrench:
+
+    pose = FK(leg_i + vib_i) (warm-started from the previous batch),
+    twist = J^-1 L_dot (measured), accel = J^-1 (L_ddot_commanded - c),
+    F_model = leg_forces(pose, twist, accel), W_ext = -J^T (F_measured - F_model).
+
+A batch gives the same forces as feeding its states one by one (FK converges to 1e-12 m either way).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..dynamics import leg_forces
+from ..emulation.trajectory import JointTrajectory, TrajectoryFollower
+from ..emulation.vibration_buffer import VibrationBuffer
+from ..errors import InvalidInputError
+from ..kinematics import forward_kinematics
+from ..robot import Robot
+from .motion import external_wrench, platform_accel, platform_twist
+
+# FK converged to 1e-14 m: a batch (one warm start for all) and single states (each warm-started from the
+# previous) then land on the same pose to ~1e-15 m, so their forces agree to ~1e-13 N.
+FK_TOLERANCE = 1e-14
+
+
+@dataclass(frozen=True)
+class ForceEstimate:
+    """Per state of a batch: ``ok`` [n] (FK converged; the other rows only where ok), stamps [m] (s),
+    pose [m, 6], forces [m, 6] (N, modelled axial), wrench [m, 6] (external wrench on the platform, N and
+    N m about the platform origin, base frame; NaN where no effort was measured)."""
+
+    ok: np.ndarray
+    stamps: np.ndarray
+    pose: np.ndarray
+    forces: np.ndarray
+    wrench: np.ndarray
+
+
+class ForceEstimator:
+    """Commands in, states in (batches), modelled forces out; see the module docstring."""
+
+    def __init__(self, robot: Robot, vibration_ramp_s: float = 0.05, watchdog_s: float = 0.5,
+                 rms_window_s: float = 1.0):
+        self.robot = robot
+        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s=np.inf,
+                                         check_limits=False)  # the emulator checks; this mirrors what it accepted
+        self.struts: TrajectoryFollower | None = None  # once a state gives the held lengths
+        self.pose = None  # last FK pose (warm start)
+        self.errors = RunningForceError(rms_window_s)
+        self._last_struts = None  # strut lengths of the newest state
+
+    # -- commands (mirrors of the emulator's) ----------------------------------------------
+    def command_vibration(self, traj: JointTrajectory, now: float) -> None:
+        """Buffer a vib_* window as the emulator does (raises the emulator's refusal reasons)."""
+        self.vibration.add(traj, now)
+
+    def command_struts(self, traj: JointTrajectory, now: float) -> None:
+        """Follow a leg_* trajectory from the newest measured lengths (raises if none was measured yet)."""
+        if self.struts is None:
+            if self._last_struts is None:
+                raise InvalidInputError("no legs/joint_states yet (start state unknown)")
+            self.struts = TrajectoryFollower(self._last_struts)
+        self.struts.replace(traj, now)
+
+    def apply_ramp(self, start: float | None, reason: str) -> None:
+        """A safety ramp the emulator reports (e-stop, watchdog) from ``start`` (s); ignored when it
+        predates the newest window (a stale report about an earlier vibration)."""
+        if start is not None and start >= self.vibration.last_receive:
+            self.vibration.stop(start, reason)
+
+    # -- states ----------------------------------------------------------------------------
+    def estimate(self, stamps, struts, vib, strut_rates, vib_rates, efforts=None) -> ForceEstimate:
+        """Modelled forces for states [n]: stamps (s), strut and vibration positions / rates [n, 6]
+        (m, m/s), measured axial forces [n, 6] (N; None or NaN rows = not measured)."""
+        stamps = np.asarray(stamps, float)
+        struts, vib = np.asarray(struts, float), np.asarray(vib, float)
+        lengths = struts + vib
+        rates = np.asarray(strut_rates, float) + np.asarray(vib_rates, float)
+        self._last_struts = struts[-1]
+        if self.struts is None:
+            self.struts = TrajectoryFollower(struts[-1])
+        elif self.struts.finished(stamps[-1]):
+            self.struts.hold(struts[-1])  # at rest at the measured lengths
+        guess = self.robot.home_pose if self.pose is None else self.pose
+        fk = forward_kinematics(self.robot, lengths, guess=np.broadcast_to(guess, lengths.shape), tol=FK_TOLERANCE,
+                                check_limits=False)
+        ok = fk.converged & fk.assembly_ok
+        if not ok.any():
+            self.pose = None
+            return ForceEstimate(ok, *(np.empty((0, 6)) for _ in range(4)))
+        pose = fk.pose[ok]
+        times = stamps[ok]
+        twist = platform_twist(self.robot, pose, rates[ok])
+        accel_legs = self.struts.sample(times)[2] + self.vibration.sample(times)[2]
+        accel = platform_accel(self.robot, pose, twist, accel_legs)
+        forces = leg_forces(self.robot, pose, twist, accel)
+        self.pose = pose[-1]
+        wrench = np.full_like(forces, np.nan)
+        if efforts is not None:
+            measured = np.asarray(efforts, float)[ok]
+            have = np.isfinite(measured).all(axis=1)
+            if have.any():
+                wrench[have] = external_wrench(self.robot, pose[have], measured[have], forces[have])
+                self.errors.add_batch(times[have], measured[have], forces[have])
+        return ForceEstimate(ok, times, pose, forces, wrench)
+
+
+class RunningForceError:
+    """RMS of F_measured - F_model over the last ``window_s`` seconds, and the force amplitude.
+
+    amplitude: per leg half the peak-to-peak of the measured force in the window
+    (the vibration's force amplitude); relative error = RMS error / RMS over the
+    legs of those amplitudes. Samples are kept in batches (arrays), trimmed by time.
+    """
+
+    def __init__(self, window_s: float = 1.0):
+        self.window_s = float(window_s)
+        self._batches: deque = deque()  # (stamps [n], measured [n, 6], model [n, 6])
+
+    def add(self, stamp: float, measured, model) -> None:
+        """One sample: stamp (s), measured and modelled forces (6,) (N)."""
+        self.add_batch([stamp], np.reshape(measured, (1, -1)), np.reshape(model, (1, -1)))
+
+    def add_batch(self, stamps, measured, model) -> None:
+        """Samples [n]: stamps (s), measured and modelled forces [n, 6] (N)."""
+        stamps = np.asarray(stamps, float)
+        if not stamps.size:
+            return
+        if self._batches and self._batches[-1][0][-1] > stamps[0]:  # time went backwards (sim reset): restart
+            self._batches.clear()
+        self._batches.append((stamps, np.asarray(measured, float), np.asarray(model, float)))
+        cutoff = stamps[-1] - self.window_s
+        while self._batches and self._batches[0][0][-1] < cutoff:
+            self._batches.popleft()
+        first = self._batches[0]
+        if first[0][0] < cutoff:
+            keep = first[0] >= cutoff
+            self._batches[0] = (first[0][keep], first[1][keep], first[2][keep])
+
+    def __len__(self) -> int:
+        return sum(len(b[0]) for b in self._batches)
+
+    def summary(self) -> dict:
+        """rms_error_n (6,), rms_error_all_n, force_amplitude_n (6,), relative_error, samples."""
+        if not len(self):
+            return {"samples": 0}
+        measured = np.concatenate([b[1] for b in self._batches])
+        model = np.concatenate([b[2] for b in self._batches])
+        err = measured - model
+        rms = np.sqrt((err**2).mean(axis=0))
+        amp = (measured.max(axis=0) - measured.min(axis=0)) / 2.0
+        rms_all = float(np.sqrt((err**2).mean()))
+        amp_all = float(np.sqrt((amp**2).mean()))
+        return {
+            "samples": len(measured),
+            "rms_error_n": rms,
+            "rms_error_all_n": rms_all,
+            "force_amplitude_n": amp,
+            "relative_error": rms_all / amp_all if amp_all > 0 else float("inf"),
+        }

@@ -1,0 +1,512 @@
+"""Serialized ROS 2 messages (CDR, little endian) of the suite's high-rate topics, with numpy (no rclpy).
+
+The nodes publish and subscribe these topics raw (bytes), which skips rclpy's per-field Python
+object construction: encoding a JointState here costs a few microseconds instead of ~25.
+Covered types: sensor_msgs/JointState, geometry_msgs/PoseStamped, geometry_msgs/WrenchStamped,
+rosgraph_msgs/Clock, trajectory_msgs/JointTrajectory. Layout (XCDR1): a 4-byte encapsulation
+header (00 01 00 00), then the fields, each aligned to its size relative to the end of that
+header; strings are a uint32 length (with the NUL), the bytes and a NUL; sequences a uint32
+count and the elements. Decoders check every length against the buffer and raise
+InvalidInputError on malformed data.
+"""
+
+from __future__ import annotations
+
+import struct
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InvalidInputError
+
+ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR little endian
+_U32 = struct.Struct("<I")
+_STAMP = struct.Struct("<iI")
+_F8 = np.dtype("<f8")
+
+
+def _align(offset: int, size: int) -> int:
+    """Offset rounded up to ``size`` relative to the payload start (4 bytes in)."""
+    rel = offset - 4
+    return offset + (-rel) % size
+
+
+class _Writer:
+    """Sequential CDR writer (used to build templates, not on the hot path)."""
+
+    def __init__(self):
+        self.buf = bytearray(ENCAPSULATION)
+
+    def pad(self, size: int) -> None:
+        self.buf += b"\x00" * (_align(len(self.buf), size) - len(self.buf))
+
+    def u32(self, value: int) -> None:
+        self.pad(4)
+        self.buf += _U32.pack(value)
+
+    def stamp(self, sec: int, nanosec: int) -> None:
+        self.pad(4)
+        self.buf += _STAMP.pack(sec, nanosec)
+
+    def string(self, text: str) -> None:
+        data = text.encode() + b"\x00"
+        self.u32(len(data))
+        self.buf += data
+
+    def doubles(self, values) -> int:
+        """Write a sequence<float64>; returns the offset of its first element."""
+        values = np.asarray(values, dtype=_F8).ravel()
+        self.u32(values.size)
+        if values.size:
+            self.pad(8)
+        offset = len(self.buf)
+        self.buf += values.tobytes()
+        return offset
+
+    def fixed_doubles(self, values) -> int:
+        """Write float64 fields of a struct (no count); returns the offset of the first."""
+        self.pad(8)
+        offset = len(self.buf)
+        self.buf += np.asarray(values, dtype=_F8).tobytes()
+        return offset
+
+
+class _Reader:
+    """Sequential CDR reader with bounds checks."""
+
+    def __init__(self, data, what: str):
+        self.data = memoryview(data)
+        self.pos = 4
+        self.what = what
+        if len(self.data) < 4 or bytes(self.data[:2]) != b"\x00\x01":
+            raise InvalidInputError(f"{what}: not little-endian CDR data ({len(self.data)} bytes)")
+
+    def need(self, size: int) -> None:
+        if self.pos + size > len(self.data) or size < 0:
+            raise InvalidInputError(f"{self.what}: truncated at byte {self.pos} (needs {size} more of "
+                                    f"{len(self.data)})")
+
+    def pad(self, size: int) -> None:
+        self.pos = _align(self.pos, size)
+
+    def u32(self) -> int:
+        self.pad(4)
+        self.need(4)
+        value = _U32.unpack_from(self.data, self.pos)[0]
+        self.pos += 4
+        return value
+
+    def stamp(self) -> tuple[int, int]:
+        self.pad(4)
+        self.need(8)
+        value = _STAMP.unpack_from(self.data, self.pos)
+        self.pos += 8
+        return value
+
+    def string(self) -> str:
+        n = self.u32()
+        self.need(n)
+        raw = bytes(self.data[self.pos:self.pos + n])
+        self.pos += n
+        if n == 0 or raw[-1] != 0:
+            raise InvalidInputError(f"{self.what}: malformed string at byte {self.pos - n}")
+        try:
+            return raw[:-1].decode()
+        except UnicodeDecodeError as exc:
+            raise InvalidInputError(f"{self.what}: string is not UTF-8 ({exc})") from None
+
+    def strings(self) -> list[str]:
+        count = self.u32()
+        if count > len(self.data):
+            raise InvalidInputError(f"{self.what}: sequence of {count} strings cannot fit")
+        return [self.string() for _ in range(count)]
+
+    def doubles(self) -> np.ndarray:
+        n = self.u32()
+        if n:
+            self.pad(8)
+        self.need(8 * n)
+        values = np.frombuffer(self.data, dtype=_F8, count=n, offset=self.pos).copy()
+        self.pos += 8 * n
+        return values
+
+    def fixed_doubles(self, n: int) -> np.ndarray:
+        self.pad(8)
+        self.need(8 * n)
+        values = np.frombuffer(self.data, dtype=_F8, count=n, offset=self.pos).copy()
+        self.pos += 8 * n
+        return values
+
+
+def stamp_parts(seconds: float) -> tuple[int, int]:
+    """(sec, nanosec) of a time in seconds, rounded to the nanosecond (4.9999999999 -> (5, 0))."""
+    sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)
+    return sec, nanosec
+
+
+def stamp_seconds(sec: int, nanosec: int) -> float:
+    return sec + nanosec * 1e-9
+
+
+# -- sensor_msgs/JointState --------------------------------------------------------------------
+@dataclass(frozen=True)
+class JointStateData:
+    """A decoded JointState: stamp (s), frame_id, names, position / velocity / effort [k] (may be empty)."""
+
+    stamp: float
+    frame_id: str
+    names: tuple
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+class JointStateEncoder:
+    """Encodes JointStates of fixed names and frame: bytes template + three array offsets."""
+
+    def __init__(self, names, frame_id: str = "", fields=("position", "velocity", "effort")):
+        self.names = list(names)
+        self.fields = tuple(fields)
+        w = _Writer()
+        w.stamp(0, 0)
+        w.string(frame_id)
+        w.u32(len(self.names))
+        for name in self.names:
+            w.string(name)
+        self.offsets = {}
+        for field in ("position", "velocity", "effort"):
+            self.offsets[field] = w.doubles(np.zeros(len(self.names) if field in self.fields else 0))
+        self.template = bytes(w.buf)
+
+    def encode(self, stamp_s: float, position=None, velocity=None, effort=None) -> bytes:
+        buf = bytearray(self.template)
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
+        n = len(self.names)
+        for field, values in (("position", position), ("velocity", velocity), ("effort", effort)):
+            if field in self.fields:
+                np.frombuffer(buf, dtype=_F8, count=n, offset=self.offsets[field])[:] = values
+        return bytes(buf)
+
+
+class JointStateDecoder:
+    """Decodes JointState bytes; caches the name block so repeated layouts skip the string parsing."""
+
+    def __init__(self):
+        self._names_key = None
+        self._names = ()
+        self._after_names = 0
+
+    def decode(self, data) -> JointStateData:
+        r = _Reader(data, "JointState")
+        sec, nanosec = r.stamp()
+        frame = r.string()
+        start = r.pos
+        key = self._names_key
+        if key is not None and bytes(r.data[start:start + len(key)]) == key:
+            names, r.pos = self._names, start + len(key)
+        else:
+            names = tuple(r.strings())
+            self._names_key, self._names = bytes(r.data[start:r.pos]), names
+        return JointStateData(stamp_seconds(sec, nanosec), frame, names, r.doubles(), r.doubles(), r.doubles())
+
+
+@dataclass(frozen=True)
+class JointStateBatch:
+    """Many JointStates with the same names: stamps [n] (s), names, position / velocity / effort [n, k]
+    (NaN where a message left a field empty)."""
+
+    stamps: np.ndarray
+    names: tuple
+    position: np.ndarray
+    velocity: np.ndarray
+    effort: np.ndarray
+
+
+def decode_joint_states(messages, decoder: JointStateDecoder | None = None) -> list[JointStateBatch]:
+    """Decode raw JointStates; consecutive messages with one layout (same size and name block, as a
+    publisher's stream has) are decoded together with one numpy view. Returns one batch per run of
+    equal names, in order. Raises InvalidInputError on the first malformed message (the caller may
+    decode the rest one by one to drop only that one)."""
+    decoder = decoder or JointStateDecoder()
+    batches: list[JointStateBatch] = []
+    i, n = 0, len(messages)
+    while i < n:
+        first = decoder.decode(messages[i])
+        size, key = len(messages[i]), decoder._names_key
+        j = i + 1
+        while j < n and len(messages[j]) == size and _same_layout(messages[j], messages[i], key):
+            j += 1
+        k = len(first.names)
+        counts = (first.position.size, first.velocity.size, first.effort.size)
+        stacked = _stack_uniform(messages[i:j], first, counts) if j - i > 1 and all(c in (0, k) for c in counts) \
+            else None
+        if stacked is not None:
+            stamps, arrays = stacked
+        else:
+            decoded = [first] + [decoder.decode(m) for m in messages[i + 1:j]]
+            stamps = np.array([d.stamp for d in decoded])
+            arrays = [np.array([_padded(getattr(d, f), k) for d in decoded])
+                      for f in ("position", "velocity", "effort")]
+        batches.append(JointStateBatch(stamps, first.names, *arrays))
+        i = j
+    return batches
+
+
+def _padded(values: np.ndarray, k: int) -> np.ndarray:
+    return values if values.size == k else np.full(k, np.nan)
+
+
+def _same_layout(data, reference, names_key: bytes) -> bool:
+    """Same frame and name block as ``reference`` (bytes 12.. up to the end of the names)."""
+    start = 12 + _U32.unpack_from(reference, 12)[0] + 4  # after the frame_id string
+    start = _align(start, 4)
+    return bytes(data[12:start + len(names_key)]) == bytes(reference[12:start + len(names_key)])
+
+
+def _stack_uniform(messages, first: JointStateData, counts):
+    """Stamps and the three arrays of equal-layout messages through one structured view (None if
+    their array counts differ)."""
+    k = len(first.names)
+    size = len(messages[0])
+    # offsets of the arrays in the first message (the same in all)
+    r = _Reader(messages[0], "JointState")
+    r.stamp()
+    r.string()
+    r.strings()
+    offsets, count_at = [], []
+    for _ in counts:
+        r.pad(4)
+        count_at.append(r.pos)
+        n = r.u32()
+        if n:
+            r.pad(8)
+        offsets.append(r.pos)
+        r.pos += 8 * n
+    names, formats, offs = ["sec", "nanosec"], ["<i4", "<u4"], [4, 8]
+    for field, count, offset, at in zip(("position", "velocity", "effort"), counts, offsets, count_at, strict=True):
+        names.append(f"n_{field}"), formats.append("<u4"), offs.append(at)
+        if count:
+            names.append(field), formats.append(("<f8", (count,))), offs.append(offset)
+    dtype = np.dtype({"names": names, "formats": formats, "offsets": offs, "itemsize": size})
+    table = np.frombuffer(b"".join(bytes(m) for m in messages), dtype=dtype)
+    if any((table[f"n_{f}"] != c).any() for f, c in zip(("position", "velocity", "effort"), counts, strict=True)):
+        return None  # same size and names but the arrays are split differently: decode one by one
+    stamps = table["sec"] + table["nanosec"] * 1e-9
+    arrays = [table[f].copy() if c else np.full((len(messages), k), np.nan)
+              for f, c in zip(("position", "velocity", "effort"), counts, strict=True)]
+    return stamps, arrays
+
+
+# -- geometry_msgs/PoseStamped, WrenchStamped; rosgraph_msgs/Clock --------------------------------
+class PoseStampedEncoder:
+    """PoseStamped in a fixed frame: position (3,) m and quaternion (4,) [x, y, z, w]."""
+
+    def __init__(self, frame_id: str):
+        w = _Writer()
+        w.stamp(0, 0)
+        w.string(frame_id)
+        self.offset = w.fixed_doubles(np.zeros(7))
+        self.template = bytes(w.buf)
+
+    def encode(self, stamp_s: float, position, quaternion) -> bytes:
+        buf = bytearray(self.template)
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
+        values = np.frombuffer(buf, dtype=_F8, count=7, offset=self.offset)
+        values[:3], values[3:] = position, quaternion
+        return bytes(buf)
+
+
+def decode_pose_stamped(data) -> tuple[float, str, np.ndarray, np.ndarray]:
+    """(stamp s, frame_id, position (3,), quaternion (4,) [x, y, z, w]) of PoseStamped bytes."""
+    r = _Reader(data, "PoseStamped")
+    sec, nanosec = r.stamp()
+    frame = r.string()
+    values = r.fixed_doubles(7)
+    return stamp_seconds(sec, nanosec), frame, values[:3], values[3:]
+
+
+class WrenchStampedEncoder:
+    """WrenchStamped in a fixed frame: force (3,) N and torque (3,) N m."""
+
+    def __init__(self, frame_id: str):
+        w = _Writer()
+        w.stamp(0, 0)
+        w.string(frame_id)
+        self.offset = w.fixed_doubles(np.zeros(6))
+        self.template = bytes(w.buf)
+
+    def encode(self, stamp_s: float, wrench) -> bytes:
+        buf = bytearray(self.template)
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
+        np.frombuffer(buf, dtype=_F8, count=6, offset=self.offset)[:] = wrench
+        return bytes(buf)
+
+
+def encode_clock(stamp_s: float) -> bytes:
+    """rosgraph_msgs/Clock bytes."""
+    return ENCAPSULATION + _STAMP.pack(*stamp_parts(stamp_s))
+
+
+# -- trajectory_msgs/JointTrajectory -----------------------------------------------------------------
+@dataclass(frozen=True)
+class TrajectoryData:
+    """A decoded JointTrajectory: stamp (s, 0 = now), frame_id, names, times [n] (s from the stamp),
+    positions / velocities / accelerations [n, k] (None when every point leaves them empty)."""
+
+    stamp: float
+    frame_id: str
+    names: tuple
+    times: np.ndarray
+    positions: np.ndarray | None
+    velocities: np.ndarray | None
+    accelerations: np.ndarray | None
+
+
+_POINT_FIELDS = ("positions", "velocities", "accelerations", "effort")
+
+
+def _point_dtype(phase: int, counts: tuple) -> tuple[np.dtype, int]:
+    """numpy dtype of one JointTrajectoryPoint starting at ``phase`` (payload offset mod 8: 0 or 4)
+    with the given per-field counts; returns (dtype, size in bytes)."""
+    names, formats, offsets = [], [], []
+    o = phase
+    for field, n in zip(_POINT_FIELDS, counts, strict=True):
+        o += (-o) % 4
+        names.append(f"n_{field}"), formats.append("<u4"), offsets.append(o - phase)
+        o += 4
+        if n:
+            o += (-o) % 8
+            names.append(field), formats.append(("<f8", (n,))), offsets.append(o - phase)
+            o += 8 * n
+    o += (-o) % 4
+    names += ["sec", "nanosec"]
+    formats += ["<i4", "<u4"]
+    offsets += [o - phase, o - phase + 4]
+    o += 8
+    return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": o - phase}), o - phase
+
+
+def _points_view(buf, offset: int, count: int, counts: tuple):
+    """[(structured array, point indices)] over ``count`` uniform points starting at byte ``offset``,
+    and the bytes they use. A point's layout depends on its start offset mod 8 (0 or 4): the
+    sequence of layouts is constant, alternates, or changes once after the first point."""
+    views, index, used = [], 0, 0
+
+    def layout(pos):
+        return _point_dtype((pos - 4) % 8, counts)
+
+    pos = offset
+    dtype0, size0 = layout(pos)
+    dtype1, size1 = layout(pos + size0)
+    if count and size0 % 8 and (size0 + size1) % 8:  # the layout changes once: peel the first point
+        views.append((np.frombuffer(buf, dtype=dtype0, count=1, offset=pos), slice(0, 1)))
+        pos, index, used = pos + size0, 1, size0
+        dtype0, size0 = layout(pos)
+        dtype1, size1 = layout(pos + size0)
+    rest = count - index
+    if size0 % 8 == 0:  # constant layout
+        views.append((np.frombuffer(buf, dtype=dtype0, count=rest, offset=pos), slice(index, count)))
+        return views, used + size0 * rest
+    pair = np.dtype({"names": ["a", "b"], "formats": [dtype0, dtype1], "offsets": [0, size0],
+                     "itemsize": size0 + size1})
+    pairs = rest // 2
+    both = np.frombuffer(buf, dtype=pair, count=pairs, offset=pos)
+    views += [(both["a"], slice(index, index + 2 * pairs, 2)), (both["b"], slice(index + 1, index + 2 * pairs, 2))]
+    used += pairs * (size0 + size1)
+    if rest % 2:
+        views.append((np.frombuffer(buf, dtype=dtype0, count=1, offset=pos + pairs * (size0 + size1)),
+                      slice(count - 1, count)))
+        used += size0
+    return views, used
+
+
+def encode_joint_trajectory(names, stamp_s: float, times, positions, velocities=None, accelerations=None,
+                            frame_id: str = "") -> bytes:
+    """JointTrajectory bytes: names [k], stamp (s; 0 = now), times [n] (s from the stamp),
+    positions / velocities / accelerations [n, k] (velocities and accelerations optional)."""
+    times = np.asarray(times, dtype=float)
+    n, k = times.size, len(names)
+    w = _Writer()
+    w.stamp(*stamp_parts(stamp_s) if stamp_s > 0 else (0, 0))
+    w.string(frame_id)
+    w.u32(k)
+    for name in names:
+        w.string(name)
+    w.u32(n)
+    data = {"positions": positions, "velocities": velocities, "accelerations": accelerations}
+    counts = tuple(k if data.get(f) is not None else 0 for f in _POINT_FIELDS)
+    offset = len(w.buf)
+    _, size = _point_dtype((offset - 4) % 8, counts)
+    buf = w.buf + bytearray((size + 4) * n)  # alternating layouts differ by at most 4 bytes of padding
+    views, used = _points_view(buf, offset, n, counts)
+    sec_ns = np.round(times * 1e9).astype(np.int64)
+    for view, index in views:
+        for field, count in zip(_POINT_FIELDS, counts, strict=True):
+            view[f"n_{field}"] = count
+            if count:
+                view[field] = np.asarray(data[field], dtype=float)[index]
+        view["sec"], view["nanosec"] = np.divmod(sec_ns[index], 1_000_000_000)
+    return bytes(buf[:offset + used])
+
+
+def decode_joint_trajectory(data) -> TrajectoryData:
+    """Decode JointTrajectory bytes (uniform points vectorised, mixed points one by one)."""
+    r = _Reader(data, "JointTrajectory")
+    sec, nanosec = r.stamp()
+    frame = r.string()
+    names = tuple(r.strings())
+    count = r.u32()
+    if count > len(r.data):
+        raise InvalidInputError(f"JointTrajectory: {count} points cannot fit in {len(r.data)} bytes")
+    fields = {f: [] for f in _POINT_FIELDS}
+    times = np.empty(count)
+    if count:
+        start = r.pos
+        counts = []
+        probe = r.pos
+        for _ in _POINT_FIELDS:  # counts of the first point
+            n = r.u32()
+            counts.append(n)
+            if n:
+                r.pad(8)
+                r.need(8 * n)
+                r.pos += 8 * n
+        counts = tuple(counts)
+        r.pos = probe
+        uniform = None
+        try:
+            views, used = _points_view(r.data, start, count, counts)
+            if start + used <= len(r.data) and all(
+                    (v[f"n_{f}"] == c).all() for v, _ in views for f, c in zip(_POINT_FIELDS, counts, strict=True)):
+                uniform = views, used
+        except ValueError:  # buffer too short for the uniform layout
+            uniform = None
+        if uniform is not None:
+            views, used = uniform
+            table = {f: np.empty((count, c)) for f, c in zip(_POINT_FIELDS, counts, strict=True)}
+            for view, index in views:
+                for field, c in zip(_POINT_FIELDS, counts, strict=True):
+                    if c:
+                        table[field][index] = view[field]
+                times[index] = view["sec"] + view["nanosec"] * 1e-9
+            r.pos = start + used
+            out = {f: (table[f] if c else None) for f, c in zip(_POINT_FIELDS, counts, strict=True)}
+        else:
+            for i in range(count):
+                for field in _POINT_FIELDS:
+                    fields[field].append(r.doubles())
+                s, ns = r.stamp()
+                times[i] = s + ns * 1e-9
+            out = {}
+            for field in _POINT_FIELDS:
+                rows = fields[field]
+                if all(len(row) == 0 for row in rows):
+                    out[field] = None
+                elif len({len(row) for row in rows}) != 1:
+                    raise InvalidInputError(f"JointTrajectory: points differ in their number of {field}")
+                else:
+                    out[field] = np.array(rows)
+    else:
+        out = dict.fromkeys(_POINT_FIELDS)
+    return TrajectoryData(stamp_seconds(sec, nanosec), frame, names, times, out["positions"], out["velocities"],
+                          out["accelerations"])
