@@ -197,3 +197,33 @@ def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path
     assert [f["message_count"] for f in meta["files"]] == [50, 50]
     counts, total = _rosbags_counts(folder)
     assert counts[JS] == sent[JS] == 100 and total == meta["message_count"]
+
+
+@pytest.mark.integration
+@pytest.mark.slow
+def test_main_job_folder_is_a_bag_directory(ros_domain, tmp_path):
+    """The acceptance of issue 15: ``stewart-vibration run --out DIR`` leaves DIR a bag directory (beside
+    logs/, report/, summary.json) that rosbags opens, and its replay's /clock runs at 100 Hz."""
+    import subprocess
+    import sys
+
+    from test_mcap_replay_clock import rate_hz, replay_and_listen
+
+    out = tmp_path / "latest"
+    proc = subprocess.run([sys.executable, "-m", "stewart_vibration", "run", "--out", str(out), "--domain-id",
+                           str(ros_domain), "--duration", "1.6"], capture_output=True, text=True, timeout=600)
+    mcaps = list(out.glob("*.mcap"))
+    assert len(mcaps) == 1, proc.stdout[-3000:] + proc.stderr[-3000:]
+    assert (out / "logs").is_dir() and (out / "summary.json").is_file()
+    stats = next(json.loads(x.split(" ", 1)[1]) for x in (out / "logs" / "mcap_recorder.log").read_text().splitlines()
+                 if x.startswith("MCAP_RECORDER_STATS "))
+    meta = yaml.safe_load((out / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["relative_file_paths"] == [mcaps[0].name] and meta["message_count"] == stats["written"]
+    counts, total = _rosbags_counts(out)
+    assert dict(counts) == stats["per_topic"] and total == stats["written"]
+    assert counts["/clock"] > 100 and counts["/stewart/legs/joint_states"] > 1000
+    wall, _clock, done, log = replay_and_listen(tmp_path, ros_domain, out,
+                                                ["-p", "publish_clock:=true", "-p", "rate:=4.0",
+                                                 "-p", "wait_for_subscribers_s:=2.0"])
+    print(f"main-job bag: {total} messages; replay at rate 4: /clock {rate_hz(wall):.2f} Hz, {len(wall)} ticks")
+    assert abs(rate_hz(wall) - 100.0) <= 5.0 and done["failure"] is None and "ERROR" not in log

@@ -13,7 +13,7 @@ true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
 /clock, /diagnostics, /rosout), qos_depth (int, 1000), chunk_size (bytes,
 262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
 Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
-SIGINT/SIGTERM: the file is finished (summary) before exit.
+SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
 
 Bag directory: ``output_dir`` is a rosbag2 bag directory. When a recording
 finishes, the recorder writes ``output_dir/metadata.yaml`` (rosbag2 version 9,
@@ -31,11 +31,14 @@ summary.json) are ignored by bag readers.
 from __future__ import annotations
 
 import json
+import signal
 import sys
+import threading
 import time
 from pathlib import Path
 
 import rclpy
+from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
@@ -47,7 +50,6 @@ from .mcap_ros import (
     message_class,
     offered_profile,
     rclpy_profile,
-    spin_until_shutdown,
 )
 
 SUITE_TOPICS = [
@@ -197,13 +199,20 @@ class McapRecorderNode(Node):
 
 def main(args=None) -> int:
     rclpy.init(args=args)
+    stop = threading.Event()
+    for signum in (signal.SIGINT, signal.SIGTERM):  # a flag only: a stop during start-up still finishes cleanly
+        signal.signal(signum, lambda *_: stop.set())
     node = McapRecorderNode()
     executor = make_executor()
     executor.add_node(node)
     try:
-        spin_until_shutdown(executor)
+        while rclpy.ok() and not stop.is_set():
+            executor.spin_once(timeout_sec=0.1)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
     finally:
         node.stop_recording()
+        executor.remove_node(node)
         node.destroy_node()
         rclpy.try_shutdown()
     return 0
