@@ -175,8 +175,17 @@ def test_refusals_write_nothing(written_run, tmp_path):
     (tmp_path / "empty.mcap").write_bytes(b"")
     (tmp_path / "random.mcap").write_bytes(os.urandom(5000))
     (tmp_path / "header_only.mcap").write_bytes(written_run.read_bytes()[:60])
+    with open(tmp_path / "json.mcap", "wb") as f:  # a valid MCAP, but not a rosbag2 one
+        from mcap.writer import Writer
+
+        w = Writer(f)
+        w.start(profile="", library="test")
+        channel = w.register_channel("/j", "json", w.register_schema("t", "jsonschema", b"{}"))
+        w.add_message(channel, log_time=1, data=b"{}", publish_time=1)
+        w.finish()
     for name, words in (("missing.mcap", "no such file"), ("empty.mcap", "empty file"),
-                        ("random.mcap", "not an MCAP file"), ("header_only.mcap", "nothing to recover")):
+                        ("random.mcap", "not an MCAP file"), ("header_only.mcap", "nothing to recover"),
+                        ("json.mcap", "not cdr-encoded")):
         out = run_cli("mcap-recover", str(tmp_path / name))
         assert out.returncode == 2, (name, out.stdout, out.stderr)
         lines = out.stderr.strip().splitlines()

@@ -121,6 +121,8 @@ def _text(r: RecoveryReport, previous: list[str] | None) -> str:
     lost += [f"skipped damaged {c}" for c in r.corrupt_chunks]
     if r.orphan_messages:
         lost.append(f"{r.orphan_messages} messages whose channel or schema record was lost")
+    if r.not_cdr_messages:
+        lost.append(f"{r.not_cdr_messages} messages skipped: not cdr-encoded (a rosbag2 bag holds cdr only)")
     if not r.complete_input:
         lost.append("messages the writer still held in memory at the crash never reached the file "
                     "(at most one flush period, recorder parameter flush_period_s)")

@@ -66,6 +66,7 @@ class RecoveryReport:
     corrupt_chunks: list[str] = field(default_factory=list)
     partial_chunk: PartialChunk | None = None
     orphan_messages: int = 0  # messages whose channel or schema record was lost
+    not_cdr_messages: int = 0  # messages of channels not in cdr encoding (a rosbag2 bag holds cdr only)
     attachments: int = 0
     metadata_yaml: Path | None = None
 
@@ -80,7 +81,7 @@ class RecoveryReport:
     @property
     def data_lost(self) -> bool:
         return (not self.layout.footer or bool(self.corrupt_chunks) or self.orphan_messages > 0
-                or self.layout.bytes_unread > 0)
+                or self.not_cdr_messages > 0 or self.layout.bytes_unread > 0)
 
     def as_dict(self) -> dict:
         p = self.partial_chunk
@@ -99,6 +100,7 @@ class RecoveryReport:
                 "offset": p.offset, "start_ns": p.start_ns, "end_ns": p.end_ns, "bytes_present": p.bytes_present,
                 "bytes_declared": p.bytes_declared, "salvaged_messages": p.salvaged},
             "orphan_messages": self.orphan_messages,
+            "not_cdr_messages": self.not_cdr_messages,
             "attachments": self.attachments,
             "messages": self.messages,
             "start_ns": self.start_ns,
@@ -149,6 +151,9 @@ class _Rebuilder:
         schema = self.schemas.get(ch.schema_id) if ch is not None else None
         if ch is None or schema is None:
             self.report.orphan_messages += 1
+            return
+        if ch.message_encoding != "cdr":
+            self.report.not_cdr_messages += 1
             return
         info = self.report.topics.get(ch.topic)
         if info is None:
@@ -259,9 +264,12 @@ def recover(src: str | Path, out: str | Path | None, chunk_size: int = 256 * 102
     try:
         _walk(rebuilder, src, layout)
         if report.messages == 0:
+            what = (f"its {report.not_cdr_messages} messages are not cdr-encoded (a rosbag2 bag holds cdr only)"
+                    if report.not_cdr_messages else
+                    f"no complete message in the {layout.good_end:,} readable of {layout.size:,} bytes"
+                    + (f" ({layout.stop_reason})" if layout.stop_reason else ""))
             raise McapFileError(
-                f"{src}: nothing to recover: no complete message in the {layout.good_end:,} readable of "
-                f"{layout.size:,} bytes" + (f" ({layout.stop_reason})" if layout.stop_reason else ""),
+                f"{src}: nothing to recover: {what}",
                 path=src, kind="truncated" if not layout.footer else "empty", bytes_read=layout.good_end,
                 size=layout.size)
         bag_file = rebuilder.writer.finish() if rebuilder.writer is not None else None
