@@ -13,10 +13,10 @@ from contextlib import contextmanager
 
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
+from stewart_vibration.nodes.mcap_ros import make_executor
 from stewart_vibration.processes import ros_environment, start_python_module
 
 
@@ -27,7 +27,7 @@ class RosTestClient:
         self.context = Context()
         self.context.init(domain_id=int(os.environ.get("ROS_DOMAIN_ID", "0")))
         self.node = Node(name, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = make_executor(self.context)  # EventsExecutor: keeps up with the 500 Hz streams
         self.executor.add_node(self.node)
         self.received = defaultdict(list)
         self._publishers = {}

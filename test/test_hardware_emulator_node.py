@@ -1,12 +1,16 @@
-"""hardware_emulator + kinematics nodes, each in its own process, on sim time over real DDS (issue 5)."""
+"""hardware_emulator + kinematics nodes, each in its own process, on sim time over real DDS (issues 5, 11, 13):
+moves reach their target, unsafe commands are refused with a reason, vibration windows splice or are
+refused, the watchdog ramps a command that ends away from rest, nothing latches, and the e-stop holds
+until reset -- all observed as a user would (joint states, vibration/status, /diagnostics)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from ros_client import RosTestClient
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -14,12 +18,16 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration.emulation.emulator import VIB_NAMES
+from stewart_vibration.emulation.vibration_status import report_from_values
+from stewart_vibration.messages import cdr
 from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
+W, A = 2 * np.pi * 35.0, 30e-6
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 @pytest.fixture
@@ -27,7 +35,7 @@ def suite(ros_domain, tmp_path):
     env = ros_environment(ros_domain)
     procs = [
         start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
-                            ["--ros-args", "-p", "real_time_factor:=0.0", "-p", "watchdog_s:=0.3"], env, tmp_path),
+                            ["--ros-args", "-p", "real_time_factor:=1", "-p", "watchdog_s:=0.3"], env, tmp_path),
         start_python_module("kinematics", "stewart_vibration.nodes.kinematics_node", SIM, env, tmp_path),
     ]
     client = RosTestClient()
@@ -48,21 +56,40 @@ def sim_now(clock):  # the client's latest /clock (it may lag the emulator)
     return c.sec + c.nanosec * 1e-9
 
 
-def test_target_pose_reached_and_vibration_safety(robot, suite):
+def vib_window(stamp: float, t0: float, t1: float, amp: float = A, at_rest_end: bool = True) -> bytes:
+    """A vib_* window (raw) of amp e(t) sin(w t) on [t0, t1] s from ``stamp``: ramp-in from rest over 0.2 s
+    and, with ``at_rest_end``, a ramp-out over the last 0.2 s (quintic smoothstep, written here)."""
+    t = np.arange(round(t0 * 1000), round(t1 * 1000) + 1) / 1000.0
+
+    def smooth(x):
+        x = np.clip(x, 0, 1)
+        return 10 * x**3 - 15 * x**4 + 6 * x**5, 30 * x**2 * (1 - x) ** 2 / 0.2
+
+    e, de = smooth(t / 0.2)
+    if at_rest_end:
+        g, dg = smooth((t1 - t) / 0.2)
+        e, de = e * g, de * g - e * dg
+    pos = np.tile((amp * e * np.sin(W * t))[:, None], 6)
+    vel = np.tile((amp * (de * np.sin(W * t) + e * W * np.cos(W * t)))[:, None], 6)
+    return cdr.encode_joint_trajectory(VIB_NAMES, stamp, t, pos, vel)
+
+
+def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
     procs, client = suite
     clock = client.subscribe("/clock", Clock)
     truth = client.subscribe("platform/pose", PoseStamped)
-    states = client.subscribe("legs/joint_states", JointState)
+    states = client.subscribe("legs/joint_states", JointState, depth=5000)
     diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)
-    assert client.spin_until(lambda: len(estimates) > 5, 30), logs(procs)
+    status = []
+    client.node.create_subscription(DiagnosticStatus, "vibration/status", status.append, STATUS_QOS)
+    vib_pub = client.publisher("vibration/joint_trajectory", JointTrajectory)
+    assert client.spin_until(lambda: len(estimates) > 5 and status, 30), logs(procs)
+    assert report(status[-1]).state == "idle"
 
     # target pose -> ground truth within 10 um and 0.01 deg after settling
     target = paper_pose(robot)
-    msg = pose_stamped(target, Time())
-    client.publisher("platform/target_pose", PoseStamped).publish(msg)
-    assert client.spin_until(lambda: len(clock) and sim_now(clock) > 1.0, 30)
-    start = sim_now(clock)
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
 
     def settled():
         if not truth:
@@ -71,15 +98,13 @@ def test_target_pose_reached_and_vibration_safety(robot, suite):
         return np.abs(err[:3]).max() < 10e-6 and np.degrees(np.abs(err[3:]).max()) < 0.01
 
     assert client.spin_until(settled, 120), logs(procs)
-    client.spin_until(lambda: sim_now(clock) > start + 9.0, 60)  # settle past the move (6.4 s)
-    err = pose_from_msg(truth[-1].pose) - target
-    assert np.abs(err[:3]).max() < 10e-6 and np.degrees(np.abs(err[3:]).max()) < 0.01
 
-    # unsafe commands are rejected with a reason; the emulator survives
-    bad = JointTrajectory(joint_names=[f"leg_{i}" for i in range(1, 7)])
+    # unsafe strut commands are refused with a reason; the emulator survives
+    legs = [f"leg_{i}" for i in range(1, 7)]
+    bad = JointTrajectory(joint_names=legs)
     bad.points = [JointTrajectoryPoint(positions=[0.30] * 6, time_from_start=duration_msg(1.0))]
     client.publisher("legs/joint_trajectory", JointTrajectory).publish(bad)
-    fast = JointTrajectory(joint_names=[f"leg_{i}" for i in range(1, 7)])
+    fast = JointTrajectory(joint_names=legs)
     fast.points = [JointTrajectoryPoint(positions=[0.20] * 6, time_from_start=duration_msg(0.1))]
     client.publisher("legs/joint_trajectory", JointTrajectory).publish(fast)
 
@@ -88,38 +113,75 @@ def test_target_pose_reached_and_vibration_safety(robot, suite):
 
     assert client.spin_until(lambda: "stroke" in reasons() and "strut_velocity_max" in reasons(), 30), reasons()
 
-    # a vibration window (stamp 0 = start on receipt), then silence: the watchdog (0.3 s here)
-    # ramps it to zero within 100 ms, without a step
-    t = np.arange(0.0, 2.0, 1e-3)
-    w = 2 * np.pi * 35.0
-    vib = JointTrajectory(joint_names=VIB_NAMES)
-    amp = 30e-6 * np.sin(np.minimum(t / 0.2, 1.0) * np.pi / 2) ** 2  # smooth ramp-in from rest
-    for ti, ai in zip(t, amp, strict=True):
-        vib.points.append(JointTrajectoryPoint(positions=[float(ai * np.sin(w * ti))] * 6,
-                                               velocities=[float(ai * w * np.cos(w * ti))] * 6,
-                                               time_from_start=duration_msg(float(ti))))
-    n0 = len(states)
-    client.publisher("vibration/joint_trajectory", JointTrajectory).publish(vib)
+    # a window in the future, ending at rest: accepted, pending -> running -> idle ("commands ended")
+    start = sim_now(clock) + 0.5
+    vib_pub.publish(vib_window(start, 0.0, 1.0))
+    assert client.spin_until(lambda: sim_now(clock) > start + 1.3, 30)
+    seen = [report(m).state for m in status]
+    assert {"pending", "running", "idle"} <= set(seen), seen
+    assert report(status[-1]).state == "idle" and "commands ended" in report(status[-1]).reason
+    played = vib_between(states, start, start + 1.0)
+    assert 0.95 * A < np.abs(played).max() < 1.05 * A  # it vibrated at the commanded amplitude
 
-    def stamps():
-        return np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in states[n0:]])
-
-    assert client.spin_until(lambda: len(states) > n0 and stamps()[-1] > stamps()[0] + 2.0, 60)
-    seq = states[n0:]
-    times = stamps()
-    vibs = np.array([m.position[6:12] for m in seq])
-    moving = np.flatnonzero(np.abs(vibs).max(axis=1) > 0)
-    assert moving.size and np.abs(vibs).max() > 20e-6, (reasons(), logs(procs))
-    received = times[moving[0]]  # first sample of the window
-    assert times[moving[-1]] <= received + 0.3 + 0.1  # zero within 100 ms of the watchdog deadline
-    assert (times[moving[-1]] - received) >= 0.25  # it did vibrate until the watchdog
+    # a window that ends away from rest: the watchdog (0.3 s here) ramps it to zero within 100 ms, no step
+    start = sim_now(clock) + 0.5
+    vib_pub.publish(vib_window(start, 0.0, 0.6, at_rest_end=False))
+    assert client.spin_until(lambda: sim_now(clock) > start + 1.2, 30)
+    times, vib = vib_series(states, start - 0.1, start + 1.2)
+    moving = np.flatnonzero(np.abs(vib).max(axis=1) > 0)
+    assert np.abs(vib).max() > 0.9 * A
+    assert times[moving[-1]] <= start + 0.6 + 0.1  # at rest within 100 ms past the end (the watchdog deadline)
     consecutive = np.diff(times) < 2.5e-3
-    jumps = np.abs(np.diff(vibs, axis=0)).max(axis=1)[consecutive]
-    assert jumps.max() < 30e-6 * w * 2e-3 * 1.5  # never faster than the sine itself
+    assert np.abs(np.diff(vib, axis=0)).max(axis=1)[consecutive].max() < A * W * 2e-3 * 1.5  # no step
+    stopped = report(status[-1])
+    assert stopped.state == "stopped" and "watchdog" in stopped.reason and status[-1].level == DiagnosticStatus.WARN
 
-    # emergency stop and reset answer over the service
+    # no latch: the next window from rest is accepted without reset
+    start = sim_now(clock) + 0.5
+    vib_pub.publish(vib_window(start, 0.0, 1.5))
+    assert client.spin_until(lambda: sim_now(clock) > start + 0.5, 30)
+    assert report(status[-1]).state == "running", [report(m).message for m in status[-3:]]
+
+    # a discontinuous window (half the amplitude) is refused with the reason, the vibration goes on
+    vib_pub.publish(vib_window(start, 0.7, 1.5, amp=A / 2))
+    assert client.spin_until(lambda: report(status[-1]).event.startswith("refused"), 10)
+    refusal = report(status[-1])
+    assert "discontinuous splice" in refusal.event and abs(refusal.event_stamp - start) < 1e-6
+    assert client.spin_until(lambda: "rejected vibration command: discontinuous splice" in reasons(), 5)
+
+    # e-stop: the units ramp to zero within 100 ms, the status says estopped (ERROR), commands are refused,
+    # the ERROR is never downgraded by a rejection, reset clears it (and is refused when nothing is latched)
     res = client.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request())
     assert res.success and "held" in res.message
+    after_estop = len(diagnostics)
+    assert client.spin_until(lambda: report(status[-1]).state == "estopped", 5)
+    estop_at = report(status[-1]).since
+    assert status[-1].level == DiagnosticStatus.ERROR
+    assert client.spin_until(lambda: sim_now(clock) > estop_at + 0.3, 10)
+    times, vib = vib_series(states, estop_at + 0.1, estop_at + 0.3)
+    assert times.size > 50 and np.abs(vib).max() == 0.0
+    vib_pub.publish(vib_window(sim_now(clock) + 0.5, 0.0, 1.0))
+    assert client.spin_until(lambda: "emergency stop is active" in reasons(), 10)
+    emulator_levels = [s.level for a in diagnostics[after_estop:] for s in a.status
+                       if s.name.startswith("hardware_emulator")]
+    assert emulator_levels and all(level == DiagnosticStatus.ERROR for level in emulator_levels)
     res = client.call(Trigger, "hardware_emulator/reset", Trigger.Request())
     assert res.success and "home" in res.message
+    res = client.call(Trigger, "hardware_emulator/reset", Trigger.Request())
+    assert not res.success and "no emergency stop is latched" in res.message
     assert all(p.alive() for p in procs), logs(procs)
+
+
+def report(msg):
+    return report_from_values("ok", {kv.key: kv.value for kv in msg.values})
+
+
+def vib_series(states, t0, t1):
+    """(stamps [n], vib_1..6 positions [n, 6]) of the joint states stamped in [t0, t1]."""
+    stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in states])
+    sel = (stamps >= t0) & (stamps <= t1)
+    return stamps[sel], np.array([states[i].position[6:12] for i in np.flatnonzero(sel)]).reshape(-1, 6)
+
+
+def vib_between(states, t0, t1):
+    return vib_series(states, t0, t1)[1]

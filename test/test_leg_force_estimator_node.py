@@ -134,8 +134,8 @@ def test_force_estimate_and_external_wrench(robot, estimator):
     def reasons():
         return " | ".join(s.message for a in diagnostics for s in a.status if s.message.startswith("rejected"))
 
-    assert client.spin_until(lambda: all(k in reasons() for k in ("needs position", "non-finite", "increasing",
-                                                                   "joint names")), 10), reasons()
+    assert client.spin_until(lambda: all(k in reasons() for k in ("needs ['leg_1'", "without finite positions",
+                                                                   "increasing", "joint names")), 10), reasons()
     client.spin_for(0.2)
     assert len(forces) == count
     assert proc.alive()

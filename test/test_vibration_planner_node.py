@@ -58,17 +58,40 @@ def independent_gains(robot, pose):
     return n @ rot[:, 2]
 
 
-def merged(windows):
-    """{time key (us): (t, positions, velocities)} over windows; asserts overlapping samples agree."""
-    out, worst = {}, 0.0
-    for w in windows:
-        for p in w.points:
-            t = p.time_from_start.sec + p.time_from_start.nanosec * 1e-9
-            key = round(t * 1e6)
-            if key in out:
-                worst = max(worst, np.abs(np.subtract(out[key][1], p.positions)).max())
-            out[key] = (t, np.array(p.positions), np.array(p.velocities))
-    return out, worst
+def seconds(duration) -> float:
+    return duration.sec + duration.nanosec * 1e-9
+
+
+def samples_of(window):
+    """(times s from t0, positions, velocities, accelerations) of one window."""
+    t = np.array([seconds(p.time_from_start) for p in window.points])
+    return t, *(np.array([getattr(p, f) for p in window.points]) for f in ("positions", "velocities",
+                                                                              "accelerations"))
+
+
+def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason=""):
+    """A vibration/status message as the hardware emulator publishes it."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+
+    values = {"state": state, "reason": reason, "since_s": f"{since:.6f}", "time_s": f"{since:.6f}",
+              "event_seq": str(event_seq), "event": event,
+              "event_stamp_s": "" if event_stamp is None else f"{event_stamp:.6f}"}
+    return DiagnosticStatus(level=bytes([level]), name="hardware_emulator: vibration", message=state,
+                            values=[KeyValue(key=k, value=v) for k, v in values.items()])
+
+
+def status_publisher(client):
+    from diagnostic_msgs.msg import DiagnosticStatus
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    if "status" not in client._publishers:
+        qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        client._publishers["status"] = client.node.create_publisher(DiagnosticStatus, "vibration/status", qos)
+    return client._publishers["status"]
+
+
+def planner_messages(diagnostics):
+    return [s.message for a in diagnostics for s in a.status if s.name.startswith("vibration_planner")]
 
 
 def test_parameter_validation_and_bad_starts(planner):
@@ -79,28 +102,31 @@ def test_parameter_validation_and_bad_starts(planner):
         {"direction": [0.0, 0.0, 0.0]},
         {"frame": "world"},
         {"duration_s": 0.1},  # shorter than the two 0.2 s ramps
-        {"window_s": 0.1},  # not longer than window_period_s
+        {"lookahead_s": 0.4},  # not longer than window_period_s (0.5)
         {"ramp_s": -1.0},
         {"start_lead_s": 0.1},  # the first window would begin after t0 (lead_s 0.3)
+        {"max_lookahead_s": 1.0},  # below lookahead_s
     ]
     for values in bad:
         (result,) = set_params(client, **values)
         assert not result.successful and result.reason, values
     (ok,) = set_params(client, frequency_hz=40.0)
     assert ok.successful
-    set_params(client, frequency_hz=F)
+    (typed,) = set_params(client, frequency_hz=35)  # at run time rclpy refuses an integer, with the reason
+    assert not typed.successful and "DOUBLE" in typed.reason
 
     response = trigger(client, "start")
     assert not response.success and "no platform/pose_estimate" in response.message
     nan = pose_msg(np.zeros(6))
     nan.pose.position.x = float("nan")
     client.publisher("platform/pose_estimate", PoseStamped).publish(nan)
+    assert client.wait_for_subscribers("platform/pose_estimate")
     client.spin_for(0.3)
     response = trigger(client, "start")  # the NaN estimate is refused when a start needs it
     assert not response.success and "pose estimate unusable" in response.message and "non-finite" in response.message
-    assert trigger(client, "stop").success  # idle: nothing to do
-    messages = [s.message for a in diagnostics for s in a.status]
-    assert any("rejected start: pose estimate unusable" in m for m in messages), messages
+    assert trigger(client, "stop").message == "already idle"
+    assert client.spin_until(lambda: any("rejected start: pose estimate unusable" in m
+                                         for m in planner_messages(diagnostics)), 5)
     assert proc.alive()
 
 
@@ -115,27 +141,32 @@ def test_start_stream_stop_and_infeasible(robot, planner):
 
     response = trigger(client, "start")
     assert response.success, response.message
-    assert "gains k" in response.message and "leg amplitudes um" in response.message
+    assert all(k in response.message for k in ("gains k", "leg amplitudes um", "settings: {"))
     again = trigger(client, "start")
     assert not again.success and "already running" in again.message
-    assert client.spin_until(lambda: len(windows) >= 6, 10), proc.log_text()
+    assert client.spin_until(lambda: len(windows) >= 4, 10), proc.log_text()
     running = list(windows)
 
-    # common stamp, names, ramp-in from rest, window continuity (overlaps agree sample for sample)
+    # common stamp and names; each window safe on its own: from rest (the first) and back to rest at its end
     assert len({(w.header.stamp.sec, w.header.stamp.nanosec) for w in running}) == 1
     assert all(list(w.joint_names) == VIB for w in running)
-    first = running[0].points[0]
-    assert first.time_from_start.sec == 0 and first.time_from_start.nanosec == 0
-    assert np.abs(first.positions).max() == 0.0
-    samples, worst = merged(running)
-    assert worst < 1e-15
-    keys = sorted(samples)
-    assert np.all(np.diff(keys) == round(DT * 1e6)), "gap in the streamed samples"
-    t = np.array([samples[k][0] for k in keys])
-    pos = np.array([samples[k][1] for k in keys])
-    vel = np.array([samples[k][2] for k in keys])
+    parts = [samples_of(w) for w in running]
+    assert parts[0][0][0] == 0.0 and np.abs(parts[0][1][0]).max() == 0.0
+    for t, pos, vel, acc in parts:
+        assert np.abs(pos[-1]).max() < 1e-15 and np.abs(vel[-1]).max() < 1e-12  # the tail ends at rest
+        assert t[-1] - t[0] >= 1.5 + RAMP - 1e-9  # 1.5 s look-ahead plus the ramp-out tail
+        assert acc.shape == pos.shape  # quintic windows
+        np.testing.assert_allclose(np.gradient(pos, t, axis=0)[1:-1], vel[1:-1], atol=0.01 * 2 * np.pi * F * 60e-6)
+    # the next window starts where the previous one is still at full amplitude, and agrees with it there
+    for (t0_, p0, *_), (t1, p1, *_) in zip(parts, parts[1:]):
+        tail_start = t0_[-1] - RAMP
+        assert t1[0] < tail_start
+        common, i, j = np.intersect1d(np.round(t0_ * 1e6), np.round(t1 * 1e6), return_indices=True)
+        before = common < round(tail_start * 1e6)
+        assert before.sum() > 100 and np.abs(p0[i[before]] - p1[j[before]]).max() < 1e-15
 
     # steady state: vib_i = k_i A sin(w t) (+ second order), amplitude |k_i| A, phase 0 or pi
+    t, pos = parts[0][0], parts[0][1]
     amp = G_ACC * 9.80665 / (2 * np.pi * F) ** 2
     gains = independent_gains(robot, pose)
     steady = (t >= RAMP + 0.01) & (t < RAMP + 0.01 + 10 / F)
@@ -144,31 +175,20 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     coef = np.linalg.lstsq(basis, pos[steady], rcond=None)[0]
     np.testing.assert_allclose(coef[0], gains * amp, atol=1e-3 * amp)  # signed: phase 0 (k>0) or pi (k<0)
     assert np.abs(coef[1]).max() < 1e-3 * amp
-    np.testing.assert_allclose(np.gradient(pos, t, axis=0)[1:-1], vel[1:-1], atol=0.01 * w * amp)
-    assert np.abs(pos[t < RAMP]).max() < np.abs(pos).max()  # ramping in
 
-    # stop: a window that ramps out from the buffered signal to exactly zero, then silence
+    # stop: one last window ramping out from a sample the previous windows carried at full amplitude
     before = len(windows)
     response = trigger(client, "stop")
     assert response.success and "ramp-out" in response.message, response.message
     assert client.spin_until(lambda: len(windows) > before, 5)
-    client.spin_for(0.6)
-    stop_window = windows[before]
-    assert len(windows) == before + 1, "windows after the stop ramp"
-    sent, _ = merged(windows[:before])
-    stop_points = merged([stop_window])[0]
-    first_key = min(stop_points)
-    # the ramp starts at 1 on an already sent sample; the stop window replaces everything after it
-    assert np.abs(stop_points[first_key][1] - sent[first_key][1]).max() < 1e-9 * amp
-    effective = {k: v for k, v in sent.items() if k < first_key} | stop_points
-    keys = sorted(effective)
-    tail = np.array([effective[k][1] for k in keys])
-    assert np.all(np.diff(keys) == round(DT * 1e6))
-    assert np.abs(stop_window.points[-1].positions).max() == 0.0
-    assert np.abs(np.diff(tail, axis=0)).max() <= 1.05 * w * amp * DT  # no step anywhere
-    ramp_span = (stop_window.points[-1].time_from_start.sec + stop_window.points[-1].time_from_start.nanosec * 1e-9
-                 - stop_window.points[0].time_from_start.sec - stop_window.points[0].time_from_start.nanosec * 1e-9)
-    assert abs(ramp_span - RAMP) < 2 * DT
+    client.spin_for(1.0)
+    assert len(windows) == before + 1, "windows after the stop"
+    ts, ps, *_ = samples_of(windows[before])
+    t_prev, p_prev, *_ = samples_of(windows[before - 1])
+    k = int(np.flatnonzero(np.round(t_prev * 1e6) == round(ts[0] * 1e6))[0])
+    assert np.abs(ps[0] - p_prev[k]).max() < 1e-15 and ts[0] < t_prev[-1] - RAMP
+    assert abs(ts[-1] - ts[0] - RAMP) < 2 * DT and np.abs(ps[-1]).max() < 1e-15
+    assert np.abs(np.diff(ps, axis=0)).max() <= 1.05 * w * amp * DT  # no step
 
     # infeasible: 150 um is above the unit's 100 um
     assert client.spin_until(lambda: trigger(client, "stop").message == "already idle", 5)
@@ -184,6 +204,56 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     (result,) = set_params(client, amplitude_m=0.0)
     response = trigger(client, "start")
     assert not response.success and "StrokeLimitError" in response.message, response.message
+    assert proc.alive()
+
+
+def test_planner_follows_the_emulators_status(robot, planner):
+    """Refusal of its window, e-stop, units not at rest: the planner aborts with the reason, stops streaming,
+    and its next start works or says why not."""
+    proc, client = planner
+    windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
+    diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
+    status = status_publisher(client)
+    poses = client.publisher("platform/pose_estimate", PoseStamped)
+    assert client.wait_for_subscribers("platform/pose_estimate") and client.wait_for_subscribers("vibration/status")
+    status.publish(emulator_status("idle", 0.0))
+
+    def start():
+        poses.publish(pose_msg(paper_pose(robot)))
+        client.spin_for(0.2)
+        return trigger(client, "start")
+
+    def t0_of(response):
+        return float(response.message.split("t0 = ")[1].split(" s")[0])
+
+    response = start()
+    assert response.success, response.message
+    t0 = t0_of(response)
+    assert client.spin_until(lambda: len(windows) >= 2, 5)
+    status.publish(emulator_status("pending", t0 - 1, event_seq=1, level=1,
+                                   event="refused: vib_3: discontinuous splice at t = 12.0 s", event_stamp=t0))
+    assert client.spin_until(lambda: any(m.startswith("aborted: the hardware emulator refused")
+                                         for m in planner_messages(diagnostics)), 5), planner_messages(diagnostics)
+    count = len(windows)
+    client.spin_for(1.2)  # more than two window periods: nothing more is sent
+    assert len(windows) == count
+
+    status.publish(emulator_status("idle", t0 + 1))
+    response = start()  # after an abort a new start works (no stop, no reset needed)
+    assert response.success, response.message
+    t0 = t0_of(response)
+    status.publish(emulator_status("estopped", t0 + 0.1, event_seq=2, level=2, reason="emergency stop latched"))
+    assert client.spin_until(lambda: any(m.startswith("aborted: emergency stop")
+                                         for m in planner_messages(diagnostics)), 5)
+    levels = [s.level for a in diagnostics for s in a.status if s.message.startswith("aborted: emergency stop")]
+    assert levels and all(level == b"\x02" for level in levels)  # ERROR
+    response = start()
+    assert not response.success and "hardware_emulator/reset" in response.message
+    status.publish(emulator_status("ramping_out", t0 + 2))
+    response = start()
+    assert not response.success and "not at rest" in response.message
+    status.publish(emulator_status("stopped", t0 + 3, reason="emergency stop"))
+    assert start().success
     assert proc.alive()
 
 
@@ -216,8 +286,8 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
         client.spin_for(0.2)
         stamp = windows[0].header.stamp
         assert abs(stamp.sec + stamp.nanosec * 1e-9 - 101.0) < 1e-6  # t0 = sim now + start_lead_s (1 s)
-        samples, worst = merged(windows)
-        last = samples[max(samples)]
-        assert worst < 1e-15 and abs(last[0] - 1.0) < 1e-9 and np.abs(last[1]).max() == 0.0  # ends at rest
-        assert 2 <= len(windows) <= 8  # one per 0.2 s of sim time until the end is covered
+        assert len(windows) == 1  # a finite vibration that fits the look-ahead limit is sent whole
+        t, pos, vel, _ = samples_of(windows[0])
+        assert t[0] == 0.0 and abs(t[-1] - 1.0) < 1e-9 and len(t) == 1001
+        assert np.abs(pos[[0, -1]]).max() < 1e-15 and np.abs(vel[[0, -1]]).max() < 1e-12  # rest to rest
         assert trigger(client, "stop").message == "already idle"

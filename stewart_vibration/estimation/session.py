@@ -57,14 +57,21 @@ class ForceEstimator:
         self.pose = None  # last FK pose (warm start)
         self.errors = RunningForceError(rms_window_s)
         self._last_struts = None  # strut lengths of the newest state
+        self.state_time: float | None = None  # stamp of the newest state (the emulator's clock), s
 
     # -- commands (mirrors of the emulator's) ----------------------------------------------
-    def command_vibration(self, traj: JointTrajectory, now: float) -> None:
-        """Buffer a vib_* window as the emulator does (raises the emulator's refusal reasons)."""
+    def command_vibration(self, traj: JointTrajectory, now: float | None = None) -> None:
+        """Buffer a vib_* window as the emulator does (raises the emulator's refusal reasons). ``now``
+        (s) defaults to the emulator's time as the newest joint state gives it (before any state: the
+        window's own start, i.e. on time)."""
+        if now is None:
+            now = self.state_time if self.state_time is not None else (traj.start if traj.start > 0 else 0.0)
         self.vibration.add(traj, now)
 
-    def command_struts(self, traj: JointTrajectory, now: float) -> None:
-        """Follow a leg_* trajectory from the newest measured lengths (raises if none was measured yet)."""
+    def command_struts(self, traj: JointTrajectory, now: float | None = None) -> None:
+        """Follow a leg_* trajectory from the newest measured lengths (raises if none was measured yet);
+        ``now`` (s) defaults to the newest state's stamp."""
+        now = self.state_time if now is None else now
         if self.struts is None:
             if self._last_struts is None:
                 raise InvalidInputError("no legs/joint_states yet (start state unknown)")
@@ -86,6 +93,7 @@ class ForceEstimator:
         lengths = struts + vib
         rates = np.asarray(strut_rates, float) + np.asarray(vib_rates, float)
         self._last_struts = struts[-1]
+        self.state_time = float(stamps[-1])
         if self.struts is None:
             self.struts = TrajectoryFollower(struts[-1])
         elif self.struts.finished(stamps[-1]):

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 
 import numpy as np
@@ -13,6 +14,7 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.parameter import Parameter
 
 from ..errors import InvalidInputError
 from ..rotations import pose_from_position_quaternion, pose_to_position_quaternion
@@ -29,26 +31,35 @@ BASE_FRAME = "base"
 OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
 
 
-def run_node(factory, args=None, executor: str = "events") -> None:
-    """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up.
+def run_node(factory, args=None, executor: str = "events") -> int:
+    """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up; returns the exit code.
 
     The signals only set a stop flag (no KeyboardInterrupt inside a callback);
     the executor is spun in a spin_once loop that checks it.
     ``executor="events"``: rclpy's EventsExecutor (half the CPU of the
     SingleThreadedExecutor at the suite's 500 Hz state rate). Its sim-time
-    timers fire irregularly under load: timing-critical work (the planner's
-    streaming) polls the sim clock from a steady timer instead.
+    timers fire irregularly under load: timing-critical work polls the sim
+    clock from a steady timer instead.
     ``executor="single"`` or STEWART_EXECUTOR=single selects the
     SingleThreadedExecutor. A node may define ``shutdown()``; it runs
     before the node is destroyed (e.g. to stop a physics thread or finish a file).
+    A node that cannot start (bad parameter or configuration) prints one line saying why and
+    returns 2, without a traceback.
     """
     rclpy.init(args=args)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):
         signal.signal(signum, lambda *_: stop.set())
     node = None
+    code = 0
     try:
-        node = factory()
+        try:
+            node = factory()
+        except (KeyboardInterrupt, ExternalShutdownException):
+            raise
+        except Exception as exc:  # noqa: BLE001 - any start-up failure: one clear line, exit code 2
+            print(f"[FATAL] cannot start: {type(exc).__name__}: {exc}", file=sys.stderr, flush=True)
+            return 2
         if executor == "single" or os.environ.get("STEWART_EXECUTOR") == "single":
             spinner = SingleThreadedExecutor()
         else:
@@ -64,20 +75,33 @@ def run_node(factory, args=None, executor: str = "events") -> None:
                 node.shutdown()
             node.destroy_node()
         rclpy.try_shutdown()
+    return code
 
 
-def float_param(description: str, low: float, high: float, step: float = 0.0) -> ParameterDescriptor:
+def float_param(description: str, low: float, high: float, step: float = 0.0,
+                read_only: bool = False) -> ParameterDescriptor:
     """Descriptor of a floating-point parameter with an inclusive range."""
     return ParameterDescriptor(
-        description=description,
+        description=description, read_only=read_only,
         floating_point_range=[FloatingPointRange(from_value=float(low), to_value=float(high), step=float(step))],
     )
 
 
-def int_param(description: str, low: int, high: int) -> ParameterDescriptor:
+def int_param(description: str, low: int, high: int, read_only: bool = False) -> ParameterDescriptor:
     return ParameterDescriptor(
-        description=description, integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
+        description=description, read_only=read_only,
+        integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
     )
+
+
+def declare_float(node, name: str, default: float, descriptor: ParameterDescriptor) -> float:
+    """Declare a double parameter and return its value; an integer override (``-p rate:=0``, a params
+    file with ``0``) is taken as the same number instead of failing the parameter's type check."""
+    overrides = node._parameter_overrides  # rclpy's command-line / params-file values, before declaration
+    given = overrides.get(name)
+    if given is not None and given.type_ == Parameter.Type.INTEGER:
+        overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
+    return node.declare_parameter(name, float(default), descriptor).value
 
 
 def text_param(description: str, read_only: bool = False) -> ParameterDescriptor:
@@ -146,6 +170,24 @@ def named_values(names, values, wanted) -> np.ndarray | None:
     return np.array([values[index[name]] for name in wanted], dtype=float)
 
 
+class JointColumns:
+    """Column indices of leg_1..6 and of vib_1..6 in a JointState's names: (legs, vib), each an index
+    array or None when a name is missing; cached per name tuple (a stream repeats its names)."""
+
+    def __init__(self):
+        self._cache = {}
+
+    def __call__(self, names: tuple):
+        if names not in self._cache:
+            index = {n: i for i, n in enumerate(names)}
+
+            def find(wanted):
+                return np.array([index[n] for n in wanted]) if all(n in index for n in wanted) else None
+
+            self._cache[names] = (find(LEG_NAMES), find(VIB_NAMES))
+        return self._cache[names]
+
+
 def duration_msg(seconds: float) -> DurationMsg:
     sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)  # 0.9999999999 -> 1 s, not 0 s
     return DurationMsg(sec=sec, nanosec=nanosec)
@@ -169,8 +211,10 @@ __all__ = [
     "WARN",
     "Diagnostics",
     "InvalidInputError",
+    "JointColumns",
     "duration_msg",
     "duration_seconds",
+    "declare_float",
     "float_param",
     "int_param",
     "named_values",

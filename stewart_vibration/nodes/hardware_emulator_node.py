@@ -4,201 +4,303 @@ Topics (relative): sub legs/joint_trajectory (leg_*, absolute strut lengths),
 vibration/joint_trajectory (vib_*, header stamp = common start time); pub
 legs/joint_states (leg_*, vib_*: position m, velocity m/s, effort = axial
 force N), platform/pose (ground truth, PoseStamped in `base`),
+vibration/status (diagnostic_msgs/DiagnosticStatus, reliable + transient local:
+what the vibration units really do, see emulation.vibration_status),
 robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics.
 Services: hardware_emulator/reset, hardware_emulator/emergency_stop (Trigger).
 
-Physics runs in its own thread, paced by ``real_time_factor`` (0 = as fast as
-possible); commands arrive on the executor thread and are handed over under a lock.
+Physics runs in its own thread, one block of steps per state period, paced by
+``real_time_factor`` (0 = as fast as possible); commands arrive on the executor
+thread and are handed over under a lock. The 500 Hz streams are published as
+serialized CDR (messages.cdr), the commands are decoded from raw bytes.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+import traceback
 
 import numpy as np
-from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from ..emulation.emulator import HardwareEmulator
+from ..emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from ..emulation.vibration_status import ERROR as STATUS_ERROR
+from ..emulation.vibration_status import WARN as STATUS_WARN
 from ..errors import StewartError
+from ..messages import cdr
 from ..mjcf import load_simulation_settings
 from ..robot import load_robot
-from ..rotations import rotation_from_rpy
+from ..rotations import rotation_from_quaternion
 from .common import (
+    BASE_FRAME,
     ERROR,
     OK,
     STREAM_DEPTH,
+    WARN,
     Diagnostics,
-    duration_seconds,
+    declare_float,
     float_param,
     int_param,
-    pose_stamped,
-    reject,
     run_node,
-    stamp_seconds,
     text_param,
 )
 
-
-def sim_time_msg(seconds: float) -> Time:
-    sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)  # 4.9999999999 -> 5 s, not 4 s
-    return Time(sec=sec, nanosec=nanosec)
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+STATUS_PERIOD_S = 0.05  # sim time between vibration status evaluations
+STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
+LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
 
 
 class HardwareEmulatorNode(Node):
     """Thin adapter over stewart_vibration.emulation.HardwareEmulator."""
 
+    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s")
+
     def __init__(self):
         super().__init__("hardware_emulator")
-        self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", True))
-        self.declare_parameter("simulation_config", "", text_param("simulation YAML ('' = config/simulation.yaml)",
-                                                                   True))
-        self.declare_parameter("physics_rate_hz", 2000.0, float_param("physics steps per simulated second", 200, 20000))
-        self.declare_parameter("state_rate_hz", 500.0,
-                               float_param("joint state / pose / clock rate (sim time)", 10, 5000))
-        self.declare_parameter("clock_rate_hz", 100.0, float_param(
-            "/clock rate (sim time); every sim-time node wakes for each tick, so keep it modest", 10, 5000))
-        self.declare_parameter("real_time_factor", 1.0,
-                               float_param("sim seconds per wall second; 0 = as fast as possible", 0.0, 100.0))
-        self.declare_parameter("watchdog_s", 0.5, float_param("vibration ramps out after this long without commands",
-                                                              0.02, 10.0))
-        self.declare_parameter("vibration_ramp_s", 0.05, float_param("vibration ramp-out time, s", 0.005, 0.1))
-        self.declare_parameter("drive_gain_interval", 10, int_param(
-            "physics steps between recomputing the strut drive's force-to-acceleration map", 1, 1000))
-        self.declare_parameter("marker_rate_hz", 10.0, float_param("MarkerArray rate (sim time)", 0.0, 100.0))
+        ro = True
+        self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", ro))
+        self.declare_parameter("simulation_config", "", text_param(
+            "simulation YAML ('' = config/simulation.yaml)", ro))
+        physics = declare_float(self, "physics_rate_hz", 2000.0, float_param(
+            "physics steps per simulated second (read at start)", 200, 20000, read_only=ro))
+        state_rate = declare_float(self, "state_rate_hz", 500.0, float_param(
+            "joint state / pose rate, sim time (read at start)", 10, 5000, read_only=ro))
+        clock_rate = declare_float(self, "clock_rate_hz", 100.0, float_param(
+            "/clock rate, sim time; every sim-time node wakes for each tick (read at start)", 10, 5000, read_only=ro))
+        declare_float(self, "real_time_factor", 1.0, float_param(
+            "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
+        declare_float(self, "watchdog_s", 0.5, float_param(
+            "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
+            0.02, 10.0))
+        declare_float(self, "vibration_ramp_s", 0.05, float_param(
+            "safety ramp-out time of the vibration units (watchdog, e-stop), s (live)", 0.005, 0.1))
+        declare_float(self, "max_lookahead_s", 30.0, float_param(
+            "a vibration window may reach at most this far ahead of now, s (live)", 0.1, 600.0))
+        gain_interval = self.declare_parameter("drive_gain_interval", 10, int_param(
+            "state periods between refreshes of the strut servos' force-to-acceleration map (read at start)",
+            1, 1000, read_only=ro)).value
+        marker_rate = declare_float(self, "marker_rate_hz", 10.0, float_param(
+            "MarkerArray rate, sim time; 0 = none (read at start)", 0.0, 100.0, read_only=ro))
         param = self.get_parameter
         robot = load_robot(param("robot_config").value or None)
-        settings = load_simulation_settings(param("simulation_config").value or None,
-                                            timestep=1.0 / param("physics_rate_hz").value)
+        settings = load_simulation_settings(param("simulation_config").value or None, timestep=1.0 / physics)
         self.emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
-                                         param("drive_gain_interval").value)
+                                         gain_interval, param("max_lookahead_s").value)
+        self.period = 1.0 / state_rate
+        self.clock_every = max(int(round(state_rate / clock_rate)), 1)
+        self.marker_every = max(int(round(state_rate / marker_rate)), 1) if marker_rate > 0 else 0
+        self.status_every = max(int(round(STATUS_PERIOD_S * state_rate)), 1)
+        self.real_time_factor = param("real_time_factor").value
         self.lock = threading.Lock()
         self.diagnostics = Diagnostics(self, "hardware emulator")
         self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
-        self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10)
-        self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50)
+        self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
+        self.state_encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
+        self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
+        self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
+        self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
         self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
         self.create_service(Trigger, "hardware_emulator/emergency_stop", self.on_emergency_stop)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.rejections = RejectionLog(self)
         self.running = True
         self.achieved_rtf = 0.0
+        self.behind_resets = 0
+        self._status_sent = (None, -1, 0.0)  # (state, event_seq, wall time) of the last status message
         self.thread = threading.Thread(target=self.physics_loop, name="physics", daemon=True)
         self.thread.start()
-        self.diagnostics.set(OK, "running", physics_rate_hz=param("physics_rate_hz").value)
-        self.get_logger().info(f"hardware emulator running (MuJoCo dt {self.emulator.dt} s, robot {robot.source})")
+        self.create_timer(STATUS_REPEAT_S, self.repeat_status)
+        self.diagnostics.set(OK, "running", physics_rate_hz=physics, servo_bandwidth_hz=settings.servo_bandwidth_hz)
+        self.get_logger().info(f"hardware emulator running (MuJoCo dt {self.emulator.dt} s, "
+                               f"{settings.emulator_integrator}, robot {robot.source})")
 
-    # -- commands (executor thread) ------------------------------------------------
-    @staticmethod
-    def _points(msg: JointTrajectory):
-        times = [duration_seconds(p.time_from_start) for p in msg.points]
-        return (times, [p.positions for p in msg.points], [p.velocities for p in msg.points],
-                [p.accelerations for p in msg.points])
+    # -- parameters -------------------------------------------------------------------
+    def on_set_parameters(self, params) -> SetParametersResult:
+        """Live parameters take effect at once; read-only ones are refused by rclpy with the reason."""
+        with self.lock:
+            for p in params:
+                if p.name == "real_time_factor":
+                    self.real_time_factor = float(p.value)
+                    self._pace_reset = True
+                elif p.name == "watchdog_s":
+                    self.emulator.vibration.watchdog_s = float(p.value)
+                elif p.name == "vibration_ramp_s":
+                    self.emulator.vibration.ramp_s = float(p.value)
+                elif p.name == "max_lookahead_s":
+                    self.emulator.vibration.max_lookahead_s = float(p.value)
+        return SetParametersResult(successful=True)
 
-    def on_leg_trajectory(self, msg: JointTrajectory) -> None:
-        times, pos, vel, acc = self._points(msg)
+    # -- commands (executor thread) ------------------------------------------------------
+    def on_leg_trajectory(self, data: bytes) -> None:
         try:
+            traj = cdr.decode_joint_trajectory(data)
             with self.lock:
-                self.emulator.command_struts(msg.joint_names, stamp_seconds(msg.header.stamp), times, pos, vel, acc)
+                self.emulator.command_struts(traj.names, traj.stamp, traj.times, traj.positions, traj.velocities,
+                                             traj.accelerations)
         except StewartError as exc:
-            reject(self, self.diagnostics, "leg trajectory", str(exc))
+            self.rejections.add("leg trajectory", str(exc))
             return
-        self.diagnostics.set(OK, "following leg trajectory", last_leg_trajectory_points=len(times))
+        self.diagnostics.set(self._level(OK), self._message("following leg trajectory"),
+                             last_leg_trajectory_points=len(traj.times))
 
-    def on_vibration(self, msg: JointTrajectory) -> None:
-        times, pos, vel, _ = self._points(msg)
+    def on_vibration(self, data: bytes) -> None:
+        try:
+            traj = cdr.decode_joint_trajectory(data)
+        except StewartError as exc:
+            self.rejections.add("vibration command", str(exc))
+            return
         try:
             with self.lock:
-                self.emulator.command_vibration(msg.joint_names, stamp_seconds(msg.header.stamp), times, pos, vel)
+                self.emulator.command_vibration(traj.names, traj.stamp, traj.times, traj.positions, traj.velocities,
+                                                traj.accelerations)
+                report = self.emulator.status.report
         except StewartError as exc:
-            reject(self, self.diagnostics, "vibration command", str(exc))
+            self.rejections.add("vibration command", str(exc))
+            with self.lock:
+                report = self.emulator.status.report
+        self.publish_status(report)
 
     def on_emergency_stop(self, request, response):
         with self.lock:
             self.emulator.emergency_stop()
+            report = self.emulator.vibration_report()[0]
+        self.publish_status(report)
         self.get_logger().warning("emergency stop: vibration ramping to zero, pose held")
-        self.diagnostics.set(ERROR, "emergency stop (call hardware_emulator/reset to clear)")
+        self.diagnostics.set(ERROR, "emergency stop latched (call hardware_emulator/reset to clear)")
         response.success, response.message = True, "vibration ramping to zero, pose held; reset to clear"
         return response
 
     def on_reset(self, request, response):
-        with self.lock:
-            duration = self.emulator.reset()
-        self.diagnostics.set(OK, "reset: returning home")
+        try:
+            with self.lock:
+                duration = self.emulator.reset()
+                report = self.emulator.vibration_report()[0]
+        except StewartError as exc:
+            response.success, response.message = False, str(exc)
+            self.rejections.add("reset", str(exc))
+            return response
+        self.publish_status(report)
+        self.diagnostics.set(OK, "reset: e-stop cleared, returning home")
         response.success = True
-        response.message = f"returning home over {duration:.2f} s (sim time); e-stop cleared"
+        response.message = f"e-stop cleared; returning home over {duration:.2f} s (sim time)"
         return response
 
-    # -- physics (own thread) --------------------------------------------------------
+    def _level(self, level):
+        """Never report better than ERROR while the e-stop is latched."""
+        return ERROR if self.emulator.estopped else level
+
+    def _message(self, message: str) -> str:
+        """The e-stop stays first in the diagnostics message while it is latched."""
+        if self.emulator.estopped:
+            return f"emergency stop latched (call hardware_emulator/reset to clear); {message}"
+        return message
+
+    # -- vibration status -------------------------------------------------------------------
+    def publish_status(self, report) -> None:
+        values = report.as_values()
+        msg = DiagnosticStatus(level=LEVELS[report.level], name="hardware_emulator: vibration",
+                               message=report.message, hardware_id="stewart_vibration",
+                               values=[KeyValue(key=k, value=v) for k, v in values.items()])
+        self.status_pub.publish(msg)
+        self._status_sent = (report.state, report.event_seq, time.monotonic())
+
+    def repeat_status(self) -> None:
+        """Republish an unchanged status once a second (its amplitudes and times move on)."""
+        if time.monotonic() - self._status_sent[2] >= STATUS_REPEAT_S * 0.9:
+            with self.lock:
+                report = self.emulator.status.report
+            self.publish_status(report)
+
+    # -- physics (own thread) --------------------------------------------------------------
     def physics_loop(self) -> None:
-        period = 1.0 / self.get_parameter("state_rate_hz").value
-        rtf = self.get_parameter("real_time_factor").value
-        marker_every = self._marker_every(period)
-        clock_every = max(int(round(1.0 / (self.get_parameter("clock_rate_hz").value * period))), 1)
-        wall0, sim0, cycle = time.monotonic(), self.emulator.time, 0
-        self.publish_state()
+        try:
+            self._physics()
+        except Exception as exc:  # noqa: BLE001 - never die silently: report, hold the robot
+            self.running = False
+            text = f"physics stopped: {type(exc).__name__}: {exc}"
+            self.get_logger().error(f"{text}\n{traceback.format_exc()}")
+            self.diagnostics.set(ERROR, f"{text}; the robot is held where it was (restart the emulator)")
+
+    def _physics(self) -> None:
+        emulator, period = self.emulator, self.period
+        wall0, sim0, cycle = time.monotonic(), emulator.time, 0
+        self._pace_reset = False
+        self.publish_state(*self._read_state())
         while self.running:
             with self.lock:
-                self.emulator.advance(period)
-                state = self.emulator.joint_state()
-                pose = self.emulator.platform_pose()
-                now = self.emulator.time
+                emulator.advance(period)
+                state, pose, now = self._read_state()
+                report, changed = (None, False)
+                if cycle % self.status_every == 0:
+                    report, changed = emulator.vibration_report()
             cycle += 1
             if not self.running:
                 break  # shutting down: the context may already be gone
-            self.publish_state(state, pose, now, clock=cycle % clock_every == 0)
-            if marker_every and cycle % marker_every == 0:
+            self.publish_state(state, pose, now, clock=cycle % self.clock_every == 0)
+            if report is not None and (changed or report.event_seq != self._status_sent[1]):
+                self.publish_status(report)
+            if self.marker_every and cycle % self.marker_every == 0:
                 self.publish_markers(pose, now)
             wall = time.monotonic() - wall0
             self.achieved_rtf = (now - sim0) / wall if wall > 0 else 0.0
-            if rtf > 0:
+            rtf = self.real_time_factor
+            if self._pace_reset:
+                wall0, sim0, self._pace_reset = time.monotonic(), now, False
+            elif rtf > 0:
                 ahead = (now - sim0) / rtf - wall
                 if ahead > 0:
                     time.sleep(ahead)
+                elif ahead < -0.5:  # stalled (machine busy): do not race to catch up, keep the pace from here
+                    self.behind_resets += 1
+                    wall0, sim0 = time.monotonic(), now
             if cycle % 500 == 0:
                 self.diagnostics.values.update(sim_time_s=f"{now:.3f}", achieved_rtf=f"{self.achieved_rtf:.2f}",
-                                               constraint_violation_m=f"{self.emulator.sim.constraint_violation():.3g}")
+                                               pace_resets=str(self.behind_resets))
 
-    def _marker_every(self, period: float) -> int:
-        rate = self.get_parameter("marker_rate_hz").value
-        return max(int(round(1.0 / (rate * period))), 1) if rate > 0 else 0
+    def _read_state(self):
+        """(joint state tuple, platform position + quaternion, time) under the lock."""
+        emulator = self.emulator
+        return emulator.joint_state(), emulator.sim.platform_position_quaternion(), emulator.time
 
-    def publish_state(self, state=None, pose=None, now=None, clock: bool = True) -> None:
-        if state is None:
-            with self.lock:
-                state, pose, now = self.emulator.joint_state(), self.emulator.platform_pose(), self.emulator.time
-        stamp = sim_time_msg(now)
+    def publish_state(self, state, pose, now, clock: bool = True) -> None:
         if clock:
-            self.clock_pub.publish(Clock(clock=stamp))
-        names, positions, velocities, efforts = state
-        msg = JointState(name=names, position=positions.tolist(), velocity=velocities.tolist(),
-                         effort=efforts.tolist())
-        msg.header.stamp = stamp
-        self.state_pub.publish(msg)
-        self.pose_pub.publish(pose_stamped(pose, stamp))
+            self.clock_pub.publish(cdr.encode_clock(now))
+        _, positions, velocities, efforts = state
+        self.state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
+        position, quaternion = pose
+        self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
 
     def publish_markers(self, pose, now) -> None:
         robot = self.emulator.robot
-        rot = rotation_from_rpy(pose[3:])
-        tips = pose[:3] + robot.platform_hinges @ rot.T
-        stamp = sim_time_msg(now)
+        position, quaternion = pose
+        rot = rotation_from_quaternion(quaternion)
+        tips = position + robot.platform_hinges @ rot.T
+        sec, nanosec = cdr.stamp_parts(now)
         legs = Marker(ns="legs", id=0, type=Marker.LINE_LIST, action=Marker.ADD)
-        legs.header.frame_id, legs.header.stamp = "base", stamp
+        legs.header.frame_id = BASE_FRAME
+        legs.header.stamp.sec, legs.header.stamp.nanosec = sec, nanosec
         legs.scale.x = 0.006
         legs.color.r, legs.color.g, legs.color.b, legs.color.a = 0.2, 0.5, 0.9, 1.0
         for b, a in zip(robot.base_hinges, tips, strict=True):
             legs.points += [Point(x=float(b[0]), y=float(b[1]), z=float(b[2])),
                             Point(x=float(a[0]), y=float(a[1]), z=float(a[2]))]
         ring = Marker(ns="platform", id=1, type=Marker.LINE_STRIP, action=Marker.ADD)
-        ring.header.frame_id, ring.header.stamp = "base", stamp
+        ring.header.frame_id = BASE_FRAME
+        ring.header.stamp.sec, ring.header.stamp.nanosec = sec, nanosec
         ring.scale.x = 0.004
         ring.color.r, ring.color.g, ring.color.b, ring.color.a = 0.9, 0.5, 0.1, 1.0
         ring.points = [Point(x=float(a[0]), y=float(a[1]), z=float(a[2])) for a in np.vstack([tips, tips[:1]])]
@@ -211,9 +313,30 @@ class HardwareEmulatorNode(Node):
         self.get_logger().info(f"stopped at sim time {self.emulator.time:.3f} s")
 
 
-def main(args=None) -> None:
-    run_node(HardwareEmulatorNode, args)
+class RejectionLog:
+    """Rejected commands: every one counted and on /diagnostics (WARN, never below an e-stop's ERROR);
+    the log gets the first of each reason and then at most one line per second."""
+
+    def __init__(self, node: HardwareEmulatorNode, period_s: float = 1.0):
+        self.node, self.period_s = node, period_s
+        self.count = 0
+        self._last_log = {}
+
+    def add(self, what: str, reason: str) -> None:
+        self.count += 1
+        node = self.node
+        key = (what, reason.split(":")[0])
+        now = time.monotonic()
+        if now - self._last_log.get(key, -np.inf) >= self.period_s:
+            self._last_log[key] = now
+            node.get_logger().warning(f"rejected {what}: {reason} ({self.count} rejections so far)")
+        node.diagnostics.set(node._level(WARN), node._message(f"rejected {what}: {reason}"),
+                             last_rejection=reason, rejections=self.count)
+
+
+def main(args=None) -> int:
+    return run_node(HardwareEmulatorNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -2,35 +2,45 @@
 
 Topics (relative): sub platform/target_pose (PoseStamped), legs/joint_states
 (JointState); pub legs/joint_trajectory (JointTrajectory, leg_* absolute
-lengths, m), platform/pose_estimate (PoseStamped, FK of leg_i + vib_i).
-Service: kinematics/plan_path (nav_msgs/GetPlan). Diagnostics on /diagnostics.
+lengths, m), platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per
+state with its stamp). Service: kinematics/plan_path (nav_msgs/GetPlan).
+Diagnostics on /diagnostics, with the state stream's health (received, lost,
+processed, lag). States arrive raw and are solved in vectorised batches every
+``batch_period_s`` (wall clock; FK warm-started from the previous pose).
 """
 
 from __future__ import annotations
+
+import time
 
 import numpy as np
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
+from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..errors import StewartError
 from ..kinematics import check_pose, forward_kinematics
+from ..messages import cdr
+from ..messages.stream_health import StreamHealth
 from ..motion_profiles import checked_path, interpolate_poses, minimum_jerk, minimum_jerk_duration
 from ..robot import load_robot
+from ..rotations import pose_to_position_quaternion
 from .common import (
+    BASE_FRAME,
     LEG_NAMES,
     OK,
     STREAM_DEPTH,
-    VIB_NAMES,
     WARN,
     Diagnostics,
+    JointColumns,
+    declare_float,
     duration_msg,
     duration_seconds,
     float_param,
-    named_values,
     pose_from_msg,
     pose_stamped,
     reject,
@@ -54,43 +64,99 @@ class KinematicsNode(Node):
         self.declare_parameter(
             "speed_scale", 0.5, float_param("fraction of strut_velocity_max used by moves", 0.01, 1.0)
         )
+        period = declare_float(self, "batch_period_s", 0.01, float_param(
+            "queued states are solved every this period (wall clock), s (read at start)", 0.001, 0.5, read_only=True))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.diagnostics = Diagnostics(self, "kinematics")
         self.lengths = None  # latest leg_* (strut) lengths, m
         self.pose = None  # latest pose estimate
         self.fk_failures = 0
+        self.health = StreamHealth()
+        self.columns = JointColumns()
+        self.decoder = cdr.JointStateDecoder()
+        self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
+        self.pending: list[bytes] = []
+        self.arrivals: list[float] = []
         self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
         # 1 s of states at 500 Hz: under CPU load the executor stalls > 0.1 s and depth 50 lost estimates
-        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH)
+        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH, raw=True)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(period, self.process, clock=steady)
+        self.create_timer(1.0, self.report, clock=steady)
         self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
         self.diagnostics.set(OK, "waiting for legs/joint_states")
         self.get_logger().info(f"kinematics ready (robot {self.robot.source})")
 
     # -- state estimate ---------------------------------------------------
-    def on_joint_states(self, msg: JointState) -> None:
-        legs = named_values(msg.name, msg.position, LEG_NAMES)
-        if legs is None:
+    def on_joint_states(self, data: bytes) -> None:
+        self.pending.append(data)
+        self.arrivals.append(time.monotonic())
+
+    def process(self) -> None:
+        """Solve FK for every queued state (one batch per layout) and publish one estimate each."""
+        if not self.pending:
             return
-        vib = named_values(msg.name, msg.position, VIB_NAMES)
-        hinge_lengths = legs + (vib if vib is not None else 0.0)
+        messages, arrivals = self.pending, np.array(self.arrivals)
+        self.pending, self.arrivals = [], []
         try:
-            result = forward_kinematics(self.robot, hinge_lengths, guess=self.pose, check_limits=False)
+            batches = cdr.decode_joint_states(messages, self.decoder)
+        except StewartError as exc:
+            reject(self, self.diagnostics, "joint states", str(exc))
+            self.health.rejected += len(messages)
+            return
+        first = 0
+        for batch in batches:
+            n = len(batch.stamps)
+            self._solve(batch, arrivals[first:first + n])
+            first += n
+
+    def _solve(self, batch, arrivals) -> None:
+        self.health.arrived(batch.stamps)
+        legs_at, vib_at = self.columns(batch.names)
+        if legs_at is None:
+            self.health.rejected += len(batch.stamps)
+            return
+        legs = batch.position[:, legs_at]
+        lengths = legs + (batch.position[:, vib_at] if vib_at is not None else 0.0)
+        good = np.isfinite(lengths).all(axis=1)
+        if not good.all():
+            self.health.rejected += int((~good).sum())
+            reject(self, self.diagnostics, "joint state", "non-finite leg positions")
+            if not good.any():
+                return
+        lengths, stamps, arrivals, legs = lengths[good], batch.stamps[good], arrivals[good], legs[good]
+        guess = self.robot.home_pose if self.pose is None else self.pose
+        try:
+            result = forward_kinematics(self.robot, lengths, guess=np.broadcast_to(guess, lengths.shape),
+                                        check_limits=False)
         except StewartError as exc:
             reject(self, self.diagnostics, "joint state", str(exc))
             return
-        if not (result.converged and result.assembly_ok):
-            self.fk_failures += 1
-            self.pose = None  # cold start next time
+        ok = result.converged & result.assembly_ok
+        if not ok.all():
+            self.fk_failures += int((~ok).sum())
             self.diagnostics.set(WARN, "forward kinematics did not converge", fk_failures=self.fk_failures)
-            return
-        self.lengths = legs
-        self.pose = result.pose
-        self.pose_pub.publish(pose_stamped(result.pose, msg.header.stamp))
+            if not ok.any():
+                self.pose = None  # cold start next time
+                return
+        poses = result.pose[ok]
+        position, quaternion = pose_to_position_quaternion(poses)
+        for stamp, p, q in zip(stamps[ok], position, quaternion, strict=True):
+            self.pose_pub.publish(self.pose_encoder.encode(stamp, p, q))
+        self.health.done(arrivals[ok], time.monotonic())
+        self.lengths, self.pose = legs[ok][-1], poses[-1]
         if self.diagnostics.message == "waiting for legs/joint_states":
             self.diagnostics.set(OK, "tracking")
+
+    def report(self) -> None:
+        self.diagnostics.values.update(self.health.values("states"))
+        if self.health.behind:
+            p99 = self.health.lag_percentiles_ms()[1]
+            self.diagnostics.set(WARN, f"falling behind: {self.health.lost} states lost, lag p99 {p99:.1f} ms")
+        self.diagnostics.publish()
 
     # -- target pose -> trajectory ----------------------------------------
     def on_target_pose(self, msg: PoseStamped) -> None:

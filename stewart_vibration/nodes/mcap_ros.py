@@ -75,16 +75,17 @@ def message_class(type_name: str):
     return getattr(importlib.import_module(f"{pkg}.{ns}"), name)
 
 
-def make_executor():
-    """rclpy's EventsExecutor (keeps up with >= 5,000 msg/s) or the single-threaded one."""
+def make_executor(context=None):
+    """rclpy's EventsExecutor (keeps up with >= 5,000 msg/s) or the single-threaded one, on ``context``
+    (default: the global one)."""
     try:
         from rclpy.experimental import EventsExecutor
 
-        return EventsExecutor()
+        return EventsExecutor(context=context)
     except Exception:  # noqa: BLE001 - older rclpy
         from rclpy.executors import SingleThreadedExecutor
 
-        return SingleThreadedExecutor()
+        return SingleThreadedExecutor(context=context)
 
 
 def spin_until_shutdown(executor, period_s: float = 0.1) -> None:

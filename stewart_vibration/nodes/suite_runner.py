@@ -10,28 +10,32 @@ returns the MCAP path and the event times for the summary.
 from __future__ import annotations
 
 import glob
+import json
 import os
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.srv import GetParameters, SetParameters
+from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from ..emulation.vibration_status import report_from_values
 from ..processes import NodeProcess, ros_environment, start_python_module
 from ..robot import default_config_dir
 from ..scenario import MoveStep, Scenario, VibrateStep
 from ..suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
 from . import ensure_ament_prefix_path
 from .common import pose_from_msg, pose_stamped
+from .mcap_ros import make_executor
 
 
 class StepFailed(RuntimeError):
@@ -91,7 +95,7 @@ class SuiteRunner:
         self.context = Context()
         self.context.init(domain_id=opts.domain_id)
         self.client = Node("suite_runner", namespace=opts.namespace, context=self.context)
-        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor = make_executor(self.context)  # EventsExecutor: a third of the CPU per message
         self.executor.add_node(self.client)
         self.clock = None
         self.latest = {}
@@ -102,9 +106,28 @@ class SuiteRunner:
             sub = self.client.create_subscription(kind, topic, lambda m, t=topic: self.latest.__setitem__(t, m), 1)
             self.readiness_subs.append(sub)
         self.target_pub = self.client.create_publisher(PoseStamped, "platform/target_pose", 10)
+        self.vibration_status = None  # latest VibrationReport of the emulator
+        self.status_history = []  # (state, since, reason) transitions seen
+        self.planner_status = None  # latest planner DiagnosticStatus
+        status_qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
+                                durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.client.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, status_qos)
+        self.client.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
 
     def _on_clock(self, msg: Clock) -> None:
         self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def _on_vibration_status(self, msg: DiagnosticStatus) -> None:
+        level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
+        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+        if not self.status_history or self.status_history[-1][:2] != (report.state, report.since):
+            self.status_history.append((report.state, report.since, report.reason))
+        self.vibration_status = report
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.startswith("vibration_planner"):
+                self.planner_status = status
 
     def stop(self) -> None:
         """Stop the recorder (finishes the MCAP), then every process; close the client."""
@@ -230,6 +253,8 @@ class SuiteRunner:
                       f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
 
     def vibrate(self, step: VibrateStep, label: str) -> None:
+        """Set the planner's parameters, start, and follow the emulator's vibration/status until the
+        vibration is over; an abort, a refusal or a vibration shorter than planned fails the step."""
         opts = self.options
         params = []
         for key, value in step.parameters.items():
@@ -243,17 +268,53 @@ class SuiteRunner:
         res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
         if not res.success:
             raise StepFailed(f"vibration start refused: {res.message}")
-        start = self.clock
-        opts.progress(f"{label}: vibrating: {res.message}")
-        # the vibration begins start_lead_s after the start call and lasts step.duration
-        request = GetParameters.Request(names=["start_lead_s"])
-        lead = self.call(GetParameters, "vibration_planner/get_parameters", request).values[0].double_value
-        self.wait_sim(max(start + lead + step.duration - self.clock, 0.0), "the vibration to finish")
-        stop = self.client.create_client(Trigger, "vibration_planner/stop")
-        if stop.service_is_ready():
-            stop.call_async(Trigger.Request())
-        self.client.destroy_client(stop)
-        self.wait_sim(step.ramp + 0.2, "the ramp-out")
-        self.record.vibrations.append({"parameters": dict(step.parameters), "start_time": start,
-                                       "stop_time": self.clock, "start_message": res.message})
-        opts.progress(f"{label}: vibration done ({self.clock - start:.2f} s sim)")
+        ran = json.loads(res.message.rsplit("settings: ", 1)[1])
+        start, t0 = self.clock, float(ran["t0_s"])
+        ramp, duration = float(ran["ramp_s"]), float(ran["duration_s"])
+        opts.progress(f"{label}: vibrating: {res.message.rsplit('; settings: ', 1)[0]}")
+        record = {"parameters": ran, "start_time": start, "t0": t0, "start_message": res.message}
+        self.record.vibrations.append(record)
+
+        def failed() -> str | None:
+            report, planner = self.vibration_status, self.planner_status
+            if planner is not None and planner.message.startswith("aborted"):
+                return f"the planner aborted the vibration: {planner.message}"
+            if report is not None and report.state in ("estopped", "stopped") and report.since >= t0 - 1e-6:
+                return f"the vibration units {report.message}"
+            if report is not None and report.event.startswith("refused") and report.event_stamp is not None and \
+                    abs(report.event_stamp - t0) < 1e-6:
+                return f"the hardware emulator {report.event}"
+            return None
+
+        def watch(until: float, what: str) -> None:
+            self.spin_until(lambda: failed() is not None or (self.clock is not None and self.clock >= until),
+                            (until - self.clock) / max(opts.real_time_factor, 0.05) + 60, what)
+            reason = failed()
+            if reason:
+                record["failure"] = reason
+                raise StepFailed(reason)
+
+        watch(t0 + ramp, "the vibration to begin")
+        report = self.vibration_status
+        if report is None or report.state not in ("ramping_in", "running"):
+            reason = (f"the vibration did not begin at t0 = {t0:.3f} s: the emulator reports "
+                      f"{report.message if report else 'nothing (no vibration/status)'}")
+            record["failure"] = reason
+            raise StepFailed(reason)
+        watch(t0 + duration, "the vibration to finish")
+        self.spin_until(lambda: failed() is not None or (self.vibration_status is not None and
+                                                          self.vibration_status.state in ("idle", "stopped")),
+                        30 / max(opts.real_time_factor, 0.05), "the units to come to rest")
+        reason = failed()
+        if reason:
+            record["failure"] = reason
+            raise StepFailed(reason)
+        record["stop_time"] = self.clock
+        ended = self.vibration_status.since
+        record["status_active_s"] = ended - t0
+        opts.progress(f"{label}: vibration done: the emulator reports the units active from t0 = {t0:.3f} s to "
+                      f"{ended:.3f} s ({ended - t0:.3f} s of the planned {duration:.3f} s)")
+        if ended < t0 + duration - 0.05:
+            reason = f"the vibration ended {t0 + duration - ended:.3f} s early: {self.vibration_status.message}"
+            record["failure"] = reason
+            raise StepFailed(reason)

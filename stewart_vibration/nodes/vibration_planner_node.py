@@ -1,88 +1,113 @@
-"""vibration planner node: a platform vibration -> streamed vib_* command windows.
+"""vibration planner node: a platform vibration -> self-contained vib_* command windows.
 
-Topics (relative): sub platform/pose_estimate (PoseStamped); pub
-vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m and
-velocities m/s; header.stamp = the vibration's common start time t0,
-time_from_start relative to t0). Services vibration_planner/start and
-vibration_planner/stop (std_srvs/Trigger). Diagnostics on /diagnostics
-(state idle/running/stopping, last error, the running plan).
+Topics (relative): sub platform/pose_estimate (PoseStamped), vibration/status
+(DiagnosticStatus from the hardware emulator: what the units really do); pub
+vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m,
+velocities m/s, accelerations m/s^2; header.stamp = the vibration's common
+start time t0, time_from_start relative to t0). Services vibration_planner/start
+and vibration_planner/stop (std_srvs/Trigger). Diagnostics on /diagnostics.
 
-Protocol (node clock, i.e. sim time under use_sim_time):
-- start (only when idle; while running or stopping it is refused with
-  "already running", call stop first): needs a pose estimate received within
-  pose_timeout_s; decomposes the vibration at that pose (exact IK method,
-  decompose_vibration with limit checks), checks the per-leg peaks including
-  the ramps, sets t0 = now + start_lead_s and streams. start_lead_s (1 s)
-  is the margin for the first window to reach the emulator before t0 even
-  when this node's clock lags the emulator's (a loaded machine): the emulator
-  refuses a first window that arrives after its vibration has begun.
-- windows: every window_period_s one message with the samples of the grid
-  t0 + k sample_period_s inside [s, s + window_s], s = max(now + lead_s, t0)
-  (clipped to t0 + duration); consecutive windows overlap and agree
-  sample for sample. The vibration ramps in from rest over ramp_s (first
-  sample 0) and, with duration_s > 0, ramps out to 0 at t0 + duration_s.
-- stop: one last window from now + lead_s to now + lead_s + ramp_s in which
-  the vibration is multiplied by a quintic ramp to zero (no step: the ramp
-  starts at 1 on the already-sent samples), then no more windows; state
-  "stopping" until the ramp is over, then "idle". stop when idle succeeds
-  with "already idle".
-Parameters changed while running apply to the next start. If the node dies
-while vibrating, the emulator's watchdog ramps the vibration out (the ROS
-context is already gone at shutdown, so no last window can be sent).
+The windows and their timing are vibration.streaming (pure): a finite vibration
+that fits ``max_lookahead_s`` is sent whole in its first window; otherwise every
+``window_period_s`` a window with ``lookahead_s`` of vibration and a ramp-out
+tail, so if no later window arrives the units ramp out smoothly on their own.
+
+States: idle, running, stopping, aborted (with the reason). start works from
+idle or aborted: it needs a recent pose estimate (pose_timeout_s) and, when the
+emulator's status is known, units at rest and no latched e-stop (otherwise it
+says why). t0 = start call + start_lead_s (node clock, sim time). The planner
+aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN
+otherwise) and in its state -- when the emulator refuses one of its windows,
+e-stops, reports the units stopped or idle before the planned end, or when it
+was itself held up past the buffered look-ahead (the units have begun their
+ramp-out). The start answer carries the settings that run as JSON after
+"settings: " (the run summary judges against those).
 """
 
 from __future__ import annotations
 
+import json
 import math
+import time
 
 import numpy as np
-from builtin_interfaces.msg import Time as TimeMsg
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+from trajectory_msgs.msg import JointTrajectory
 
+from ..emulation.vibration_status import report_from_values
 from ..errors import StewartError, VibrationLimitError
+from ..messages import cdr
 from ..robot import STANDARD_GRAVITY, load_robot
-from ..vibration import decompose_vibration, envelope, sample_leg_vibration
+from ..rotations import pose_from_position_quaternion
+from ..vibration import decompose_vibration
 from ..vibration.decompose import FRAMES
-from ..vibration.feasibility import check_leg_peaks
+from ..vibration.feasibility import check_command_limits
+from ..vibration.streaming import StreamInterrupted, StreamSettings, VibrationStream
 from .common import (
     ERROR,
     OK,
     VIB_NAMES,
     WARN,
     Diagnostics,
-    duration_msg,
+    declare_float,
     float_param,
-    pose_from_msg,
     reject,
     run_node,
     text_param,
 )
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
-SMOOTHSTEP_RATE_MAX = 1.875  # max ds/dx of the quintic smoothstep
-SMOOTHSTEP_CURVATURE_MAX = 10.0 / math.sqrt(3.0)  # max |d2s/dx2|
+STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")
+SETTINGS = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s", "ramp_s",
+            "lookahead_s", "window_period_s", "sample_period_s", "lead_s", "start_lead_s", "max_lookahead_s",
+            "pose_timeout_s")
 
 
-def ramp_acceleration_bound(plan, ramp_s: float) -> np.ndarray:
-    """Per-leg peak acceleration bound (m/s^2) of the ramped leg vibration (ramp-in, ramp-out or stop).
-
-    d2/dt2 (e x) = e x'' + 2 e' x' + e'' x with |x'| <= omega |x|max, so the
-    steady peak grows by at most |x|max (2 omega max|e'| + max|e''|).
-    """
-    peak = np.maximum(np.abs(plan.peak_change_low), np.abs(plan.peak_change_high))
-    omega = 2.0 * np.pi * plan.frequency
-    return plan.peak_leg_acceleration + peak * (
-        2.0 * omega * SMOOTHSTEP_RATE_MAX / ramp_s + SMOOTHSTEP_CURVATURE_MAX / ramp_s**2
-    )
+def check_settings(robot, s: dict) -> str | None:
+    """The reason the planner settings ``s`` are invalid, or None."""
+    unit = robot.vibration_unit
+    direction = np.asarray(list(s["direction"]), dtype=float)
+    if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < 1e-9:
+        return f"direction must be 3 finite values, not all zero; got {list(s['direction'])}"
+    if s["frame"] not in FRAMES:
+        return f"frame must be one of {list(FRAMES)}, got {s['frame']!r}"
+    for name, value in s.items():
+        if name not in ("direction", "frame") and not math.isfinite(value):
+            return f"{name} must be finite, got {value}"
+    if not unit.frequency_min <= s["frequency_hz"] <= unit.frequency_max:
+        return (f"frequency_hz {s['frequency_hz']} is outside the vibration unit's band "
+                f"[{unit.frequency_min}, {unit.frequency_max}] Hz")
+    if s["amplitude_m"] < 0:
+        return f"amplitude_m must be >= 0, got {s['amplitude_m']}"
+    if s["amplitude_m"] == 0 and s["acceleration_g"] <= 0:
+        return "acceleration_g must be > 0 when amplitude_m = 0"
+    if s["ramp_s"] <= 0:
+        return f"ramp_s must be > 0, got {s['ramp_s']}"
+    if s["duration_s"] != 0 and s["duration_s"] < 2 * s["ramp_s"]:
+        return f"duration_s {s['duration_s']} must be 0 (until stop) or >= 2 ramp_s = {2 * s['ramp_s']}"
+    if s["lookahead_s"] <= s["window_period_s"]:
+        return (f"lookahead_s {s['lookahead_s']} must exceed window_period_s {s['window_period_s']} (the next "
+                "window must arrive before the last one's ramp-out)")
+    if s["start_lead_s"] < s["lead_s"]:
+        return f"start_lead_s {s['start_lead_s']} must be >= lead_s {s['lead_s']} (the first window starts at t0)"
+    if s["max_lookahead_s"] < s["lookahead_s"]:
+        return f"max_lookahead_s {s['max_lookahead_s']} must be >= lookahead_s {s['lookahead_s']}"
+    if s["sample_period_s"] * s["frequency_hz"] > 0.1:
+        return (f"sample_period_s {s['sample_period_s']} is too coarse for {s['frequency_hz']} Hz "
+                "(need >= 10 samples per period)")
+    return None
 
 
 class VibrationPlannerNode(Node):
-    """Thin adapter over stewart_vibration.vibration (decompose, sample_leg_vibration)."""
+    """Thin adapter over stewart_vibration.vibration (decompose_vibration, VibrationStream)."""
 
     def __init__(self):
         super().__init__("vibration_planner")
@@ -93,28 +118,27 @@ class VibrationPlannerNode(Node):
             type=ParameterType.PARAMETER_DOUBLE_ARRAY,
             description="vibration direction (3 values, any non-zero length) in `frame`"))
         self.declare_parameter("frame", "platform", text_param("frame of `direction`: platform | base"))
-        self.declare_parameter("amplitude_m", 0.0, float_param(
-            "platform displacement amplitude, m (0 = use acceleration_g)", 0.0, 0.01))
-        self.declare_parameter("acceleration_g", 0.3, float_param(
-            "peak platform acceleration, g (used when amplitude_m = 0)", 0.0, 10.0))
-        self.declare_parameter("frequency_hz", 35.0, float_param(
-            "vibration frequency, Hz (the vibration unit's band)", unit.frequency_min, unit.frequency_max))
-        self.declare_parameter("phase_rad", 0.0, float_param("phase of the platform vibration, rad",
-                                                             -2 * math.pi, 2 * math.pi))
-        self.declare_parameter("duration_s", 0.0, float_param("vibration duration incl. ramps, s (0 = until stop)",
-                                                              0.0, 86400.0))
-        self.declare_parameter("ramp_s", 0.2, float_param("ramp-in / ramp-out time, s", 0.01, 10.0))
-        self.declare_parameter("window_s", 0.6, float_param("span of each streamed window, s", 0.05, 10.0))
-        self.declare_parameter("window_period_s", 0.2, float_param(
-            "period between windows, s (< the emulator's 0.5 s watchdog)", 0.01, 0.4))
-        self.declare_parameter("sample_period_s", 0.001, float_param("sample spacing in a window, s", 1e-4, 0.05))
-        self.declare_parameter("lead_s", 0.3, float_param("windows start this far ahead of now, s", 0.0, 2.0))
-        self.declare_parameter("start_lead_s", 1.0, float_param(
-            "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0))
-        self.declare_parameter("pose_timeout_s", 1.0, float_param(
-            "start needs a pose estimate received within this time, s", 0.01, 60.0))
+        number = [
+            ("amplitude_m", 0.0, "platform displacement amplitude, m (0 = use acceleration_g)", 0.0, 0.01),
+            ("acceleration_g", 0.3, "peak platform acceleration, g (used when amplitude_m = 0)", 0.0, 10.0),
+            ("frequency_hz", 35.0, "vibration frequency, Hz (the vibration unit's band)", unit.frequency_min,
+             unit.frequency_max),
+            ("phase_rad", 0.0, "phase of the platform vibration, rad", -2 * math.pi, 2 * math.pi),
+            ("duration_s", 0.0, "vibration duration incl. ramps, s (0 = until stop)", 0.0, 86400.0),
+            ("ramp_s", 0.2, "ramp-in / ramp-out time, s", 0.01, 10.0),
+            ("lookahead_s", 2.0, "vibration carried by each streamed window before its ramp-out tail, s", 0.05, 60.0),
+            ("window_period_s", 0.5, "period between streamed windows, s (< lookahead_s)", 0.01, 30.0),
+            ("sample_period_s", 0.001, "sample spacing in a window, s", 1e-4, 0.05),
+            ("lead_s", 0.3, "streamed windows start this far ahead of now, s", 0.0, 2.0),
+            ("start_lead_s", 1.0, "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0),
+            ("max_lookahead_s", 5.0, "a finite vibration ending within this time is sent whole in one window, s",
+             0.1, 600.0),
+            ("pose_timeout_s", 1.0, "start needs a pose estimate received within this time, s", 0.01, 60.0),
+        ]
+        for name, default, text, low, high in number:
+            declare_float(self, name, default, float_param(text, low, high))
         self.add_on_set_parameters_callback(self.on_set_parameters)
-        reason = self.check_settings(self.settings())
+        reason = check_settings(self.robot, self.settings())
         if reason:
             raise ValueError(f"invalid initial parameters: {reason}")
 
@@ -122,58 +146,24 @@ class VibrationPlannerNode(Node):
         self.state = "idle"
         self.last_error = ""
         self.plan = None
-        self.run = None  # dict of the running vibration's settings
-        self.timer = None
-        self.windows_sent = 0
-        self.pose_msg = None
-        self.pose_received_ns = None
+        self.stream: VibrationStream | None = None
+        self.run = None  # dict: settings, t0 (s), next_send (s)
+        self.pose_data = None  # raw PoseStamped bytes and their receive time (node clock, s)
+        self.emulator = None  # latest VibrationReport from vibration/status
+        self.seen_event = 0
+        self._last_tick = time.monotonic()
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
-        self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10)
+        self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
+        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
         self.create_service(Trigger, "vibration_planner/start", self.on_start)
         self.create_service(Trigger, "vibration_planner/stop", self.on_stop)
+        self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self._report(OK, "idle")
         self.get_logger().info(f"vibration planner ready (robot {self.robot.source})")
 
-    # -- parameters -----------------------------------------------------------
-    NAMES = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s",
-             "ramp_s", "window_s", "window_period_s", "sample_period_s", "lead_s", "start_lead_s", "pose_timeout_s")
-
+    # -- parameters -----------------------------------------------------------------
     def settings(self) -> dict:
-        return {name: self.get_parameter(name).value for name in self.NAMES}
-
-    def check_settings(self, s: dict) -> str | None:
-        """The reason the settings are invalid, or None."""
-        unit = self.robot.vibration_unit
-        direction = np.asarray(list(s["direction"]), dtype=float)
-        if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < 1e-9:
-            return f"direction must be 3 finite values, not all zero; got {list(s['direction'])}"
-        if s["frame"] not in FRAMES:
-            return f"frame must be one of {list(FRAMES)}, got {s['frame']!r}"
-        numbers = {k: v for k, v in s.items() if k not in ("direction", "frame")}
-        for name, value in numbers.items():
-            if not math.isfinite(value):
-                return f"{name} must be finite, got {value}"
-        if not unit.frequency_min <= s["frequency_hz"] <= unit.frequency_max:
-            return (f"frequency_hz {s['frequency_hz']} is outside the vibration unit's band "
-                    f"[{unit.frequency_min}, {unit.frequency_max}] Hz")
-        if s["amplitude_m"] < 0:
-            return f"amplitude_m must be >= 0, got {s['amplitude_m']}"
-        if s["amplitude_m"] == 0 and s["acceleration_g"] <= 0:
-            return "acceleration_g must be > 0 when amplitude_m = 0"
-        if s["ramp_s"] <= 0:
-            return f"ramp_s must be > 0, got {s['ramp_s']}"
-        if s["duration_s"] != 0 and s["duration_s"] < 2 * s["ramp_s"]:
-            return f"duration_s {s['duration_s']} must be 0 (until stop) or >= 2 ramp_s = {2 * s['ramp_s']}"
-        if s["window_s"] <= s["window_period_s"]:
-            return f"window_s {s['window_s']} must exceed window_period_s {s['window_period_s']} (gapless stream)"
-        if s["start_lead_s"] < s["lead_s"]:
-            return f"start_lead_s {s['start_lead_s']} must be >= lead_s {s['lead_s']} (the first window starts at t0)"
-        if s["sample_period_s"] * 2 > s["window_s"]:
-            return f"sample_period_s {s['sample_period_s']} must be <= window_s / 2"
-        if s["sample_period_s"] * s["frequency_hz"] > 0.1:
-            return (f"sample_period_s {s['sample_period_s']} is too coarse for {s['frequency_hz']} Hz "
-                    "(need >= 10 samples per period)")
-        return None
+        return {name: self.get_parameter(name).value for name in SETTINGS}
 
     def on_set_parameters(self, params) -> SetParametersResult:
         s = self.settings()
@@ -181,7 +171,7 @@ class VibrationPlannerNode(Node):
             if p.name in s:
                 s[p.name] = p.value
         try:
-            reason = self.check_settings(s)
+            reason = check_settings(self.robot, s)
         except (TypeError, ValueError) as exc:
             reason = f"invalid parameter value: {exc}"
         if reason:
@@ -190,45 +180,87 @@ class VibrationPlannerNode(Node):
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
 
-    # -- inputs -----------------------------------------------------------------
-    def now_ns(self) -> int:
-        return self.get_clock().now().nanoseconds
+    # -- inputs ------------------------------------------------------------------------
+    def now_s(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
 
-    def on_pose(self, msg: PoseStamped) -> None:
-        """Keep the latest estimate (500 Hz: converted only when a vibration starts)."""
-        self.pose_msg, self.pose_received_ns = msg, self.now_ns()
+    def on_pose(self, data: bytes) -> None:
+        """Keep the latest estimate (500 Hz: decoded only when a vibration starts)."""
+        self.pose_data = (data, self.now_s())
 
+    def on_status(self, msg: DiagnosticStatus) -> None:
+        level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
+        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+        self.emulator = report
+        if self.state not in ("running", "stopping"):
+            self.seen_event = report.event_seq
+            return
+        t0 = self.run["t0"]
+        new_event = report.event_seq != self.seen_event
+        self.seen_event = report.event_seq
+        if new_event and report.event.startswith("refused") and report.event_stamp is not None \
+                and abs(report.event_stamp - t0) < 1e-6:
+            self.abort(f"the hardware emulator refused a window of this vibration ({report.event})", WARN)
+        elif report.state == "estopped":
+            self.abort("emergency stop on the hardware emulator (call hardware_emulator/reset)", ERROR)
+        elif report.state == "stopped" and report.since >= t0:
+            self.abort(f"the vibration units stopped: {report.reason}", WARN)
+        elif report.state == "idle" and report.since > t0:
+            end = self.stream.planned_end
+            if self.state == "running" and (end is None or report.since < t0 + end - 0.05):
+                self.abort(f"the vibration units went idle at {report.since:.3f} s, before the planned end "
+                           f"({'until stop' if end is None else f'{t0 + end:.3f} s'}): {report.reason}", WARN)
 
-
+    # -- state ---------------------------------------------------------------------------
     def _report(self, level, message: str) -> None:
+        run = self.run or {}
         self.diagnostics.set(level, message, state=self.state, last_error=self.last_error or "none",
-                             windows_sent=self.windows_sent)
+                             windows_sent=self.stream.windows_sent if self.stream else 0,
+                             t0_s=f"{run['t0']:.6f}" if run else "")
 
-    def _fail(self, response, reason: str):
+    def abort(self, reason: str, level) -> None:
+        """Stop streaming; state 'aborted: reason' until the next start."""
+        self.state = f"aborted: {reason}"
+        self.last_error = reason
+        self.run = None
+        self.get_logger().error(f"vibration aborted: {reason}") if level == ERROR else \
+            self.get_logger().warning(f"vibration aborted: {reason}")
+        self._report(level, self.state)
+
+    def _refuse(self, response, reason: str):
         self.last_error = reason
         response.success, response.message = False, reason
         reject(self, self.diagnostics, "start", reason)
-        self.diagnostics.set(WARN, f"rejected start: {reason}", state=self.state, last_error=reason)
         return response
 
-    # -- services -----------------------------------------------------------------
+    # -- services --------------------------------------------------------------------------
     def on_start(self, request, response):
-        if self.state != "idle":
-            return self._fail(response, f"already running (state {self.state}); call stop first")
-        if self.pose_msg is None:
-            return self._fail(response, "no platform/pose_estimate received yet")
-        try:
-            pose = pose_from_msg(self.pose_msg.pose)
-        except StewartError as exc:
-            return self._fail(response, f"pose estimate unusable: {exc}")
-        now = self.now_ns()
+        if self.state in ("running", "stopping"):
+            return self._refuse(response, f"already {self.state}; call stop first")
+        emulator = self.emulator
+        if emulator is not None and emulator.state == "estopped":
+            return self._refuse(response, "emergency stop latched on the hardware emulator: call "
+                                          "hardware_emulator/reset first")
+        if emulator is not None and emulator.state in BUSY_STATES:
+            return self._refuse(response, f"the vibration units are not at rest ({emulator.message}); start again "
+                                          f"when they are")
+        if self.pose_data is None:
+            return self._refuse(response, "no platform/pose_estimate received yet")
+        now = self.now_s()
         if now <= 0:
-            return self._fail(response, "clock not running (use_sim_time without /clock?)")
+            return self._refuse(response, "clock not running (use_sim_time without /clock?)")
         s = self.settings()
-        age = (now - self.pose_received_ns) * 1e-9
+        data, received = self.pose_data
+        age = now - received
         if age > s["pose_timeout_s"]:
-            return self._fail(response, f"pose estimate is {age:.3f} s old (pose_timeout_s {s['pose_timeout_s']})")
+            return self._refuse(response, f"pose estimate is {age:.3f} s old (pose_timeout_s {s['pose_timeout_s']})")
+        try:
+            _, _, position, quaternion = cdr.decode_pose_stamped(data)
+            pose = pose_from_position_quaternion(position, quaternion)
+        except StewartError as exc:
+            return self._refuse(response, f"pose estimate unusable: {exc}")
         use_amplitude = s["amplitude_m"] > 0
+        duration = s["duration_s"] if s["duration_s"] > 0 else None
         try:
             plan = decompose_vibration(
                 self.robot, pose, list(s["direction"]),
@@ -237,33 +269,44 @@ class VibrationPlannerNode(Node):
                 frequency=s["frequency_hz"], phase=s["phase_rad"], frame=s["frame"], method="exact",
                 check_limits=True,
             )
-            bound = ramp_acceleration_bound(plan, s["ramp_s"])
-            try:
-                check_leg_peaks(self.robot, np.zeros(6), bound)  # amplitudes were checked above
-            except VibrationLimitError as exc:
-                raise VibrationLimitError(
-                    f"{exc} with the ramps of ramp_s {s['ramp_s']} s (use a longer ramp_s)",
-                    leg=exc.leg, limit_name=exc.limit_name, value=exc.value, limit=exc.limit) from exc
+            stream = VibrationStream(self.robot, plan, StreamSettings(
+                duration=duration, ramp_s=s["ramp_s"], sample_period_s=s["sample_period_s"],
+                lookahead_s=s["lookahead_s"], lead_s=s["lead_s"], max_lookahead_s=s["max_lookahead_s"]))
+            t0 = now + s["start_lead_s"]
+            first = stream.next_window(now - t0)
+            check_command_limits(self.robot.vibration_unit, first.times, first.position, first.velocity,
+                                 first.acceleration)
+            if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
+                probe = VibrationStream(self.robot, plan, stream.settings)
+                probe.next_window(-s["start_lead_s"])
+                stop = probe.stop_window(s["ramp_s"])
+                if stop is not None:
+                    check_command_limits(self.robot.vibration_unit, stop.times, stop.position, stop.velocity,
+                                         stop.acceleration)
+        except VibrationLimitError as exc:
+            return self._refuse(response, f"infeasible vibration ({type(exc).__name__}): {exc} (with the ramps of "
+                                          f"ramp_s {s['ramp_s']} s; a longer ramp_s lowers the peak acceleration)")
         except StewartError as exc:
-            return self._fail(response, f"infeasible vibration ({type(exc).__name__}): {exc}")
-        self.plan = plan
-        self.run = dict(s, t0_ns=now + int(round(s["start_lead_s"] * 1e9)),
-                        end=s["duration_s"] if s["duration_s"] > 0 else None, stop_end=None, final_sent=False)
-        self.state, self.last_error, self.windows_sent = "running", "", 0
-        self.send_window(now)
-        self.next_send_ns = now + int(round(s["window_period_s"] * 1e9))
-        # poll on a steady (wall) timer and send by the node clock (sim time): robust at any
-        # real-time factor, and independent of how an executor schedules sim-time timers
-        self.timer = self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+            return self._refuse(response, f"infeasible vibration ({type(exc).__name__}): {exc}")
+        self.plan, self.stream = plan, stream
+        self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"]}
+        self.state, self.last_error = "running", ""
+        self.seen_event = emulator.event_seq if emulator is not None else 0
+        self.publish(first)
         acc_g = plan.amplitude * (2 * math.pi * plan.frequency) ** 2 / STANDARD_GRAVITY
+        ran = dict(s, direction=list(s["direction"]), t0_s=t0, pose=pose.tolist())
         text = (
             f"started: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um ({acc_g:.3f} g) "
             f"along {np.round(plan.direction, 6).tolist()} (base frame), phase {plan.phase:.4f} rad, "
-            f"t0 = {self.run['t0_ns'] * 1e-9:.6f} s, ramp {s['ramp_s']} s, "
-            f"duration {'until stop' if self.run['end'] is None else str(self.run['end']) + ' s'}; "
+            f"t0 = {t0:.6f} s, ramp {s['ramp_s']} s, "
+            f"duration {'until stop' if duration is None else str(duration) + ' s'}"
+            f"{' (sent whole)' if stream.finished else ''}; "
             f"gains k = {np.round(plan.gains, 6).tolist()}; "
             f"leg amplitudes um = {np.round(plan.leg_amplitudes * 1e6, 3).tolist()}; "
             f"leg phases rad = {np.round(plan.leg_phases, 4).tolist()}"
+            + ("" if emulator is not None else "; note: no vibration/status from the hardware emulator yet, "
+                                               "so the units' state is unconfirmed")
+            + f"; settings: {json.dumps(ran)}"
         )
         self.get_logger().info(text)
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
@@ -274,106 +317,68 @@ class VibrationPlannerNode(Node):
         return response
 
     def on_stop(self, request, response):
-        if self.state == "idle":
-            response.success, response.message = True, "already idle"
+        if self.state not in ("running", "stopping"):
+            response.success, response.message = True, f"already {self.state}"
             return response
         if self.state == "stopping":
             response.success, response.message = True, "already stopping"
             return response
-        run = self.run
-        now = self.now_ns()
-        rel_now = (now - run["t0_ns"]) * 1e-9 + run["lead_s"]
-        dt = run["sample_period_s"]
-        rel_now = max(math.ceil(rel_now / dt - 1e-6) * dt, 0.0)  # the ramp starts on a sent sample, at 1
-        stop_end = rel_now + run["ramp_s"]
-        if run["end"] is not None and stop_end >= run["end"]:
-            response.success = True
-            response.message = f"the vibration already ends at t0 + {run['end']} s; letting it ramp out"
-            return response
-        run["stop_end"] = stop_end
-        self.send_window(now)
-        run["final_sent"] = True
+        t0 = self.run["t0"]
+        window = self.stream.stop_window(self.now_s() - t0)
         self.state = "stopping"
+        if window is None:
+            message = f"the vibration already ends at {t0 + self.stream.rest_at:.4f} s; letting it ramp out"
+        else:
+            self.publish(window)
+            message = (f"stopping: ramp-out from {t0 + self.stream.stop_at:.4f} s over "
+                       f"{self.run['settings']['ramp_s']} s, at rest at {t0 + window.rest_at:.4f} s")
         self._report(OK, "stopping")
-        response.success = True
-        response.message = (f"stopping: ramp-out from t0 + {rel_now:.4f} s over {run['ramp_s']} s, "
-                            f"at rest at t0 + {stop_end:.4f} s")
-        self.get_logger().info(response.message)
+        self.get_logger().info(message)
+        response.success, response.message = True, message
         return response
 
-    # -- streaming ----------------------------------------------------------------
+    # -- streaming ---------------------------------------------------------------------------
     def tick(self) -> None:
+        wall = time.monotonic()
+        gap, self._last_tick = wall - self._last_tick, wall
         run = self.run
         if run is None:
             return
-        now = self.now_ns()
-        rel_now = (now - run["t0_ns"]) * 1e-9
-        end = run["stop_end"] if run["stop_end"] is not None else run["end"]
-        if end is not None and rel_now >= end:
+        if gap > STALL_S:
+            # this process was held up (SIGSTOP, a busy machine): the sim clock it sees is stale until
+            # the next /clock arrives, so decide on the next tick
+            self.get_logger().warning(f"the planner was held up {gap:.3f} s (wall clock)")
+            return
+        now = self.now_s()
+        rel = now - run["t0"]
+        end = self.stream.planned_end if self.state == "running" else self.stream.rest_at
+        if self.stream.finished and end is not None and rel >= end:
             self.state, self.run = "idle", None
-            if self.timer is not None:
-                self.destroy_timer(self.timer)
-                self.timer = None
             self._report(OK, "idle")
             return
-        if not run["final_sent"] and now >= self.next_send_ns:
-            self.next_send_ns = now + int(round(run["window_period_s"] * 1e9))
-            try:
-                self.send_window(now)
-            except StewartError as exc:  # should not happen: start checked the peaks with the ramps
-                self.last_error = str(exc)
-                self._report(ERROR, f"window not sent: {exc}")
-
-    def window_times(self, now_ns: int) -> np.ndarray:
-        """Relative sample times (s from t0) of the window to send at ``now_ns``."""
-        run = self.run
-        dt = run["sample_period_s"]
-        start = max((now_ns - run["t0_ns"]) * 1e-9 + run["lead_s"], 0.0)
-        stop = start + run["window_s"]
-        end = run["stop_end"] if run["stop_end"] is not None else run["end"]
-        if run["stop_end"] is not None:
-            stop = end
-        if end is not None:
-            stop = min(stop, end)
-        k0, k1 = math.ceil(start / dt - 1e-6), math.floor(stop / dt + 1e-6)
-        times = np.arange(k0, k1 + 1) * dt
-        if end is not None and stop >= end - 1e-12:
-            run["final_sent"] = True
-            if times.size == 0 or times[-1] < end - 1e-9:
-                times = np.append(times, end)
-        return times
-
-    def send_window(self, now_ns: int) -> None:
-        run = self.run
-        times = self.window_times(now_ns)
-        if times.size < 2:
+        if self.stream.finished or now < run["next_send"]:
             return
-        ramp = run["ramp_s"]
-        samples = sample_leg_vibration(self.robot, self.plan, times, duration=run["end"], ramp_time=ramp)
-        pos, vel, acc = samples.position, samples.velocity, samples.acceleration
-        if run["stop_end"] is not None:
-            # g(t) = e(stop_end - t): dg/dt = -rate, d2g/dt2 = second
-            g, rate, second = envelope(run["stop_end"] - times, None, ramp)
-            g, rate, second = g[:, None], rate[:, None], second[:, None]
-            pos, vel, acc = g * pos, g * vel - rate * pos, g * acc - 2.0 * rate * vel + second * pos
-        else:
-            check_leg_peaks(self.robot, np.abs(pos).max(axis=0), np.abs(acc).max(axis=0))
-        msg = JointTrajectory()
-        t0 = run["t0_ns"]
-        msg.header.stamp = TimeMsg(sec=t0 // 1_000_000_000, nanosec=t0 % 1_000_000_000)
-        msg.joint_names = list(VIB_NAMES)
-        msg.points = [
-            JointTrajectoryPoint(positions=p, velocities=v, time_from_start=duration_msg(float(t)))
-            for t, p, v in zip(times, pos.tolist(), vel.tolist())
-        ]
-        self.pub.publish(msg)
-        self.windows_sent += 1
-        self.diagnostics.values["windows_sent"] = str(self.windows_sent)
+        run["next_send"] = now + run["settings"]["window_period_s"]
+        try:
+            window = self.stream.next_window(rel)
+        except StreamInterrupted as exc:
+            self.abort(str(exc), WARN)
+            return
+        if window is not None:
+            self.publish(window)
+
+    def publish(self, window) -> None:
+        started = time.perf_counter()
+        self.pub.publish(cdr.encode_joint_trajectory(VIB_NAMES, self.run["t0"], window.times, window.position,
+                                                     window.velocity, window.acceleration))
+        self.diagnostics.values.update(windows_sent=str(self.stream.windows_sent),
+                                       last_window_points=str(len(window.times)),
+                                       last_window_encode_ms=f"{(time.perf_counter() - started) * 1e3:.2f}")
 
 
-def main(args=None) -> None:
-    run_node(VibrationPlannerNode, args)
+def main(args=None) -> int:
+    return run_node(VibrationPlannerNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

@@ -48,7 +48,7 @@ class StreamSettings:
     duration: float | None
     ramp_s: float = 0.2
     sample_period_s: float = 0.001
-    lookahead_s: float = 1.5
+    lookahead_s: float = 2.0
     lead_s: float = 0.3
     max_lookahead_s: float = 5.0
 

@@ -1,0 +1,208 @@
+"""Vibration that survives a stalled, stopped or killed planner (issue 11), over real DDS with the real
+emulator, kinematics and planner processes on sim time: what the units do is read from legs/joint_states
+and vibration/status, what the planner says from /diagnostics."""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from rcl_interfaces.srv import SetParameters
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_client import RosTestClient
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory
+
+from stewart_vibration.emulation.vibration_status import report_from_values
+from stewart_vibration.processes import ros_environment, start_python_module
+
+pytestmark = [pytest.mark.integration, pytest.mark.slow]
+SIM = ["--ros-args", "-p", "use_sim_time:=true"]
+F = 35.0
+STATUS_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class Suite:
+    """Emulator + kinematics + planner processes and a client that records what a user can see."""
+
+    def __init__(self, domain, log_dir, planner_args=()):
+        env = ros_environment(domain)
+        self.procs = {
+            "emulator": start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
+                                            ["--ros-args", "-p", "real_time_factor:=1"], env, log_dir),
+            "kinematics": start_python_module("kinematics", "stewart_vibration.nodes.kinematics_node", SIM, env,
+                                              log_dir),
+            "planner": start_python_module("planner", "stewart_vibration.nodes.vibration_planner_node",
+                                           SIM + list(planner_args), env, log_dir),
+        }
+        self.client = c = RosTestClient()
+        self.clock = c.subscribe("/clock", Clock)
+        self.states = c.subscribe("legs/joint_states", JointState, depth=5000)
+        self.windows = c.subscribe("vibration/joint_trajectory", JointTrajectory)
+        self.planner_diag = []  # (wall time, DiagnosticStatus)
+        self.status = []  # (wall time, VibrationReport)
+        c.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
+        c.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS)
+        estimates = c.subscribe("platform/pose_estimate", PoseStamped)
+        assert c.spin_until(lambda: self.status and self.clock and len(estimates) > 10, 60), self.logs()
+        assert c.node.create_client(Trigger, "vibration_planner/start").wait_for_service(timeout_sec=30), self.logs()
+
+    def _on_diag(self, msg):
+        for s in msg.status:
+            if s.name.startswith("vibration_planner"):
+                self.planner_diag.append((time.monotonic(), s))
+
+    def _on_status(self, msg):
+        self.status.append((time.monotonic(), report_from_values("ok", {kv.key: kv.value for kv in msg.values})))
+
+    def now(self) -> float:
+        c = self.clock[-1].clock
+        return c.sec + c.nanosec * 1e-9
+
+    def wait_sim(self, seconds: float) -> None:
+        end = self.now() + seconds
+        assert self.client.spin_until(lambda: self.now() >= end, seconds * 3 + 30)
+
+    def start(self, **params):
+        if params:
+            request = SetParameters.Request(parameters=[Parameter(k, value=v).to_parameter_msg()
+                                                        for k, v in params.items()])
+            assert all(r.successful for r in self.client.call(SetParameters, "vibration_planner/set_parameters",
+                                                             request).results)
+        response = self.client.call(Trigger, "vibration_planner/start", Trigger.Request())
+        return response
+
+    def vib(self, t0: float, t1: float):
+        """(stamps, vib_1..6) of the joint states in [t0, t1] (sim s)."""
+        stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in self.states])
+        sel = (stamps >= t0) & (stamps <= t1)
+        return stamps[sel], np.array([self.states[i].position[6:12] for i in np.flatnonzero(sel)]).reshape(-1, 6)
+
+    def planner_says(self, prefix: str) -> list:
+        return [(t, s) for t, s in self.planner_diag if s.message.startswith(prefix)]
+
+    def logs(self) -> str:
+        return "\n".join(f"--- {n}\n{p.log_text()[-2500:]}" for n, p in self.procs.items())
+
+    def close(self):
+        self.client.close()
+        for proc in self.procs.values():
+            if proc.alive():
+                os.kill(proc.popen.pid, signal.SIGCONT)
+            proc.stop()
+
+
+@pytest.fixture
+def suite(ros_domain, tmp_path):
+    s = Suite(ros_domain, tmp_path)
+    yield s
+    s.close()
+
+
+def t0_of(response) -> float:
+    return float(response.message.split("t0 = ")[1].split(" s")[0])
+
+
+def envelope(stamps, vib, period=1 / F):
+    """Peak |vib| per period-long bin (the vibration's amplitude over time): (bin start times, peaks)."""
+    bins = np.floor((stamps - stamps[0]) / period).astype(int)
+    peaks = np.zeros(bins.max() + 1)
+    np.maximum.at(peaks, bins, np.abs(vib).max(axis=1))
+    return stamps[0] + np.arange(peaks.size) * period, peaks
+
+
+def assert_no_step(stamps, vib, amplitude):
+    consecutive = np.diff(stamps) < 2.5e-3
+    steps = np.abs(np.diff(vib, axis=0)).max(axis=1)[consecutive]
+    assert steps.max() < 1.5 * amplitude * 2 * np.pi * F * 2e-3  # never faster than the sine itself
+
+
+def test_short_stall_shortens_nothing(suite):
+    res = suite.start()
+    assert res.success, res.message
+    t0 = t0_of(res)
+    suite.wait_sim(t0 + 1.0 - suite.now())
+    planner = suite.procs["planner"].popen.pid
+    os.kill(planner, signal.SIGSTOP)  # the planner stalls 1 s (< the 2 s look-ahead minus the 0.5 s period)
+    suite.wait_sim(1.0)
+    os.kill(planner, signal.SIGCONT)
+    suite.wait_sim(1.5)
+    assert suite.client.call(Trigger, "vibration_planner/stop", Trigger.Request()).success
+    suite.wait_sim(0.8)
+    stamps, vib = suite.vib(t0 + 0.3, t0 + 3.3)
+    _, peaks = envelope(stamps, vib)
+    full = np.median(peaks)
+    assert full > 40e-6 and peaks[1:-1].min() > 0.95 * full, peaks  # no dip while the planner was stopped
+    assert not suite.planner_says("aborted"), suite.planner_says("aborted")
+    states = {r.state for _, r in suite.status if t0 + 0.3 < r.since < t0 + 3.0}
+    assert states <= {"running"}, states
+
+
+def test_long_stall_ramps_out_reports_and_restarts_without_reset(suite):
+    res = suite.start()
+    assert res.success, res.message
+    t0 = t0_of(res)
+    suite.wait_sim(t0 + 1.0 - suite.now())
+    planner = suite.procs["planner"].popen.pid
+    os.kill(planner, signal.SIGSTOP)  # 3 s: longer than the 2 s look-ahead of its last window
+    stopped_at = suite.now()
+    suite.wait_sim(3.0)
+    ended = [r for _, r in suite.status if r.state == "idle" and r.since > t0]
+    assert ended and "commands ended" in ended[-1].reason, [r.message for _, r in suite.status[-5:]]
+    os.kill(planner, signal.SIGCONT)
+    assert suite.client.spin_until(lambda: suite.planner_says("aborted"), 10), suite.logs()
+    assert "held up" in suite.planner_says("aborted")[-1][1].message
+    stamps, vib = suite.vib(stopped_at - 0.5, stopped_at + 3.0)
+    assert_no_step(stamps, vib, 60e-6)
+    at_rest = stamps[np.abs(vib).max(axis=1) < 1e-9]
+    assert at_rest.size and at_rest[0] <= stopped_at + 0.3 + 2.0 + 0.2 + 0.1  # lead + look-ahead + ramp
+    res = suite.start()  # no reset, no stop: a new vibration
+    assert res.success, res.message
+    t0 = t0_of(res)
+    suite.wait_sim(t0 + 0.5 - suite.now())
+    assert suite.status[-1][1].state == "running", [r.message for _, r in suite.status[-5:]]
+
+
+def test_estop_aborts_the_planner_within_200_ms(suite):
+    res = suite.start()
+    assert res.success, res.message
+    suite.wait_sim(t0_of(res) + 0.8 - suite.now())
+    sent = time.monotonic()
+    assert suite.client.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request()).success
+    assert suite.client.spin_until(lambda: suite.planner_says("aborted: emergency stop"), 5)
+    first = suite.planner_says("aborted: emergency stop")[0]
+    assert first[0] - sent < 0.2 and first[1].level == DiagnosticStatus.ERROR
+    count = len(suite.windows)
+    suite.wait_sim(1.2)
+    assert len(suite.windows) == count  # it stopped streaming
+    res = suite.start()
+    assert not res.success and "hardware_emulator/reset" in res.message
+
+
+def test_killed_planner_ramps_out_at_the_end_of_its_buffer(suite):
+    res = suite.start()
+    assert res.success, res.message
+    t0 = t0_of(res)
+    suite.wait_sim(t0 + 1.0 - suite.now())
+    suite.procs["planner"].popen.send_signal(signal.SIGKILL)
+    killed = suite.now()
+    suite.wait_sim(0.3)  # a window sent just before the kill may still be on its way
+    last = suite.windows[-1]
+    stamp = last.header.stamp.sec + last.header.stamp.nanosec * 1e-9
+    buffered_end = stamp + last.points[-1].time_from_start.sec + last.points[-1].time_from_start.nanosec * 1e-9
+    watchdog = 0.5
+    suite.wait_sim(buffered_end - killed + watchdog + 0.5)
+    stamps, vib = suite.vib(killed - 0.2, buffered_end + watchdog + 0.3)
+    assert_no_step(stamps, vib, 60e-6)
+    moving = stamps[np.abs(vib).max(axis=1) > 1e-9]
+    assert moving[-1] <= buffered_end + watchdog + 0.1  # at rest at the end of the buffer (+ watchdog + 100 ms)
+    final = [r for _, r in suite.status if r.since >= buffered_end - 0.5]
+    assert final and final[-1].state == "idle" and "commands ended" in final[-1].reason
