@@ -14,6 +14,7 @@ from stewart_vibration.analysis import (
     line_vibration,
     phase_error_to_0_or_pi_deg,
 )
+from stewart_vibration.errors import InvalidInputError
 
 
 def test_fit_recovers_amplitude_phase_offset_with_drift():
@@ -25,6 +26,16 @@ def test_fit_recovers_amplitude_phase_offset_with_drift():
     assert np.allclose(fit.amplitude, amps, rtol=1e-9)
     assert np.allclose(np.angle(np.exp(1j * (fit.phase - phases))), 0, atol=1e-9)
     assert np.all(fit.residual_rms < 1e-12)
+
+
+def test_fit_needs_four_samples():
+    """Four unknowns (sin, cos, offset, drift): four samples determine them exactly, three are refused."""
+    t = np.array([0.0, 0.004, 0.011, 0.019])
+    x = 0.7 * np.sin(2 * np.pi * 35 * t + 0.4) - 0.2 + 3.0 * (t - t.mean())
+    fit = fit_sinusoid(t, x, 35.0)
+    assert fit.amplitude == pytest.approx(0.7, rel=1e-9) and fit.offset == pytest.approx(-0.2, rel=1e-9)
+    with pytest.raises(InvalidInputError, match=">= 4"):
+        fit_sinusoid(t[:3], x[:3], 35.0)
 
 
 def test_line_vibration_direction_amplitude_and_ellipse():

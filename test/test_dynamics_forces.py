@@ -9,7 +9,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from reference import config_hinges, rot_y, rot_z
+from reference import config_hinges, rot_x, rot_y, rot_z
 
 from stewart_vibration.dynamics import Friction, leg_forces, leg_forces_paper
 from stewart_vibration.errors import InvalidInputError
@@ -252,3 +252,28 @@ def test_solver_falls_back_to_lapack_when_elimination_fails(robot, monkeypatch):
     good = leg_forces(robot, samp.pose, samp.twist, samp.accel)
     monkeypatch.setattr(dyn, "_eliminate", lambda g, b: np.full_like(b, np.nan))
     assert np.allclose(leg_forces(robot, samp.pose, samp.twist, samp.accel), good, rtol=1e-12, atol=1e-12)
+
+
+def test_workspace_samples_are_solved_by_the_fast_elimination(robot, monkeypatch):
+    """The preconditioner is H^-1 at home (H built here from the YAML hinges), and with it the unpivoted
+    elimination solves workspace samples by itself: the LAPACK fallback is never needed there."""
+    import stewart_vibration.dynamics as dyn
+
+    base, platform = config_hinges(robot.source)
+    home = robot.home_pose
+    rot = rot_z(home[5]) @ rot_y(home[4]) @ rot_x(home[3])
+    arms = platform @ rot.T
+    d = home[:3] + arms - base
+    s = d / np.linalg.norm(d, axis=1, keepdims=True)
+    rho = arms - rot @ robot.moving_body.com
+    h_home = np.vstack([s.T, np.cross(rho, s).T])  # column i = [s_i; rho_i x s_i]
+    np.testing.assert_allclose(dyn._preconditioner(robot) @ h_home, np.eye(6), rtol=0, atol=1e-12)
+
+    samp = random_trajectory(robot, 13).sample(np.linspace(0, 0.2, 7))
+    good = leg_forces(robot, samp.pose, samp.twist, samp.accel)
+
+    def no_lapack(*_args, **_kwargs):
+        raise AssertionError("LAPACK fallback used for a workspace sample")
+
+    monkeypatch.setattr(np.linalg, "solve", no_lapack)
+    np.testing.assert_allclose(leg_forces(robot, samp.pose, samp.twist, samp.accel), good, rtol=1e-12, atol=1e-12)

@@ -93,6 +93,10 @@ def test_unreachable_below_base(robot):
     pose[2] = -0.16
     with pytest.raises(UnreachablePoseError, match="not above the base"):
         inverse_kinematics(robot, pose)
+    # exactly in the base plane (hinges at z = 0 in both frames): not above either
+    pose[2] = 0.0
+    with pytest.raises(UnreachablePoseError, match="not above the base"):
+        inverse_kinematics(robot, pose)
 
 
 def test_near_singular_pose(robot):

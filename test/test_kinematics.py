@@ -109,6 +109,26 @@ def test_jacobian_transpose_is_the_force_map(robot, ref_geometry):
     assert np.allclose(wrench, np.concatenate([force, moment]), atol=1e-12)
 
 
+def test_condition_number_matches_reference(robot, ref_geometry):
+    """sigma_max / sigma_min of J diag(1, 1, 1, 1/L, 1/L, 1/L), L the mean platform hinge radius, with J
+    built leg by leg from the YAML hinges."""
+    base, plat = ref_geometry
+    scale = np.r_[1.0, 1.0, 1.0, [1.0 / np.linalg.norm(plat[:, :2], axis=1).mean()] * 3]
+    poses = random_workspace_poses(robot, 20, seed=11)
+    expected = []
+    for pose in poses:
+        rot = reference_rotation(*pose[3:])
+        rows = []
+        for i in range(6):
+            arm = rot @ plat[i]
+            n = pose[:3] + arm - base[i]
+            n /= np.linalg.norm(n)
+            rows.append(np.r_[n, np.cross(arm, n)])
+        sv = np.linalg.svd(np.array(rows) * scale, compute_uv=False)
+        expected.append(sv[0] / sv[-1])
+    np.testing.assert_allclose(condition_number(robot, poses), expected, rtol=1e-10)
+
+
 def test_condition_number_is_dimensionless_and_grows_near_singularity(robot):
     home = condition_number(robot, robot.home_pose)
     assert 1.0 <= home < robot.limits.condition_number_max
@@ -194,6 +214,20 @@ def test_fk_backtracking_from_a_far_guess(robot):
     result = forward_kinematics(robot, lengths, guess=far)
     assert result.converged and result.assembly_ok
     assert np.abs(result.pose - pose).max() <= 1e-10
+
+
+def test_fk_batched_backtracking_from_far_guesses(robot):
+    """Corners of +-30 mm / +-0.4 rad away: plain Newton overshoots for some, the batched step halving
+    brings every sample home, sample by sample as the scalar path does."""
+    poses = random_workspace_poses(robot, 64, seed=7)
+    lengths = inverse_kinematics(robot, poses)
+    rng = np.random.default_rng(3)
+    far = robot.home_pose + rng.choice([-1, 1], (64, 6)) * np.array([0.03, 0.03, 0.03, 0.4, 0.4, 0.4])
+    batched = forward_kinematics(robot, lengths, guess=far)
+    assert batched.converged.all() and batched.assembly_ok.all()
+    assert np.abs(batched.pose - poses).max() <= 1e-10
+    single = [int(forward_kinematics(robot, lengths[k], guess=far[k]).iterations) for k in range(len(poses))]
+    assert batched.iterations.tolist() == single
 
 
 def test_load_robot_explicit_path_equals_default(tmp_path):

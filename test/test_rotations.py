@@ -12,6 +12,7 @@ from stewart_vibration.rotations import (
     pose_from_position_quaternion,
     pose_to_position_quaternion,
     quaternion_from_rpy,
+    rotation_from_quaternion,
     rotation_from_rpy,
     rpy_from_quaternion,
     rpy_from_rotation,
@@ -49,6 +50,7 @@ def test_quaternion_matches_rotation(roll, p, yaw):
         ]
     )
     assert np.allclose(rot, rotation_from_rpy([roll, p, yaw]), atol=1e-12)
+    assert np.allclose(rotation_from_quaternion([x, y, z, w]), reference_rotation(roll, p, yaw), atol=1e-12)
     rpy = rpy_from_quaternion([x, y, z, w])
     assert np.allclose(rotation_from_rpy(rpy), rot, atol=1e-9)
 

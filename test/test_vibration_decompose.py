@@ -60,6 +60,16 @@ def test_lateral_direction_gives_mixed_signs_and_antiphase(robot, pose):
     np.testing.assert_allclose(eq, plan.linear_signals, atol=1e-18)
 
 
+@pytest.mark.parametrize("phase", [-1.0, 7.0, 4 * np.pi + 0.5])
+def test_leg_phases_are_wrapped_to_one_turn(robot, pose, phase):
+    plan = decompose_vibration(robot, pose, direction=[1.0, 0.0, 0.0], amplitude=20e-6, frequency=30.0,
+                               phase=phase, frame="platform")
+    k = reference_gains(robot, pose, rpy_matrix(*pose[3:])[:, 0])
+    expected = np.where(k < 0, phase + np.pi, phase)
+    assert np.all((plan.leg_phases >= 0) & (plan.leg_phases < 2 * np.pi))
+    np.testing.assert_allclose(np.exp(1j * plan.leg_phases), np.exp(1j * expected), rtol=0, atol=1e-12)
+
+
 @settings(max_examples=25, deadline=None)
 @given(st.floats(-1, 1), st.floats(-1, 1), st.floats(-1, 1), st.sampled_from(["base", "platform"]))
 def test_random_direction_gains(robot, x, y, z, frame):

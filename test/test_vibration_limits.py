@@ -85,3 +85,43 @@ def test_superpose_checks_the_unit(robot):
     with pytest.raises(VibrationLimitError) as info:
         superpose_vibration(robot, robot.home_pose, table)
     assert info.value.limit_name == "frequency_max"
+    # within the amplitude limit, over the acceleration limit: 60 um at 110 Hz on leg 2 is 2.9 g (unit: 1 g)
+    table = np.tile([1e-6, 110.0, 0.0], (6, 1))
+    table[1, 0] = 60e-6
+    with pytest.raises(VibrationLimitError) as info:
+        superpose_vibration(robot, robot.home_pose, table)
+    assert info.value.leg == 2 and info.value.limit_name == "acceleration_max"
+    assert info.value.value == pytest.approx(60e-6 * (2 * np.pi * 110.0) ** 2, rel=1e-12)
+
+
+def test_pose_near_the_minimum_stroke(robot):
+    """Lower the platform until the shortest leg is 20 um above stroke_min (independent IK, bisection):
+    a 60 um vibration along base z shortens it past the limit on its downward half."""
+    lo, hi = 0.01, robot.home_pose[2]
+    target = robot.limits.stroke_min + 20e-6
+    tilt = rpy_matrix(0.04, 0.02, 0.0)
+    for _ in range(80):
+        mid = 0.5 * (lo + hi)
+        length = legs(robot, np.array([0.005, -0.004, mid]), tilt)[2].min()
+        lo, hi = (lo, mid) if length > target else (mid, hi)
+    pose = np.array([0.005, -0.004, hi, 0.04, 0.02, 0.0])
+    lengths = legs(robot, pose[:3], tilt)[2]
+    assert np.sort(lengths)[1] - np.sort(lengths)[0] > 1e-4
+    assert 0 < lengths.min() - robot.limits.stroke_min < 60e-6
+    with pytest.raises(StrokeLimitError) as info:
+        decompose_vibration(robot, pose, direction=[0, 0, 1], amplitude=60e-6, frequency=35.0, frame="base")
+    assert info.value.leg == int(np.argmin(lengths)) + 1
+    assert info.value.limit == robot.limits.stroke_min and info.value.value < robot.limits.stroke_min
+
+
+def test_linear_method_peak_acceleration_and_limit(robot):
+    """method="linear": peak leg acceleration |k_i| A (2 pi f)^2 exactly, and the unit limit applies to it."""
+    pose = paper_pose(robot)
+    plan = decompose_vibration(robot, pose, amplitude=20e-6, frequency=60.0, method="linear")
+    _, _, n = jacobian_ref(robot, pose)
+    k = n @ rpy_matrix(*pose[3:])[:, 2]
+    np.testing.assert_allclose(plan.peak_leg_acceleration, np.abs(k) * 20e-6 * (2 * np.pi * 60.0) ** 2, rtol=1e-12)
+    with pytest.raises(VibrationLimitError) as info:  # 50 um at 100 Hz: |k| ~ 0.9 of 19.7 m/s^2 > 1 g
+        decompose_vibration(robot, pose, amplitude=50e-6, frequency=100.0, method="linear")
+    assert info.value.limit_name == "acceleration_max"
+    assert info.value.leg == int(np.argmax(np.abs(k))) + 1

@@ -70,6 +70,7 @@ def test_decomposition_numbers_match_the_closed_forms(robot, report, case):
     second = (1 - k**2) * amplitude**2 / (4 * lengths)
     np.testing.assert_allclose(c["fft_second_harmonic_m"], second, rtol=2e-6)
     np.testing.assert_allclose(c["fft_dc_m"], second, rtol=2e-6)
+    np.testing.assert_allclose(c["predicted_second_harmonic_ratio"], second / (np.abs(k) * amplitude), rtol=1e-12)
     # peak leg acceleration |k| A (2 pi f)^2, up to the second-order term (relative ~ A / l)
     w = 2 * np.pi * frequency
     np.testing.assert_allclose(c["peak_leg_acceleration_m_s2"], np.abs(k) * amplitude * w * w,

@@ -11,8 +11,10 @@ from stewart_vibration import (
     platform_vibration_motion,
     sample_leg_vibration,
 )
+from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.vibration import envelope
+from stewart_vibration.vibration.waveform import fade_out, sinusoid
 
 
 def central_difference(values, dt):
@@ -47,15 +49,33 @@ def test_leg_commands_and_platform_motion_agree(robot, rotation):
     expected = inverse_kinematics(robot, motion.pose) - inverse_kinematics(robot, pose)
     np.testing.assert_allclose(legs.position, expected, atol=2e-15, rtol=0)
     assert np.abs(legs.position[0]).max() < 1e-15 and np.abs(legs.position[-1]).max() < 1e-12
-    # analytic derivatives vs finite differences
-    for value, rate, scale in (
-        (legs.position, legs.velocity, np.abs(legs.velocity).max()),
-        (legs.velocity, legs.acceleration, np.abs(legs.acceleration).max()),
-        (motion.position, motion.velocity, np.abs(motion.velocity).max()),
-        (motion.velocity, motion.acceleration, np.abs(motion.acceleration).max()),
-        (motion.angular_velocity, motion.angular_acceleration, np.abs(motion.angular_acceleration).max() + 1e-30),
+    # analytic derivatives vs finite differences, scaled by the finite differences (not the values under
+    # test). Central differences err by (w dt)^2 / 6 = 3e-6 relative on the 35 Hz sine; the third
+    # derivative of the quintic ramp jumps at 0, 0.05, 0.15 and 0.2 s, so stencils there are left out.
+    # The second-order terms (l'' delta'^2 of the leg accelerations, w x (w x r) delta'^2 of the platform)
+    # are ~4e-4 of the peak, so a wrong one fails.
+    smooth = np.ones(t.size - 2, bool)
+    for knot in (0.0, 0.05, 0.15, 0.2):
+        smooth &= np.abs(t[1:-1] - knot) > 2.5 * dt
+    for value, rate in (
+        (legs.position, legs.velocity),
+        (legs.velocity, legs.acceleration),
+        (motion.position, motion.velocity),
+        (motion.velocity, motion.acceleration),
+        (motion.angular_velocity, motion.angular_acceleration),
     ):
-        np.testing.assert_allclose(central_difference(value, dt), rate[1:-1], atol=2e-3 * scale)
+        fd = central_difference(value, dt)
+        scale = np.abs(fd).max()
+        assert np.all(np.isfinite(rate))
+        if rotation or value is not motion.angular_velocity:
+            assert scale > 0
+        np.testing.assert_allclose(rate[1:-1][smooth], fd[smooth], rtol=0, atol=2e-5 * scale)
+    # and the angular velocity is the rotation's: [w]x = R' R^T (independent of the plan's screw)
+    r_dot = central_difference(motion.rotation, dt)
+    w_skew = r_dot @ np.swapaxes(motion.rotation[1:-1], -1, -2)
+    w_fd = np.stack([w_skew[:, 2, 1], w_skew[:, 0, 2], w_skew[:, 1, 0]], axis=-1)
+    np.testing.assert_allclose(motion.angular_velocity[1:-1], w_fd, rtol=0,
+                               atol=2e-5 * np.abs(w_fd).max() + 1e-12 * (not rotation))
     # steady state: peak leg acceleration ~ |k| A w^2 (linear), planned platform vibration amplitude A
     steady = (t > 0.06) & (t < 0.14)
     peak = np.abs(legs.acceleration[steady]).max(axis=0)
@@ -78,3 +98,28 @@ def test_translation_motion_is_along_the_force_line(robot):
     assert np.abs(motion.angular_velocity).max() == 0
     acc = np.linalg.norm(motion.acceleration, axis=1).max()
     assert acc == pytest.approx(0.3 * 9.80665, rel=1e-3)
+
+
+def test_ramped_sinusoid_with_an_overlapping_fade_matches_finite_differences():
+    """delta = e(t) g(t) A sin(w t + phase) with the fade-out starting inside the ramp-in, so the product
+    rule's cross term 2 e' g' matters: analytic rate and acceleration against central differences
+    (error (w dt)^2 / 6 ~ 1e-6 of the peak away from the ramps' knots)."""
+    dt = 1e-5
+    t = np.arange(-0.01, 0.12, dt)
+    ramp, start = 0.05, 0.02  # ramp-in over 0..0.05 s, fade-out over 0.02..0.07 s
+    fade = fade_out(t, start, ramp)
+    assert np.all(fade[0][t <= start] == 1.0) and np.all(fade[0][t >= start + ramp] == 0.0)
+    value, rate, accel = sinusoid(t, 1e-4, 35.0, 0.3, ramp_time=ramp, fade=fade)
+    assert np.all(value[(t <= 0) | (t >= start + ramp)] == 0.0)
+    smooth = np.ones(t.size - 2, bool)
+    for knot in (0.0, start, ramp, start + ramp):
+        smooth &= np.abs(t[1:-1] - knot) > 2.5 * dt
+    for f, df in ((value, rate), (rate, accel)):
+        fd = central_difference(f, dt)
+        np.testing.assert_allclose(df[1:-1][smooth], fd[smooth], rtol=0, atol=1e-5 * np.abs(fd).max())
+
+
+@pytest.mark.parametrize("ramp", [-0.01, np.nan, np.inf])
+def test_envelope_rejects_a_bad_ramp_time(ramp):
+    with pytest.raises(InvalidInputError, match="ramp_time"):
+        envelope(np.linspace(0, 1, 5), duration=1.0, ramp_time=ramp)

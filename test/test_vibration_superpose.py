@@ -144,7 +144,23 @@ def test_random_cases_with_known_answers(robot, pose, seed):
 
 def test_still_when_no_leg_moves(robot, pose):
     table = np.column_stack([np.zeros(6), np.full(6, 5.0), np.zeros(6)])
-    assert superpose_vibration(robot, pose, table).classification.kind == "still"
+    result = superpose_vibration(robot, pose, table)
+    assert result.classification.kind == "still"
+    assert result.classification.rotation_amplitude < 1e-20  # exact FK: round-off only
+    lin = result.classification_linear  # exactly zero motion: no rotation either, ratio 0 (not inf)
+    assert lin.kind == "still" and lin.translation_amplitude == 0 and lin.rotation_amplitude == 0
+    assert lin.rotational_ratio == 0.0
+
+
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_principal_direction_sign_is_fixed(sign):
+    """The direction of a line is reported with its largest component positive, whichever way it was given."""
+    u = sign * np.array([0.3, -0.9, 0.2]) / np.linalg.norm([0.3, -0.9, 0.2])
+    t = np.linspace(0, 1, 50, endpoint=False)
+    cls = classify_motion(np.outer(np.sin(2 * np.pi * t), u))
+    assert cls.kind == "line"
+    np.testing.assert_allclose(cls.principal_direction, [-0.3, 0.9, -0.2] / np.linalg.norm([0.3, -0.9, 0.2]),
+                               rtol=0, atol=1e-12)
 
 
 def test_naive_sum_is_the_paper_formula_and_is_wrong(robot, pose):
