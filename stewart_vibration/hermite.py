@@ -73,3 +73,52 @@ def spline_segments(knot_times, positions, velocities, accelerations, times, seg
         for full, part in zip(out, quin, strict=True):
             full[q] = part
     return out
+
+
+SAMPLES_PER_SEGMENT = 4  # extremes: each segment's ends and this many points inside ...
+REFINED_SAMPLES = 64  # ... and this many in segments that come within NEAR_LIMIT of a bound
+NEAR_LIMIT = 0.9
+
+
+def _segment_extremes(knot_times, positions, velocities, accelerations, samples: int, segments):
+    """Per segment [m, k]: min and max position, max |velocity|, max |acceleration| over its ends and
+    ``samples`` points inside."""
+    seg = np.asarray(segments)
+    frac = np.arange(samples + 2) / (samples + 1)
+    grid = (knot_times[seg, None] + (knot_times[seg + 1] - knot_times[seg])[:, None] * frac).ravel()
+    p, v, a = spline_segments(knot_times, positions, velocities, accelerations, grid, np.repeat(seg, samples + 2))
+    shape = (len(seg), samples + 2, -1)
+    p = p.reshape(shape)
+    return p.min(axis=1), p.max(axis=1), np.abs(v).reshape(shape).max(axis=1), np.abs(a).reshape(shape).max(axis=1)
+
+
+def spline_extremes(knot_times, positions, velocities, accelerations=None, *, position_bounds=None,
+                    velocity_bound=None, acceleration_bound=None):
+    """(min position, max position, max |velocity|, max |acceleration|), each [k], of the Hermite spline
+    through the knots (see ``spline_segments``), evaluated at each segment's ends and
+    SAMPLES_PER_SEGMENT points inside, and at REFINED_SAMPLES points in segments that come within
+    NEAR_LIMIT of a given bound (position_bounds = (low, high), velocity_bound, acceleration_bound;
+    scalars or [k]); between those points a smooth segment exceeds the sampled extreme by at most
+    (h / REFINED_SAMPLES)^2 times its curvature. One knot: its own values (acceleration 0 if none)."""
+    t = np.asarray(knot_times, float)
+    pos, vel = np.asarray(positions, float), np.asarray(velocities, float)
+    acc = None if accelerations is None else np.asarray(accelerations, float)
+    if len(t) < 2:
+        a = np.zeros(pos.shape[1]) if acc is None or np.isnan(acc).any() else np.abs(acc[0])
+        return pos[0].copy(), pos[0].copy(), np.abs(vel[0]), a
+    lo, hi, vmax, amax = _segment_extremes(t, pos, vel, acc, SAMPLES_PER_SEGMENT, np.arange(len(t) - 1))
+    near = np.zeros(len(lo), dtype=bool)
+    if position_bounds is not None:
+        low, high = position_bounds
+        span = np.asarray(high, float) - np.asarray(low, float)
+        margin = (1 - NEAR_LIMIT) * span
+        near |= ((lo < low + margin) | (hi > high - margin)).any(axis=1)
+    if velocity_bound is not None:
+        near |= (vmax > NEAR_LIMIT * np.asarray(velocity_bound)).any(axis=1)
+    if acceleration_bound is not None:
+        near |= (amax > NEAR_LIMIT * np.asarray(acceleration_bound)).any(axis=1)
+    if near.any():
+        refined = _segment_extremes(t, pos, vel, acc, REFINED_SAMPLES, np.flatnonzero(near))
+        for table, values in zip((lo, hi, vmax, amax), refined, strict=True):
+            table[near] = values
+    return lo.min(axis=0), hi.max(axis=0), vmax.max(axis=0), amax.max(axis=0)

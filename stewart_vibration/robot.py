@@ -76,11 +76,12 @@ class LegInertia:
 
 @dataclass(frozen=True)
 class Limits:
-    """Stroke (m), strut velocity (m/s) and force (N), joint angles (rad), conditioning."""
+    """Stroke (m), strut velocity (m/s), acceleration (m/s^2) and force (N), joint angles (rad), conditioning."""
 
     stroke_min: float
     stroke_max: float
     strut_velocity_max: float
+    strut_acceleration_max: float
     strut_force_max: float
     universal_joint_max: float
     spherical_joint_max: float
@@ -194,6 +195,7 @@ def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
         stroke_min=_number(tree, "limits.stroke_min_m", positive=True),
         stroke_max=_number(tree, "limits.stroke_max_m", positive=True),
         strut_velocity_max=_number(tree, "limits.strut_velocity_max_m_s", positive=True),
+        strut_acceleration_max=_number(tree, "limits.strut_acceleration_max_m_s2", positive=True),
         strut_force_max=_number(tree, "limits.strut_force_max_n", positive=True),
         universal_joint_max=np.radians(_number(tree, "limits.universal_joint_max_deg", positive=True)),
         spherical_joint_max=np.radians(_number(tree, "limits.spherical_joint_max_deg", positive=True)),

@@ -142,8 +142,14 @@ def pose_to_position_quaternion(poses) -> tuple[np.ndarray, np.ndarray]:
     return poses[..., :3].copy(), quaternion_from_rpy(poses[..., 3:])
 
 
-def pose_from_position_quaternion(position, quaternion) -> np.ndarray:
-    """(position [..., 3], unit quaternion [..., 4] [x, y, z, w]) -> pose vectors [..., 6]."""
+# Hand-typed and serialised quaternions are unit only to a few digits: like tf2, accept |q| within 1e-3
+# of 1 (and normalise), refuse beyond.
+MESSAGE_QUATERNION_TOLERANCE = 1e-3
+
+
+def pose_from_position_quaternion(position, quaternion, *, unit_tolerance: float = 1e-6) -> np.ndarray:
+    """(position [..., 3], unit quaternion [..., 4] [x, y, z, w]) -> pose vectors [..., 6]; the quaternion
+    is normalised when its norm is within ``unit_tolerance`` of 1, refused (InvalidInputError) beyond."""
     position = as_batch(position, 3, "position")
-    rpy = rpy_from_quaternion(quaternion)
+    rpy = rpy_from_quaternion(quaternion, unit_tolerance=unit_tolerance)
     return np.concatenate(np.broadcast_arrays(position, rpy), axis=-1)

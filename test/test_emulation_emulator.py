@@ -11,7 +11,7 @@ from stewart_vibration import inverse_kinematics
 from stewart_vibration.analysis import direction_error_deg, fit_sinusoid, line_vibration
 from stewart_vibration.dynamics import leg_forces
 from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
-from stewart_vibration.errors import ActuatorLimitError
+from stewart_vibration.errors import ActuatorLimitError, StrokeLimitError
 from stewart_vibration.mjcf import load_simulation_settings
 from stewart_vibration.motion_profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.paper import paper_pose
@@ -116,3 +116,51 @@ def test_estop_ramps_the_units_out_within_100_ms_and_reset_needs_it(robot):
     with pytest.raises(ActuatorLimitError, match="emergency stop"):
         emu.command_vibration(VIB_NAMES, emu.time + 0.5, window.times, window.position, window.velocity)
     assert emu.reset() > 0 and not emu.estopped
+
+
+def dense_commanded(emu, t0, t1):
+    """The strut command the emulator will follow, sampled every 0.5 ms: (positions, velocities, accelerations)."""
+    t = np.arange(t0, t1, 5e-4)
+    return t, *emu.struts.sample(t)
+
+
+@pytest.mark.parametrize("stamp_offset,outcome", [(-5.0, "stale_trajectory"), (-3.0, "strut_velocity_max"),
+                                                  (-0.05, "accepted"), (0.0, "accepted"), (2.0, "accepted")])
+def test_past_stamped_trajectory_departs_from_now_or_is_refused(robot, stamp_offset, outcome):
+    """A legal 5 mm move over 4 s whose stamp lies in the past (issue 13: it used to jump 5 mm at 0.88 m/s):
+    the part already past is dropped and the motion departs from the commanded state now -- refused when
+    that would break a limit, otherwise within every limit."""
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
+    for _ in range(3000):  # 6 s: a stamp 5 s in the past is a real time
+        emu.advance(PERIOD)
+    home = inverse_kinematics(robot, robot.home_pose)
+    times = np.linspace(0.1, 4.0, 40)
+    goal = home + 0.005
+    pos, vel, acc = minimum_jerk(home, goal, 4.0, times)
+    lim = robot.limits
+    if outcome != "accepted":
+        with pytest.raises((ActuatorLimitError, StrokeLimitError)) as err:
+            emu.command_struts(LEG_NAMES, emu.time + stamp_offset, times, pos, vel, acc)
+        assert err.value.limit_name == outcome and "ago" in str(err.value), str(err.value)
+        return
+    emu.command_struts(LEG_NAMES, emu.time + stamp_offset, times, pos, vel, acc)
+    t, p, v, a = dense_commanded(emu, emu.time, emu.time + 6.5)
+    assert np.abs(v).max() <= lim.strut_velocity_max * (1 + 1e-6)
+    assert np.abs(a).max() <= lim.strut_acceleration_max * (1 + 1e-6)
+    assert np.abs(p[-1] - goal).max() < 1e-12
+    assert np.abs(p[0] - home).max() < 1e-9  # no jump at the departure
+
+
+def test_position_only_and_far_future_trajectories(robot):
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
+    home = inverse_kinematics(robot, robot.home_pose)
+    with pytest.raises(ActuatorLimitError, match="max_start_delay_s"):
+        emu.command_struts(LEG_NAMES, emu.time + 1000.0, [1.0], [home + 0.001])
+    # positions only: cubic segments with finite-difference velocities, zero at the ends: no velocity step
+    times = np.linspace(1.0, 10.0, 10)
+    emu.command_struts(LEG_NAMES, 0.0, times, home + 0.004 * (times[:, None] - 1.0) / 9.0)
+    t, p, v, a = dense_commanded(emu, emu.time, emu.time + 11.0)
+    assert np.abs(np.diff(v, axis=0)).max() < robot.limits.strut_acceleration_max * 5e-4 * 1.01
+    assert np.abs(a).max() <= robot.limits.strut_acceleration_max
+    with pytest.raises(ActuatorLimitError, match="strut_acceleration_max"):  # 1 mm in 0.2 s, from rest
+        emu.command_struts(LEG_NAMES, 0.0, [0.2], [home + 0.001], [np.zeros(6)])

@@ -90,15 +90,25 @@ def test_pose_estimate_trajectory_and_rejections(robot, kinematics_node):
     targets.publish(pose_msg(target, quat=[0, 0, 0, 2.0]))
     unreachable = robot.home_pose + np.array([0, 0, 0.2, 0, 0, 0])
     targets.publish(pose_msg(unreachable))
+    world = pose_msg(target)
+    world.header.frame_id = "world"  # a pose in another frame is refused, not read as base
+    targets.publish(world)
 
     def reasons():
         return [s.message for a in diagnostics for s in a.status if s.message.startswith("rejected target pose")]
 
-    assert client.spin_until(lambda: len(reasons()) >= 3, 20), (reasons(), proc.log_text())
+    assert client.spin_until(lambda: len(reasons()) >= 4, 20), (reasons(), proc.log_text())
     client.spin_for(0.3)
     assert len(trajectories) == sent
     text = " | ".join(reasons())
-    assert "non-finite" in text and "unit quaternion" in text and "stroke limit" in text
+    assert "non-finite" in text and "unit quaternion" in text and "stroke limit" in text and "'world'" in text
+
+    # hand-typed quaternions (the README's example: norm 1.00004) are normalised and accepted, also in an
+    # empty frame (documented as base)
+    typed = pose_msg(target, quat=[0.0, 0.025, 0.0, 1.00003])
+    typed.header.frame_id = ""
+    targets.publish(typed)
+    assert client.spin_until(lambda: len(trajectories) > sent, 20), (reasons(), proc.log_text())
     assert proc.alive()
 
 
@@ -111,6 +121,25 @@ def test_plan_path_service(robot, kinematics_node):
     assert len(response.plan.poses) >= 11
     last = response.plan.poses[-1].pose.position
     assert math.isclose(last.x, 0.01, abs_tol=1e-12)
+    diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     request.goal = pose_msg(robot.home_pose + np.array([0.0, 0.0, 0.2, 0, 0, 0]))
     assert len(client.call(GetPlan, "kinematics/plan_path", request).plan.poses) == 0
+    assert client.spin_until(lambda: any("plan_path" in s.message and "StrokeLimitError" in s.message
+                                         for a in diagnostics for s in a.status), 10)  # the reason is visible
+
+    # goal only, as the README calls it: from the current pose estimate (not from the origin)
+    states = client.publisher("legs/joint_states", JointState)
+    current = robot.home_pose + np.array([0.003, 0.0, 0.0, 0.0, 0.0, 0.0])
+    estimates = client.subscribe("platform/pose_estimate", PoseStamped)
+    assert client.wait_for_subscribers("legs/joint_states")
+    states.publish(joint_state(inverse_kinematics(robot, current)))
+    assert client.spin_until(lambda: estimates, 10)
+    goal_only = GetPlan.Request()
+    goal_only.goal.header.frame_id = "base"
+    goal_only.goal.pose.position.z = 0.165
+    goal_only.goal.pose.orientation.w = 1.0
+    plan = client.call(GetPlan, "kinematics/plan_path", goal_only).plan.poses
+    assert len(plan) > 2
+    first = plan[0].pose.position
+    assert math.isclose(first.x, 0.003, abs_tol=1e-9) and math.isclose(plan[-1].pose.position.z, 0.165, abs_tol=1e-12)
     assert proc.alive()

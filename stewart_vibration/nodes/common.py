@@ -17,7 +17,7 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 from ..errors import InvalidInputError
-from ..rotations import pose_from_position_quaternion, pose_to_position_quaternion
+from ..rotations import MESSAGE_QUATERNION_TOLERANCE, pose_from_position_quaternion, pose_to_position_quaternion
 from .mcap_ros import make_executor
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
@@ -145,9 +145,19 @@ def reject(node, diagnostics: Diagnostics, what: str, reason: str) -> None:
 
 
 def pose_from_msg(msg) -> np.ndarray:
-    """geometry_msgs/Pose -> pose [x, y, z, roll, pitch, yaw]; InvalidInputError on NaN / non-unit quaternion."""
+    """geometry_msgs/Pose -> pose [x, y, z, roll, pitch, yaw]; the quaternion is normalised if its norm is
+    within 1e-3 of 1 (hand-typed input), InvalidInputError on NaN or a quaternion further off."""
     p, q = msg.position, msg.orientation
-    return pose_from_position_quaternion([p.x, p.y, p.z], [q.x, q.y, q.z, q.w])
+    return pose_from_position_quaternion([p.x, p.y, p.z], [q.x, q.y, q.z, q.w],
+                                         unit_tolerance=MESSAGE_QUATERNION_TOLERANCE)
+
+
+def check_frame(frame_id: str, what: str) -> None:
+    """Poses are accepted in the base frame only: ``base`` or empty (documented as base).
+    InvalidInputError with the reason otherwise."""
+    if frame_id not in ("", BASE_FRAME):
+        raise InvalidInputError(f"{what}: frame_id {frame_id!r} is not supported; poses must be in "
+                                f"'{BASE_FRAME}' (or empty, meaning '{BASE_FRAME}')")
 
 
 def pose_stamped(pose, stamp, frame_id: str = BASE_FRAME) -> PoseStamped:
@@ -204,6 +214,7 @@ def stamp_seconds(stamp) -> float:
 __all__ = [
     "STREAM_DEPTH",
     "BASE_FRAME",
+    "check_frame",
     "ERROR",
     "LEG_NAMES",
     "OK",

@@ -22,7 +22,7 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from ..errors import StewartError
+from ..errors import InvalidInputError, StewartError
 from ..kinematics import check_pose, forward_kinematics
 from ..messages import cdr
 from ..messages.stream_health import StreamHealth
@@ -37,6 +37,7 @@ from .common import (
     WARN,
     Diagnostics,
     JointColumns,
+    check_frame,
     declare_float,
     duration_msg,
     duration_seconds,
@@ -161,6 +162,7 @@ class KinematicsNode(Node):
     # -- target pose -> trajectory ----------------------------------------
     def on_target_pose(self, msg: PoseStamped) -> None:
         try:
+            check_frame(msg.header.frame_id, "target pose")
             target = pose_from_msg(msg.pose)
             goal_lengths = check_pose(self.robot, target)
         except StewartError as exc:
@@ -206,21 +208,29 @@ class KinematicsNode(Node):
 
     # -- plan_path service --------------------------------------------------
     def on_plan_path(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
+        """Checked straight SE(3) path from start to goal (both in base). An unset start (empty frame_id,
+        zero position, zero or identity orientation: what a goal-only request carries) means "from the
+        current pose estimate". An infeasible request gets an empty path; the reason goes to the log and
+        /diagnostics (WARN, value last_plan_failure)."""
         response.plan = Path()
-        response.plan.header.frame_id = "base"
+        response.plan.header.frame_id = BASE_FRAME
         response.plan.header.stamp = self.get_clock().now().to_msg()
         try:
-            q = request.start.pose.orientation
-            if (q.x, q.y, q.z, q.w) == (0.0, 0.0, 0.0, 0.0):  # unset start: use the current estimate
+            start_msg = request.start
+            if unset_pose(start_msg):
                 if self.pose is None:
-                    raise ValueError("start pose unset and no pose estimate yet")
+                    raise InvalidInputError("start pose unset and no pose estimate yet")
                 start = self.pose
             else:
-                start = pose_from_msg(request.start.pose)
+                check_frame(start_msg.header.frame_id, "plan_path start")
+                start = pose_from_msg(start_msg.pose)
+            check_frame(request.goal.header.frame_id, "plan_path goal")
             goal = pose_from_msg(request.goal.pose)
             poses = checked_path(self.robot, start, goal)
-        except (StewartError, ValueError) as exc:
-            reject(self, self.diagnostics, "plan_path request", str(exc))
+        except StewartError as exc:
+            reason = f"{type(exc).__name__}: {exc}"
+            reject(self, self.diagnostics, "plan_path request (empty path returned)", reason)
+            self.diagnostics.values["last_plan_failure"] = reason
             return response  # empty path = infeasible
         stamp = response.plan.header.stamp
         response.plan.poses = [pose_stamped(p, stamp) for p in poses]
@@ -228,9 +238,16 @@ class KinematicsNode(Node):
         return response
 
 
-def main(args=None) -> None:
-    run_node(KinematicsNode, args)
+def unset_pose(msg: PoseStamped) -> bool:
+    """True for a PoseStamped left at its defaults (no frame, zero position, zero or identity orientation)."""
+    p, q = msg.pose.position, msg.pose.orientation
+    return msg.header.frame_id == "" and (p.x, p.y, p.z) == (0.0, 0.0, 0.0) and \
+        (q.x, q.y, q.z) == (0.0, 0.0, 0.0) and q.w in (0.0, 1.0)
+
+
+def main(args=None) -> int:
+    return run_node(KinematicsNode, args)
 
 
 if __name__ == "__main__":
-    main()
+    raise SystemExit(main())

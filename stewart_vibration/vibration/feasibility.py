@@ -11,7 +11,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import StrokeLimitError, VibrationLimitError
-from ..hermite import spline_segments
+from ..hermite import spline_extremes
 from ..kinematics import inverse_kinematics
 from ..robot import STANDARD_GRAVITY, Robot, VibrationUnitLimits
 
@@ -75,43 +75,15 @@ def check_stroke(robot: Robot, nominal_lengths, low_change, high_change, extreme
         inverse_kinematics(robot, extreme_poses, check_limits=True)
 
 
-SAMPLES_PER_SEGMENT = 4  # limit checks evaluate each spline segment at its ends and this many points inside
-REFINED_SAMPLES = 64  # ... and segments that come within NEAR_LIMIT of a limit at this many
-NEAR_LIMIT = 0.9
-
-
-def _segment_peaks(times, pos, vel, acc, samples: int, segments=None):
-    """Peak |p|, |v|, |a| per segment [m, 6] of the spline, from ``samples`` points inside each segment
-    and its two ends (``segments``: indices of the segments to evaluate; default all)."""
-    seg = np.arange(len(times) - 1) if segments is None else np.asarray(segments)
-    frac = np.arange(samples + 2) / (samples + 1)
-    grid = (times[seg, None] + (times[seg + 1] - times[seg])[:, None] * frac).ravel()
-    p, v, a = spline_segments(times, pos, vel, acc, grid, np.repeat(seg, samples + 2))
-    shape = (len(seg), samples + 2, -1)
-    return tuple(np.abs(x).reshape(shape).max(axis=1) for x in (p, v, a))
-
-
 def check_command_limits(limits: VibrationUnitLimits, times, positions, velocities, accelerations=None) -> None:
     """Raise VibrationLimitError (leg, limit, value) if the vib_* command -- the Hermite spline through
     the knots, as the units follow it (cubic, or quintic where knots carry accelerations) -- exceeds
-    the unit's displacement, velocity or acceleration limit. Each segment is evaluated at its ends and
-    SAMPLES_PER_SEGMENT points inside, and again at REFINED_SAMPLES points where that comes within
-    NEAR_LIMIT of a limit (between those points a smooth segment can only exceed the sampled peak by
-    (h / REFINED_SAMPLES)^2 times its curvature). Knot times [n] s, positions / velocities /
-    accelerations [n, 6] (accelerations: None or NaN rows where a knot has none)."""
-    times = np.asarray(times, float)
-    pos, vel = np.asarray(positions, float), np.asarray(velocities, float)
-    acc = None if accelerations is None else np.asarray(accelerations, float)
-    bounds = np.array([limits.amplitude_max, limits.velocity_max, limits.acceleration_max])
-    if len(times) > 1:
-        peaks = np.stack(_segment_peaks(times, pos, vel, acc, SAMPLES_PER_SEGMENT), axis=1)  # [m, 3, 6]
-        near = np.flatnonzero((peaks > NEAR_LIMIT * bounds[None, :, None]).any(axis=(1, 2)))
-        if near.size:
-            peaks[near] = np.stack(_segment_peaks(times, pos, vel, acc, REFINED_SAMPLES, near), axis=1)
-        p, v, a = peaks.max(axis=0)
-    else:
-        p, v = np.abs(pos[0]), np.abs(vel[0])
-        a = np.zeros(pos.shape[1]) if acc is None or np.isnan(acc).any() else np.abs(acc[0])
+    the unit's displacement, velocity or acceleration limit (``hermite.spline_extremes``). Knot times
+    [n] s, positions / velocities / accelerations [n, 6] (accelerations: None or NaN rows)."""
+    amax = limits.amplitude_max
+    low, high, v, a = spline_extremes(times, positions, velocities, accelerations, position_bounds=(-amax, amax),
+                                      velocity_bound=limits.velocity_max, acceleration_bound=limits.acceleration_max)
+    p = np.maximum(np.abs(low), np.abs(high))
     checks = (
         ("amplitude_max", p, limits.amplitude_max, 1e6, "um", "displacement"),
         ("velocity_max", v, limits.velocity_max, 1e3, "mm/s", "velocity"),
