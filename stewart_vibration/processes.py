@@ -19,12 +19,80 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 
+# Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
+# (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
+# (Fast DDS defaults: every interface, multicast discovery on the subnet) or the path of a Fast DDS
+# XML profile file (its default participant profile is used as it is).
+DDS_PROFILE_ENV = "STEWART_DDS_PROFILE"
+LOOPBACK_PROFILE_FILE = "fastdds_localhost.xml"
+# Fast DDS 2.x (Jazzy) reads FASTRTPS_DEFAULT_PROFILES_FILE only; 3.x reads FASTDDS_DEFAULT_PROFILES_FILE.
+_PROFILE_FILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def loopback_profile_path(config_dir: str | os.PathLike | None = None) -> Path:
+    """config/fastdds_localhost.xml: in ``config_dir`` if given, else the source tree's config/
+    (checkout, editable install), else share/stewart_vibration/config of an install prefix
+    ($AMENT_PREFIX_PATH, then sys.prefix). Raises FileNotFoundError naming the places searched."""
+    if config_dir is not None:
+        candidates = [Path(config_dir)]
+    else:
+        candidates = [Path(__file__).resolve().parent.parent / "config"]
+        prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+        candidates += [Path(p) / "share" / "stewart_vibration" / "config" for p in [*prefixes, sys.prefix]]
+    for directory in candidates:
+        if (directory / LOOPBACK_PROFILE_FILE).is_file():
+            return (directory / LOOPBACK_PROFILE_FILE).resolve()
+    raise FileNotFoundError(f"cannot find the DDS profile {LOOPBACK_PROFILE_FILE} in "
+                            + ", ".join(str(d) for d in candidates))
+
+
+def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | None = None) -> dict:
+    """Environment variables (value None = unset) that select the suite's DDS transport profile.
+
+    ``choice`` is the value of STEWART_DDS_PROFILE: empty/None or "loopback" (default), "multihost",
+    or the path of a Fast DDS XML profile file. For loopback and a file, the profile file goes to
+    FASTRTPS_/FASTDDS_DEFAULT_PROFILES_FILE and ROS_AUTOMATIC_DISCOVERY_RANGE is SYSTEM_DEFAULT: with
+    LOCALHOST, rmw_fastrtps would add its own UDPv4 transport listening on 0.0.0.0 to the profile's.
+    SKIP_DEFAULT_XML_FILE=1 keeps a stray DEFAULT_FASTRTPS_PROFILES.xml in the working directory from
+    changing it. Raises ValueError for a choice that is none of these (never falls back to all
+    interfaces)."""
+    choice = (choice or "").strip()
+    if choice.lower() == "multihost":
+        env: dict = dict.fromkeys(_PROFILE_FILE_VARS)
+        env["SKIP_DEFAULT_XML_FILE"] = None
+        env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
+        return env
+    if choice.lower() in ("", "loopback"):
+        path = loopback_profile_path(config_dir)
+    else:
+        path = Path(choice).expanduser()
+        if not path.is_file():
+            raise ValueError(f"{DDS_PROFILE_ENV}={choice!r}: not 'loopback', 'multihost' or an existing "
+                             "Fast DDS XML profile file")
+        path = path.resolve()
+    env = dict.fromkeys(_PROFILE_FILE_VARS, str(path))
+    env["SKIP_DEFAULT_XML_FILE"] = "1"
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
+    return env
+
+
+def apply_environment(env: dict, changes: dict) -> dict:
+    """``env`` with ``changes`` applied in place (a None value removes the variable); returns env."""
+    for key, value in changes.items():
+        if value is None:
+            env.pop(key, None)
+        else:
+            env[key] = value
+    return env
+
+
 def ros_environment(domain_id: int, base: dict | None = None) -> dict:
-    """Environment for a child on ``domain_id``, discovery limited to localhost."""
+    """Environment for a child on ``domain_id`` with the suite's DDS profile (``dds_environment`` of
+    $STEWART_DDS_PROFILE in ``base``: loopback only by default)."""
     env = dict(os.environ if base is None else base)
     env["ROS_DOMAIN_ID"] = str(int(domain_id))
-    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env.pop("ROS_LOCALHOST_ONLY", None)
+    apply_environment(env, dds_environment(env.get(DDS_PROFILE_ENV)))
     env["PYTHONUNBUFFERED"] = "1"
     prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
     if sys.prefix not in prefixes:
@@ -66,9 +134,18 @@ class NodeProcess:
     popen: subprocess.Popen
     log_path: Path
     _log_file: object = field(repr=False, default=None)
+    command: tuple = field(repr=False, default=())  # (module, args, env) to start it again
 
     def alive(self) -> bool:
         return self.popen.poll() is None
+
+    def restart(self) -> NodeProcess:
+        """Start the same module with the same arguments and environment (the log file is appended to)."""
+        module, args, env = self.command
+        if self._log_file is not None:
+            self._log_file.close()
+            self._log_file = None
+        return start_python_module(self.name, module, list(args), env, self.log_path.parent, append=True)
 
     def log_text(self) -> str:
         try:
@@ -111,12 +188,12 @@ def _child_setup() -> None:
 
 
 def start_python_module(
-    name: str, module: str, args: list[str], env: dict, log_dir: Path
+    name: str, module: str, args: list[str], env: dict, log_dir: Path, append: bool = False
 ) -> NodeProcess:
     """Run ``python -m module args`` in a new process group, output to log_dir/name.log."""
     log_dir.mkdir(parents=True, exist_ok=True)
     log_path = log_dir / f"{name}.log"
-    log_file = open(log_path, "w")  # noqa: SIM115 - closed in stop()
+    log_file = open(log_path, "a" if append else "w")  # noqa: SIM115 - closed in stop()
     popen = subprocess.Popen(
         [sys.executable, "-m", module, *args],
         env=env,
@@ -125,7 +202,7 @@ def start_python_module(
         stdin=subprocess.DEVNULL,
         preexec_fn=_child_setup,
     )
-    return NodeProcess(name, popen, log_path, log_file)
+    return NodeProcess(name, popen, log_path, log_file, (module, tuple(args), dict(env)))
 
 
 def wait_for(predicate, timeout_s: float, interval_s: float = 0.05) -> bool:

@@ -28,11 +28,17 @@ from .vibration import decompose_vibration
 STEADY_MARGIN_S = 0.2  # skip this much after the ramp-in and before the ramp-out
 
 
+STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate", "legs/force_estimate",
+                 "platform/external_wrench_estimate")  # the 500 Hz streams; the first is the input of the rest
+
+
 def load_signals(mcap_path) -> dict:
-    """Time series from the run: ground-truth poses, joint states, force estimates (times in s)."""
+    """Time series from the run: ground-truth poses, joint states, force estimates (times in s), the stream
+    counts and the nodes' last diagnostics."""
     wanted = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
-              "vibration/joint_trajectory": []}
+              "vibration/joint_trajectory": [], "/diagnostics": []}
     reader = RunReader(mcap_path)
+    counts = stream_counts(reader)
     topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
     for raw, msg in reader.decoded(topics):
         for key, bucket in wanted.items():
@@ -43,7 +49,71 @@ def load_signals(mcap_path) -> dict:
         "joints": joint_arrays(wanted["legs/joint_states"]),
         "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=[f"leg_{i}" for i in range(1, 7)]),
         "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
+        "stream_counts": counts,
+        "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
     }
+
+
+def stream_counts(reader: RunReader) -> dict:
+    """Messages per 500 Hz topic whose stamps lie in the span every one of them covers (from the last
+    first stamp to the first last stamp: start-up and shut-down are not losses)."""
+    names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
+    stamps = {key: [] for key in STREAM_TOPICS}
+    for raw in reader.messages(list(names)):
+        stamps[names[raw.topic]].append(raw.publish_time)
+    present = [np.asarray(v) for v in stamps.values() if v]
+    if len(present) < len(STREAM_TOPICS):
+        return {key: len(v) for key, v in stamps.items()}
+    lo, hi = max(v.min() for v in present), min(v.max() for v in present)
+    return {key: int(((np.asarray(v) >= lo) & (np.asarray(v) <= hi)).sum()) for key, v in stamps.items()}
+
+
+def last_diagnostics(arrays) -> dict:
+    """{status name: (level, message, {key: value})} of the last DiagnosticStatus of each name."""
+    out = {}
+    for array in arrays:
+        for status in array.status:
+            out[status.name] = (int.from_bytes(status.level, "little") if isinstance(status.level, bytes)
+                                else int(status.level), status.message, {kv.key: kv.value for kv in status.values})
+    return out
+
+
+def stream_summary(signals: dict) -> dict:
+    """Per 500 Hz topic: messages and their ratio to legs/joint_states (every state should give one pose
+    estimate, one force estimate and one wrench estimate); and what each node reported about its input
+    (received, lost, processed, lag) in its last diagnostics."""
+    counts = signals["stream_counts"]
+    base = max(counts.get("legs/joint_states", 0), 1)
+    topics = {topic: {"count": int(n), "ratio": n / base} for topic, n in counts.items()}
+    nodes = {}
+    for name, (level, message, values) in signals.get("node_diagnostics", {}).items():
+        if "states_received" in values:
+            nodes[name.split(":")[0]] = {
+                "received": int(values["states_received"]), "lost": int(values.get("states_lost", 0)),
+                "processed": int(values.get("states_processed", 0)),
+                "lag_p50_ms": float(values.get("states_lag_p50_ms", 0)),
+                "lag_p99_ms": float(values.get("states_lag_p99_ms", 0)), "level": level, "message": message}
+    derived = [topics[t]["ratio"] for t in ("platform/pose_estimate", "legs/force_estimate",
+                                            "platform/external_wrench_estimate") if t in topics]
+    return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
+            "lost": sum(n["lost"] for n in nodes.values())}
+
+
+def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:
+    """Time (s) within [start, end] during which the vibration units moved at >= half their planned
+    amplitude: the peak |vib_i| over each period-long bin, against 0.5 |k_i| A (the planned active time of
+    a ramped vibration is duration - ramp)."""
+    sel = (times >= start) & (times <= end)
+    t, v = times[sel], np.abs(vib[sel])
+    if t.size < 2:
+        return 0.0
+    period = 1.0 / frequency
+    bins = np.floor((t - start) / period).astype(int)
+    peaks = np.zeros((bins.max() + 1, v.shape[1]))
+    np.maximum.at(peaks, bins, v)
+    strong = leg_amplitudes > 0.2 * leg_amplitudes.max()
+    half = (peaks[:, strong] >= 0.5 * leg_amplitudes[strong]).all(axis=1)
+    return float(half.sum() * period)
 
 
 def vibration_start(signals: dict, after: float) -> float:
@@ -105,6 +175,11 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, parameters: d
         "leg_frequency_hz": leg_freq,
         "leg_frequency_spread_hz": float(np.ptp(leg_freq)),
     })
+    planned_active = duration - ramp
+    measured_active = active_duration(jt, joints["position"][:, 6:12], plan.leg_amplitudes, frequency, start,
+                                      start + duration + 1.0)
+    out.update({"active_duration_s": measured_active, "planned_active_duration_s": planned_active,
+                "active_duration_error_s": abs(measured_active - planned_active)})
     ft, forces = signals["force_estimate"]
     fsel = (ft >= t0) & (ft <= t1)
     if fsel.sum() >= 4:
@@ -125,8 +200,12 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
         checks = [
             ("direction error", vib["direction_error_deg"], bounds["direction_error_deg"], "deg"),
             ("amplitude error", vib["amplitude_error"], bounds["amplitude_error"], ""),
+            ("off-axis ratio", vib["off_axis_ratio"], bounds["off_axis_ratio"], ""),
+            ("leg amplitude error (worst leg)", float(np.max(vib["leg_amplitude_error"])),
+             bounds["leg_amplitude_error"], ""),
             ("leg phase error", float(np.max(vib["leg_phase_error_deg"])), bounds["leg_phase_error_deg"], "deg"),
             ("leg frequency spread", vib["leg_frequency_spread_hz"], bounds["leg_frequency_spread_hz"], "Hz"),
+            ("active duration error", vib["active_duration_error_s"], bounds["active_duration_error_s"], "s"),
         ]
         if vib["force"] is not None:
             checks.append(("force RMS error / amplitude", vib["force"]["worst_leg_relative"],
@@ -138,4 +217,12 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
                 failures.append(f"vibration {i}: {name} {value:.4g} {unit} exceeds {bound:g} {unit}")
         if not vib["leg_phase_sign_ok"]:
             failures.append(f"vibration {i}: a leg vibrates in the wrong phase (0 vs pi)")
+    streams = summary.get("streams")
+    if streams is not None:
+        if not streams["worst_ratio"] >= bounds["sample_ratio_min"]:
+            failures.append(f"estimates per joint state {streams['worst_ratio']:.5f} below "
+                            f"{bounds['sample_ratio_min']:g} (samples lost: {streams['lost']})")
+        for node, row in streams["nodes"].items():
+            if row["lost"]:
+                failures.append(f"{node} lost {row['lost']} of its input states")
     return failures

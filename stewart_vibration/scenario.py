@@ -27,6 +27,10 @@ DEFAULT_BOUNDS = {
     "leg_phase_error_deg": 0.5,
     "leg_frequency_spread_hz": 0.01,
     "force_rms_relative": 0.01,
+    "off_axis_ratio": 0.01,  # RMS motion across the planned line / amplitude
+    "leg_amplitude_error": 0.02,  # worst leg: measured vs |k_i| A
+    "active_duration_error_s": 0.06,  # measured vs planned time at >= half amplitude (two 35 Hz periods)
+    "sample_ratio_min": 0.99,  # pose / force / wrench estimates per joint state over the run
 }
 
 

@@ -108,3 +108,57 @@ def test_interrupted_main_job_leaves_no_orphans_and_a_readable_mcap(tmp_path, ro
     counts = {t.topic: t.message_count for t in reader.topics()}
     assert counts.get("/stewart/legs/joint_states", 0) > 100
     assert sum(1 for _ in reader.decoded(["/stewart/vibration/joint_trajectory"])) >= 1
+
+
+def node_pids(domain: int, module: str) -> list[int]:
+    """PIDs of live processes on ``domain`` running ``python -m <module>``."""
+    out = []
+    for pid in processes_on_domain(domain):
+        try:
+            if module.encode() in Path(f"/proc/{pid}/cmdline").read_bytes():
+                out.append(pid)
+        except OSError:
+            continue
+    return out
+
+
+def test_keep_running_survives_a_killed_node_and_reports_what_ran(tmp_path, ros_domain):
+    """--keep-running: a killed node is reported and restarted (the others keep running); Ctrl-C then
+    stops everything and still writes the summary and report of what ran (issues 11, 13)."""
+    out = tmp_path / "run"
+    proc = main_job(out, ros_domain, "--duration", "1.2", "--keep-running")
+    lines = []
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if "Nodes are running" in line or not line:
+                break
+        assert any("Nodes are running" in x for x in lines), "".join(lines[-40:])
+        (kinematics,) = node_pids(ros_domain, "nodes.kinematics_node")
+        emulator = node_pids(ros_domain, "nodes.hardware_emulator_node")
+        os.kill(kinematics, signal.SIGKILL)
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            lines.append(line)
+            if "restarting it" in line or not line:
+                break
+        assert any("kinematics exited with code -9; restarting it" in x for x in lines), "".join(lines[-20:])
+        wait = time.monotonic() + 20
+        while time.monotonic() < wait and not node_pids(ros_domain, "nodes.kinematics_node"):
+            time.sleep(0.2)
+        assert node_pids(ros_domain, "nodes.kinematics_node")  # a new kinematics ...
+        assert node_pids(ros_domain, "nodes.hardware_emulator_node") == emulator  # ... beside the same emulator
+        os.kill(proc.pid, signal.SIGINT)
+        rest, _ = proc.communicate(timeout=180)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 130, "".join(lines) + rest
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["interrupted"] and len(summary["vibrations"]) == 1
+    assert summary["vibrations"][0]["amplitude_error"] < 0.02
+    assert [name for name, _ in summary["restarts"]] == ["kinematics"]
+    assert list(Path(summary["report_dir"]).glob("*.png"))
+    assert not processes_on_domain(ros_domain)

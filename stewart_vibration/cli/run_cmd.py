@@ -8,6 +8,7 @@ Exit codes: 0 all steps done and every figure within its bound; 1 a figure misse
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import signal
@@ -18,24 +19,40 @@ from pathlib import Path
 
 import numpy as np
 
+from ..processes import claim_ros_domain
 from ..robot import load_robot
 from ..scenario import load_scenario
+from ..suite import SUITE_NODES
+from .arguments import nonnegative_float, positive_float
 from .output import to_jsonable
 
 
 def register(subparsers) -> None:
     cmd = subparsers.add_parser("run", help="bring up the node suite in emulation and run a scenario (main job)")
     cmd.add_argument("--scenario", help="scenario YAML (default: config/scenario_paper.yaml)")
-    cmd.add_argument("--duration", type=float, help="override every vibration's duration (s, incl. ramps)")
-    cmd.add_argument("--real-time-factor", type=float, default=1.0,
+    cmd.add_argument("--duration", type=positive_float,
+                     help="override every vibration's duration (s, incl. ramps)")
+    cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
                      help="sim seconds per wall second (default 1; 0 = as fast as the machine can)")
     cmd.add_argument("--out", default="runs/latest", help="output directory (MCAP, logs, report)")
-    cmd.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (default: 40 + pid %% 50)")
+    cmd.add_argument("--domain-id", type=domain_id, default=None,
+                     help="ROS_DOMAIN_ID, 0..101 (default: $ROS_DOMAIN_ID if set, else a free one)")
     cmd.add_argument("--namespace", default="/stewart", help="namespace of every node (default /stewart)")
     cmd.add_argument("--keep-running", action="store_true",
-                     help="after the scenario keep the nodes up for a UI until Ctrl-C")
+                     help="after the scenario keep the nodes up for a UI until Ctrl-C (then report what ran)")
+    cmd.add_argument("--respawn", default=",".join(n.name for n in SUITE_NODES if n.name != "hardware_emulator"),
+                     help="with --keep-running: nodes restarted when they exit (comma-separated; default: all "
+                          "but hardware_emulator, whose restart would move the robot home)")
     cmd.add_argument("--json", action="store_true", help="print the summary as JSON")
     cmd.set_defaults(func=run)
+
+
+def domain_id(text: str) -> int:
+    """ROS domain 0..101 (higher ids put Fast DDS ports in the ephemeral range)."""
+    value = nonnegative_float(text)
+    if value != int(value) or value > 101:
+        raise argparse.ArgumentTypeError(f"must be a whole number in 0..101, got {text}")
+    return int(value)
 
 
 def _log(message: str) -> None:
@@ -46,30 +63,45 @@ def _on_sigterm(signum, frame):
     raise KeyboardInterrupt
 
 
+def _choose_domain(given: int | None):
+    """(domain, lock or None, where it came from): --domain-id, $ROS_DOMAIN_ID, or a free one (locked)."""
+    if given is not None:
+        return given, None, "--domain-id"
+    env = os.environ.get("ROS_DOMAIN_ID", "").strip()
+    if env:
+        return int(env), None, "$ROS_DOMAIN_ID"
+    domain, lock = claim_ros_domain()
+    return domain, lock, "a free domain (ROS_DOMAIN_ID was not set)"
+
+
 def run(args) -> int:
     from ..nodes.suite_runner import RunOptions, StepFailed, SuiteRunner  # rclpy only here, lazily
-    from ..run_summary import check_bounds, load_signals, summarize_vibration
 
     robot = load_robot(args.robot)
     scenario = load_scenario(robot, args.scenario, args.duration)
+    respawn = {n for n in args.respawn.split(",") if n}
+    unknown = respawn - {n.name for n in SUITE_NODES}
+    if unknown:
+        _log(f"--respawn: unknown node(s) {sorted(unknown)}; known: {[n.name for n in SUITE_NODES]}")
+        return 2
     out = Path(args.out)
-    domain = args.domain_id if args.domain_id is not None else 40 + os.getpid() % 50
+    domain, _lock, source = _choose_domain(args.domain_id)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
                          out_dir=out, progress=_log)
     signal.signal(signal.SIGTERM, _on_sigterm)
     runner = SuiteRunner(options)
     status, failure = 0, None
-    _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain}, namespace {args.namespace}, "
-         f"real-time factor {args.real_time_factor or 'max'}; output {out.resolve()}")
+    _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
+         f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}; output {out.resolve()}")
+    _log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
+         "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     try:
         runner.start()
         runner.wait_ready()
         runner.run(scenario)
         if args.keep_running:
             _print_ui_help(args.namespace, domain)
-            while all(p.alive() for p in runner.procs):
-                runner.executor.spin_once(timeout_sec=0.5)
-            _log("a node exited; shutting down")
+            runner.supervise(respawn)
     except KeyboardInterrupt:
         runner.record.interrupted = True
         status = 130
@@ -81,28 +113,53 @@ def run(args) -> int:
         runner.stop()
     record = runner.record
     _log(f"all nodes stopped; MCAP: {record.mcap_path}")
+    summary = {"scenario": scenario.name, "mcap": str(record.mcap_path) if record.mcap_path else None,
+               "moves": record.moves, "vibrations": [], "failure": failure, "interrupted": record.interrupted,
+               "problems": list(record.failures), "recorder": record.recorder_stats,
+               "restarts": record.restarts, "ros_domain_id": domain}
     if record.mcap_path is None:
         _log("no MCAP was written")
-        return status or 2
-    summary = {"scenario": scenario.name, "mcap": str(record.mcap_path), "moves": record.moves,
-               "vibrations": [], "failure": failure, "interrupted": record.interrupted}
-    if not record.interrupted and failure is None:
-        signals = load_signals(record.mcap_path)
-        nominal = robot.home_pose
-        for step_move, vib in _pair_vibrations(record):
-            nominal = np.asarray(step_move["target"]) if step_move else nominal
-            summary["vibrations"].append(summarize_vibration(robot, signals, nominal, vib["parameters"],
-                                                             vib["start_time"]))
-        summary["bound_failures"] = check_bounds(summary, scenario.bounds)
-        summary["report_dir"] = _write_report(record.mcap_path, out / "report")
-        if summary["bound_failures"]:
-            status = 1
+        summary["problems"].append("no MCAP was written")
+    else:
+        _summarize(robot, record, summary, scenario, out)
+    if summary["problems"] and status == 0:
+        status = 2
+    if summary.get("bound_failures") and status == 0:
+        status = 1
     (out / "summary.json").write_text(json.dumps(to_jsonable(summary), indent=2))
     if args.json:
         print(json.dumps(to_jsonable(summary), indent=2))
     else:
         _print_summary(summary, scenario.bounds)
     return status
+
+
+def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
+    """Analyse what ran (also after a failure or an interruption): every vibration that started, the
+    streams, the bounds; write the report. Problems change the verdict."""
+    from ..run_summary import check_bounds, load_signals, stream_summary, summarize_vibration
+
+    try:
+        signals = load_signals(record.mcap_path)
+    except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
+        summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
+        return
+    nominal = robot.home_pose
+    for step_move, vib in _pair_vibrations(record):
+        nominal = np.asarray(step_move["target"]) if step_move else nominal
+        try:
+            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib["start_time"])
+        except Exception as exc:  # noqa: BLE001 - e.g. interrupted before it vibrated
+            summary["problems"].append(f"vibration starting at {vib['start_time']:.3f} s cannot be analysed: "
+                                       f"{type(exc).__name__}: {exc}")
+            continue
+        result["failure"] = vib.get("failure")
+        summary["vibrations"].append(result)
+    summary["streams"] = stream_summary(signals)
+    summary["bound_failures"] = check_bounds(summary, scenario.bounds)
+    summary["report_dir"] = _write_report(record.mcap_path, out / "report")
+    if summary["report_dir"] is None:
+        summary["problems"].append("the report could not be written (see the log above)")
 
 
 def _pair_vibrations(record):
@@ -161,12 +218,32 @@ def _print_summary(summary: dict, bounds: dict) -> None:
             f = vib["force"]
             print(f"  leg forces, model vs emulator: RMS error {np.round(f['rms_error_n'], 4).tolist()} N; "
                   f"worst leg {f['worst_leg_relative'] * 100:.3f} % of the force amplitude")
+        print(f"  active (>= half amplitude) {vib['active_duration_s']:.3f} s of the planned "
+              f"{vib['planned_active_duration_s']:.3f} s")
+        if vib.get("failure"):
+            print(f"  this vibration failed: {vib['failure']}")
+    streams = summary.get("streams")
+    if streams:
+        counts = ", ".join(f"{t} {row['count']} ({row['ratio'] * 100:.2f} %)" for t, row in streams["topics"].items())
+        print(f"samples: {counts}")
+        for node, row in streams["nodes"].items():
+            print(f"  {node}: {row['received']} states received, {row['lost']} lost, lag p50 {row['lag_p50_ms']:.1f} "
+                  f"ms / p99 {row['lag_p99_ms']:.1f} ms")
+    if summary.get("recorder"):
+        r = summary["recorder"]
+        print(f"recorder: {r.get('written')} messages written, {r.get('dropped')} dropped")
+    for name, code in summary.get("restarts", []):
+        print(f"restarted: {name} (exit code {code})")
     print(f"MCAP: {summary['mcap']}")
     print(f"report: {summary.get('report_dir')}")
+    for problem in summary.get("problems", []):
+        print(f"PROBLEM: {problem}")
     if summary.get("failure"):
         print(f"FAILED: {summary['failure']}")
     elif summary.get("interrupted"):
-        print("INTERRUPTED")
+        print("INTERRUPTED (the summary above covers what ran)")
+    elif summary.get("problems"):
+        print("FAILED: see the problems above")
     elif summary.get("bound_failures"):
         print("MISSED BOUNDS:\n  " + "\n  ".join(summary["bound_failures"]))
     else:

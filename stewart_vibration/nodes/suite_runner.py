@@ -42,6 +42,15 @@ class StepFailed(RuntimeError):
     """A scenario step did not complete (with the reason)."""
 
 
+CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT
+
+
+def recorder_stats(log_text: str) -> dict | None:
+    """The recorder's counts of its last file from its log (the MCAP_RECORDER_STATS line)."""
+    lines = [line for line in log_text.splitlines() if line.startswith("MCAP_RECORDER_STATS ")]
+    return json.loads(lines[-1].split(" ", 1)[1]) if lines else None
+
+
 @dataclass
 class RunOptions:
     namespace: str = DEFAULT_NAMESPACE
@@ -64,7 +73,9 @@ class RunRecord:
     moves: list = field(default_factory=list)  # dicts: name, target, pose_error_m, pose_error_deg, time
     vibrations: list = field(default_factory=list)  # dicts: parameters, start_time, stop_time, start_message
     interrupted: bool = False
-    failures: list = field(default_factory=list)
+    failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
+    recorder_stats: dict | None = None  # the recorder's counts of its last file (received, written, dropped)
+    restarts: list = field(default_factory=list)  # (node, exit code) of nodes restarted under --keep-running
 
 
 class SuiteRunner:
@@ -75,6 +86,7 @@ class SuiteRunner:
         self.record = RunRecord()
         self.procs: list[NodeProcess] = []
         self.client = None
+        self._dead: set[str] = set()
 
     # -- processes -------------------------------------------------------------
     def start(self) -> None:
@@ -130,24 +142,63 @@ class SuiteRunner:
                 self.planner_status = status
 
     def stop(self) -> None:
-        """Stop the recorder (finishes the MCAP), then every process; close the client."""
+        """Stop the recorder (finishes the MCAP), then every process; close the client. Records a failure
+        for every node that exited abnormally or could not be stopped, and for recorder drops."""
+        path = None
         if self.client is not None:
             try:
                 res = self.call(Trigger, "mcap_recorder/stop", Trigger.Request(), timeout=10.0)
                 self.options.progress(f"recorder: {res.message}")
-            except (TimeoutError, RuntimeError) as exc:
+                path = Path(res.message) if res.success else None
+            except (TimeoutError, RuntimeError, StepFailed) as exc:
                 self.options.progress(f"recorder stop service failed ({exc}); SIGINT finishes the file")
         for proc in reversed(self.procs):
+            died = proc.popen.poll()
+            if proc.name in self._dead:
+                continue  # reported by supervise()
             code = proc.stop(grace_s=10.0)
-            if code not in (0, None, -2, 130):
+            if code is None:
+                self.record.failures.append(f"{proc.name} could not be stopped (log: {proc.log_path})")
+            elif died is not None and died not in CLEAN_EXITS:
+                self.record.failures.append(f"{proc.name} died during the run with exit code {died} "
+                                            f"(log: {proc.log_path})")
+            elif code not in CLEAN_EXITS:
                 self.record.failures.append(f"{proc.name} exited with code {code} (log: {proc.log_path})")
+            if proc.name == "mcap_recorder":
+                self.record.recorder_stats = recorder_stats(proc.log_text())
+        stats = self.record.recorder_stats
+        if stats is not None and stats.get("dropped", 0):
+            self.record.failures.append(f"the recorder dropped {stats['dropped']} of {stats['received']} messages")
         if self.client is not None:
             self.executor.shutdown()
             self.client.destroy_node()
             self.context.try_shutdown()
             self.client = None
-        files = sorted(glob.glob(str(self.options.out_dir / "*.mcap")), key=os.path.getmtime)
-        self.record.mcap_path = Path(files[-1]) if files else None
+        if path is None or not path.exists():
+            files = sorted(glob.glob(str(self.options.out_dir / "*.mcap")), key=os.path.getmtime)
+            path = Path(files[-1]) if files else None
+        self.record.mcap_path = path
+
+    def supervise(self, respawn: set[str]) -> None:
+        """Keep the suite up until interrupted (--keep-running): a node that exits is reported and, when
+        its name is in ``respawn``, started again with the same arguments; the others keep running."""
+        progress = self.options.progress
+        while True:
+            for i, proc in enumerate(self.procs):
+                code = proc.popen.poll()
+                if code is None or proc.name in self._dead:
+                    continue
+                if proc.name in respawn:
+                    progress(f"{proc.name} exited with code {code}; restarting it (log: {proc.log_path})")
+                    self.record.restarts.append((proc.name, code))
+                    self.procs[i] = proc.restart()
+                else:
+                    progress(f"{proc.name} exited with code {code}; not restarted (--respawn does not name it); "
+                             "the other nodes keep running")
+                    self.record.failures.append(f"{proc.name} exited with code {code} during --keep-running "
+                                                f"(log: {proc.log_path})")
+                    self._dead.add(proc.name)
+            self.executor.spin_once(timeout_sec=0.5)
 
     # -- helpers -----------------------------------------------------------------
     def spin_until(self, predicate, timeout: float, what: str) -> None:
