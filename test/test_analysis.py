@@ -75,6 +75,11 @@ def test_force_error_relative_to_amplitude():
     out = force_error(t, est, t, meas, 35.0)
     assert np.allclose(out["rms_error_n"], 0.05)
     assert out["worst_leg_relative"] == pytest.approx(0.01, rel=1e-6)
+    # only the measured samples inside the estimate's span count; four are enough, three are not
+    short = force_error(t[10:14], est[10:14], t, meas)
+    assert short["samples"] == 4 and np.allclose(short["rms_error_n"], 0.05)
+    with pytest.raises(InvalidInputError, match="do not overlap"):
+        force_error(t[10:13], est[10:13], t, meas)
 
 
 @pytest.mark.parametrize("frequency", [35.0, 33.37, 7.9])

@@ -106,6 +106,7 @@ def test_exact_minus_linear_matches_second_order(robot, pose, amplitude, frequen
     predicted = (1 - k**2) * delta**2 / (2 * lengths)
     diff = plan.exact_signals - plan.linear_signals
     np.testing.assert_allclose(plan.curvature, (1 - k**2) / lengths, rtol=1e-12)
+    np.testing.assert_allclose(plan.second_order_offset, (1 - k**2) * plan.amplitude**2 / (4 * lengths), rtol=1e-12)
     peak = np.abs(predicted).max(axis=0)
     assert np.all(np.abs(diff - predicted).max(axis=0) <= 0.05 * peak)
     # the exact signals are the IK difference of the displaced poses (independent IK path)
@@ -181,3 +182,6 @@ def test_rotation_rejects_acceleration_and_both_kinds(robot, pose):
         decompose_vibration(robot, pose, amplitude=1e-6, acceleration_g=0.3)
     with pytest.raises(InvalidInputError):
         decompose_vibration(robot, pose, amplitude=1e-6, method="quadratic")
+    for times in (np.zeros((4, 2)), np.array([0.0, np.nan, 0.2])):
+        with pytest.raises(InvalidInputError, match="times"):
+            decompose_vibration(robot, pose, amplitude=1e-6, frequency=10.0, times=times)

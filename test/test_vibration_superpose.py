@@ -37,6 +37,7 @@ def test_round_trip_decompose_superpose(robot, pose, direction, accel):
     lin = result.classification_linear
     assert lin.kind == "line"
     assert line_angle(lin.principal_direction, u) < 1e-6
+    assert lin.translation_amplitude == pytest.approx(0.5 * np.ptp(plan.delta), rel=1e-9)  # half the sampled swing
     assert np.abs(result.linear[:, 3:]).max() < 1e-12 * a
     # linear motion is exactly u delta(t)
     np.testing.assert_allclose(result.linear[:, :3], np.outer(plan.delta, u), atol=1e-12 * a)
