@@ -206,3 +206,21 @@ def test_killed_planner_ramps_out_at_the_end_of_its_buffer(suite):
     assert moving[-1] <= buffered_end + watchdog + 0.1  # at rest at the end of the buffer (+ watchdog + 100 ms)
     final = [r for _, r in suite.status if r.since >= buffered_end - 0.5]
     assert final and final[-1].state == "idle" and "commands ended" in final[-1].reason
+
+
+def test_a_dead_emulator_is_reported_stale_by_its_peers(suite):
+    """Kill the emulator: /clock stops, yet the kinematics and planner go on reporting, STALE, naming the
+    input they miss (wall-clock watches; issue 13)."""
+    diagnostics = suite.client.subscribe("/diagnostics", DiagnosticArray)
+    suite.procs["emulator"].popen.send_signal(signal.SIGKILL)
+    killed = time.monotonic()
+
+    def stale(prefix):
+        return [s for a in diagnostics for s in a.status
+                if s.name.startswith(prefix) and s.level == DiagnosticStatus.STALE]
+
+    assert suite.client.spin_until(lambda: stale("kinematics") and stale("vibration_planner"), 10), suite.logs()
+    assert time.monotonic() - killed < 4.0
+    assert "no legs/joint_states" in stale("kinematics")[-1].message
+    assert "no platform/pose_estimate" in stale("vibration_planner")[-1].message
+    assert suite.procs["kinematics"].alive() and suite.procs["planner"].alive()

@@ -6,6 +6,7 @@ import os
 import signal
 import sys
 import threading
+import time
 
 import numpy as np
 import rclpy
@@ -13,6 +14,7 @@ from builtin_interfaces.msg import Duration as DurationMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
@@ -28,7 +30,7 @@ LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
 BASE_FRAME = "base"
 
-OK, WARN, ERROR = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR
+OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE
 
 
 def run_node(factory, args=None, executor: str = "events") -> int:
@@ -109,14 +111,39 @@ def text_param(description: str, read_only: bool = False) -> ParameterDescriptor
 
 
 class Diagnostics:
-    """One DiagnosticStatus on /diagnostics, republished every ``period_s`` and on change."""
+    """One DiagnosticStatus on /diagnostics, republished every ``period_s`` of wall time (so it goes on when
+    /clock stops) and on change. Inputs registered with ``watch`` are checked on wall time: one that has not
+    arrived within its timeout turns the status STALE, naming what is missing, until it arrives again."""
 
     def __init__(self, node, name: str, period_s: float = 1.0):
         self._node = node
         self._name = f"{node.get_name()}: {name}"
         self._pub = node.create_publisher(DiagnosticArray, "/diagnostics", 10)
         self.level, self.message, self.values = OK, "starting", {}
-        node.create_timer(period_s, self.publish)
+        self._watched: dict[str, tuple[float, float, str]] = {}  # input -> (timeout s, last seen, hint)
+        self._stale: tuple = ()
+        self._started = time.monotonic()
+        node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        node.create_timer(0.25, self._check_inputs, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def watch(self, name: str, timeout_s: float, hint: str = "") -> None:
+        """Expect input ``name`` at least every ``timeout_s`` (wall s) once it has started or the node has run
+        that long; ``hint`` says which node provides it."""
+        self._watched[name] = (timeout_s, self._started, hint)
+
+    def seen(self, name: str) -> None:
+        """Input ``name`` arrived now."""
+        timeout, _, hint = self._watched[name]
+        self._watched[name] = (timeout, time.monotonic(), hint)
+
+    def _check_inputs(self) -> None:
+        now = time.monotonic()
+        stale = tuple(f"no {name} for {now - last:.1f} s{f' ({hint})' if hint else ''}"
+                      for name, (timeout, last, hint) in self._watched.items() if now - last > timeout)
+        if bool(stale) != bool(self._stale) or (stale and self._stale and len(stale) != len(self._stale)):
+            self._stale = stale
+            self.publish()
+        self._stale = stale
 
     def set(self, level: bytes, message: str, **values) -> None:
         changed = (level, message) != (self.level, self.message)
@@ -126,10 +153,13 @@ class Diagnostics:
             self.publish()
 
     def publish(self) -> None:
+        level, message = self.level, self.message
+        if self._stale:
+            level, message = STALE, f"stale: {'; '.join(self._stale)}; {message}"
         status = DiagnosticStatus(
-            level=self.level,
+            level=level,
             name=self._name,
-            message=self.message,
+            message=message,
             hardware_id="stewart_vibration",
             values=[KeyValue(key=k, value=v) for k, v in sorted(self.values.items())],
         )
@@ -218,6 +248,7 @@ __all__ = [
     "ERROR",
     "LEG_NAMES",
     "OK",
+    "STALE",
     "VIB_NAMES",
     "WARN",
     "Diagnostics",

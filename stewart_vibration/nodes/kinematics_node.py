@@ -86,6 +86,7 @@ class KinematicsNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(period, self.process, clock=steady)
         self.create_timer(1.0, self.report, clock=steady)
+        self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
         self.diagnostics.set(OK, "waiting for legs/joint_states")
@@ -100,6 +101,7 @@ class KinematicsNode(Node):
         """Solve FK for every queued state (one batch per layout) and publish one estimate each."""
         if not self.pending:
             return
+        self.diagnostics.seen("legs/joint_states")
         messages, arrivals = self.pending, np.array(self.arrivals)
         self.pending, self.arrivals = [], []
         try:

@@ -85,6 +85,7 @@ class LegForceEstimatorNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(period, self.process, clock=steady)
         self.create_timer(1.0, self.report, clock=steady)
+        self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.diagnostics.set(OK, "waiting for legs/joint_states")
         self.get_logger().info(f"leg force estimator ready (robot {self.robot.source})")
 
@@ -134,6 +135,7 @@ class LegForceEstimatorNode(Node):
     def process(self) -> None:
         if not self.pending:
             return
+        self.diagnostics.seen("legs/joint_states")
         messages, arrivals = self.pending, np.array(self.arrivals)
         self.pending, self.arrivals = [], []
         try:

@@ -151,6 +151,7 @@ class VibrationPlannerNode(Node):
         self.pose_data = None  # raw PoseStamped bytes and their receive time (node clock, s)
         self.emulator = None  # latest VibrationReport from vibration/status
         self.seen_event = 0
+        self._pose_seen = 0
         self._last_tick = time.monotonic()
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
@@ -158,6 +159,8 @@ class VibrationPlannerNode(Node):
         self.create_service(Trigger, "vibration_planner/start", self.on_start)
         self.create_service(Trigger, "vibration_planner/stop", self.on_stop)
         self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.diagnostics.watch("platform/pose_estimate", 1.0, "from kinematics")
+        self.diagnostics.watch("vibration/status", 3.0, "from hardware_emulator")
         self._report(OK, "idle")
         self.get_logger().info(f"vibration planner ready (robot {self.robot.source})")
 
@@ -187,8 +190,12 @@ class VibrationPlannerNode(Node):
     def on_pose(self, data: bytes) -> None:
         """Keep the latest estimate (500 Hz: decoded only when a vibration starts)."""
         self.pose_data = (data, self.now_s())
+        self._pose_seen += 1
+        if self._pose_seen % 50 == 1:  # the freshness watch needs no more than a few per second
+            self.diagnostics.seen("platform/pose_estimate")
 
     def on_status(self, msg: DiagnosticStatus) -> None:
+        self.diagnostics.seen("vibration/status")
         level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
         report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
         self.emulator = report
