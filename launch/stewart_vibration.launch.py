@@ -5,22 +5,32 @@ parameters as `stewart-vibration run` in the pip world).
         [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs]
 
 Parameters come from share/stewart_vibration/config/suite_params.yaml (one
-file for both worlds); the node list from stewart_vibration.suite.
+file for both worlds); the node list from stewart_vibration.suite. DDS: like
+the pip-world bring-up, loopback only by default (share/stewart_vibration/config/
+fastdds_localhost.xml); STEWART_DDS_PROFILE=multihost (or a profile path) in the
+launching shell selects another (README, "Security").
 """
 
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument
+from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable, UnsetEnvironmentVariable
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
+from stewart_vibration.processes import DDS_PROFILE_ENV, dds_environment
 from stewart_vibration.suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
 
 
 def generate_launch_description():
-    params = os.path.join(get_package_share_directory("stewart_vibration"), "config", SUITE_PARAMS_FILE)
+    config_dir = os.path.join(get_package_share_directory("stewart_vibration"), "config")
+    params = os.path.join(config_dir, SUITE_PARAMS_FILE)
+    # Set before any node starts, so every node's participant gets the profile.
+    dds = [
+        UnsetEnvironmentVariable(name) if value is None else SetEnvironmentVariable(name, value)
+        for name, value in dds_environment(os.environ.get(DDS_PROFILE_ENV), config_dir).items()
+    ]
     namespace = LaunchConfiguration("namespace")
     overrides = {
         "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor")},
@@ -42,6 +52,7 @@ def generate_launch_description():
             DeclareLaunchArgument("namespace", default_value=DEFAULT_NAMESPACE),
             DeclareLaunchArgument("real_time_factor", default_value="1.0"),
             DeclareLaunchArgument("output_dir", default_value="runs"),
+            *dds,
             *nodes,
         ]
     )

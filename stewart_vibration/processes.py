@@ -18,7 +18,6 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-
 # Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
 # (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
 # (Fast DDS defaults: every interface, multicast discovery on the subnet) or the path of a Fast DDS
@@ -54,12 +53,13 @@ def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | N
     FASTRTPS_/FASTDDS_DEFAULT_PROFILES_FILE and ROS_AUTOMATIC_DISCOVERY_RANGE is SYSTEM_DEFAULT: with
     LOCALHOST, rmw_fastrtps would add its own UDPv4 transport listening on 0.0.0.0 to the profile's.
     SKIP_DEFAULT_XML_FILE=1 keeps a stray DEFAULT_FASTRTPS_PROFILES.xml in the working directory from
-    changing it. Raises ValueError for a choice that is none of these (never falls back to all
-    interfaces)."""
+    changing it; ROS_LOCALHOST_ONLY is unset (its 1 would mean LOCALHOST). "multihost" unsets the
+    profile files and asks for SUBNET discovery (ROS_STATIC_PEERS apply). Raises ValueError for any
+    other choice: a typo never falls back to all interfaces."""
     choice = (choice or "").strip()
     if choice.lower() == "multihost":
         env: dict = dict.fromkeys(_PROFILE_FILE_VARS)
-        env["SKIP_DEFAULT_XML_FILE"] = None
+        env["ROS_LOCALHOST_ONLY"] = None
         env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SUBNET"
         return env
     if choice.lower() in ("", "loopback"):
@@ -72,6 +72,7 @@ def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | N
         path = path.resolve()
     env = dict.fromkeys(_PROFILE_FILE_VARS, str(path))
     env["SKIP_DEFAULT_XML_FILE"] = "1"
+    env["ROS_LOCALHOST_ONLY"] = None
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "SYSTEM_DEFAULT"
     return env
 
@@ -91,7 +92,6 @@ def ros_environment(domain_id: int, base: dict | None = None) -> dict:
     $STEWART_DDS_PROFILE in ``base``: loopback only by default)."""
     env = dict(os.environ if base is None else base)
     env["ROS_DOMAIN_ID"] = str(int(domain_id))
-    env.pop("ROS_LOCALHOST_ONLY", None)
     apply_environment(env, dds_environment(env.get(DDS_PROFILE_ENV)))
     env["PYTHONUNBUFFERED"] = "1"
     prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]

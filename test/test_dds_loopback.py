@@ -1,0 +1,196 @@
+"""DDS stays on this machine (issue 13, "Security"): with the bring-up's default environment
+(config/fastdds_localhost.xml) real nodes talk to each other and to a client, and every socket they
+own is bound to a loopback address; with STEWART_DDS_PROFILE=multihost the same check sees sockets on
+0.0.0.0 (so it can tell the difference). Sockets are read from /proc: the inodes of /proc/<pid>/fd
+looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6}."""
+
+from __future__ import annotations
+
+import ipaddress
+import os
+import socket
+import sys
+import types
+from pathlib import Path
+
+import pytest
+from geometry_msgs.msg import PoseStamped
+from ros_client import RosTestClient
+from sensor_msgs.msg import JointState
+
+from stewart_vibration.processes import (
+    DDS_PROFILE_ENV,
+    dds_environment,
+    loopback_profile_path,
+    ros_environment,
+    start_python_module,
+    wait_for,
+)
+
+pytestmark = pytest.mark.integration
+ROOT = Path(__file__).resolve().parents[1]
+SIM = ["--ros-args", "-p", "use_sim_time:=true"]
+EMULATOR = "stewart_vibration.nodes.hardware_emulator_node"
+KINEMATICS = "stewart_vibration.nodes.kinematics_node"
+
+
+def _address(hex_address: str, v6: bool) -> tuple[str, int]:
+    """'0100007F:1CE8' (little-endian words, as /proc/net shows them) -> ('127.0.0.1', 7400)."""
+    host, port = hex_address.split(":")
+    raw = bytes.fromhex(host)
+    if v6:
+        raw = b"".join(raw[i:i + 4][::-1] for i in range(0, 16, 4))
+        return socket.inet_ntop(socket.AF_INET6, raw), int(port, 16)
+    return socket.inet_ntop(socket.AF_INET, raw[::-1]), int(port, 16)
+
+
+def _pids(pid: int) -> set[int]:
+    """pid and its descendants."""
+    found, todo = set(), [pid]
+    while todo:
+        p = todo.pop()
+        found.add(p)
+        for task in Path(f"/proc/{p}/task").glob("*"):
+            try:
+                todo += [int(c) for c in (task / "children").read_text().split()]
+            except OSError:
+                pass
+    return found
+
+
+def inet_sockets(pid: int) -> list[tuple[str, str, int]]:
+    """(protocol, local address, port) of every UDP/TCP socket, IPv4 and IPv6, owned by pid or a child."""
+    inodes = set()
+    for p in _pids(pid):
+        for fd in Path(f"/proc/{p}/fd").glob("*"):
+            try:
+                target = os.readlink(fd)
+            except OSError:
+                continue
+            if target.startswith("socket:["):
+                inodes.add(int(target[8:-1]))
+    found = []
+    for proto in ("udp", "udp6", "tcp", "tcp6"):
+        try:
+            lines = Path(f"/proc/{pid}/net/{proto}").read_text().splitlines()[1:]
+        except OSError:
+            continue
+        for line in lines:
+            fields = line.split()
+            if int(fields[9]) in inodes:
+                found.append((proto, *_address(fields[1], proto.endswith("6"))))
+    return found
+
+
+def is_loopback(address: str) -> bool:
+    ip = ipaddress.ip_address(address)
+    if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
+        ip = ip.ipv4_mapped
+    return ip.is_loopback
+
+
+def use_in_this_process(monkeypatch, changes: dict) -> None:
+    """The DDS variables for this process too (the RosTestClient), before its first participant."""
+    for key, value in changes.items():
+        if value is None:
+            monkeypatch.delenv(key, raising=False)
+        else:
+            monkeypatch.setenv(key, value)
+
+
+def test_suite_processes_talk_and_bind_only_loopback(ros_domain, tmp_path, monkeypatch):
+    monkeypatch.delenv(DDS_PROFILE_ENV, raising=False)
+    env = ros_environment(ros_domain)
+    profile = str(loopback_profile_path())
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == profile == env["FASTDDS_DEFAULT_PROFILES_FILE"]
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
+    use_in_this_process(monkeypatch, dds_environment())
+    procs = [
+        start_python_module("emulator", EMULATOR, ["--ros-args", "-p", "real_time_factor:=1"], env, tmp_path),
+        start_python_module("kinematics", KINEMATICS, SIM, env, tmp_path),
+    ]
+    client = RosTestClient()
+    try:
+        states = client.subscribe("legs/joint_states", JointState)
+        estimates = client.subscribe("platform/pose_estimate", PoseStamped)  # emulator -> kinematics -> client
+        logs = lambda: "\n".join(f"--- {p.name}\n{p.log_text()[-2000:]}" for p in procs)  # noqa: E731
+        assert client.spin_until(lambda: states and estimates, 40.0), logs()
+        assert all(p.alive() for p in procs), logs()
+        found = {p.name: inet_sockets(p.popen.pid) for p in procs}
+        print("sockets:", found)
+        for name, sockets in found.items():
+            assert sockets, f"{name}: no UDP/TCP socket found, so the check would prove nothing"
+            outside = [s for s in sockets if not is_loopback(s[1])]
+            assert not outside, f"{name} binds non-loopback addresses: {outside} (all: {sockets})"
+    finally:
+        client.close()
+        for proc in procs:
+            proc.stop()
+
+
+def test_multihost_setting_binds_all_interfaces(ros_domain, tmp_path, monkeypatch):
+    """The same check on STEWART_DDS_PROFILE=multihost (Fast DDS defaults) finds 0.0.0.0."""
+    monkeypatch.setenv(DDS_PROFILE_ENV, "multihost")
+    env = ros_environment(ros_domain)
+    assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in env and env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
+    proc = start_python_module("emulator", EMULATOR, ["--ros-args", "-p", "real_time_factor:=1"], env, tmp_path)
+    try:
+        anywhere = lambda: [s for s in inet_sockets(proc.popen.pid) if s[1] in ("0.0.0.0", "::")]  # noqa: E731
+        assert wait_for(anywhere, 30.0), f"{inet_sockets(proc.popen.pid)}\n{proc.log_text()[-2000:]}"
+        print("multihost sockets:", inet_sockets(proc.popen.pid))
+    finally:
+        proc.stop()
+
+
+def test_profile_choice_and_its_errors(tmp_path):
+    own = tmp_path / "own.xml"
+    own.write_text((ROOT / "config" / "fastdds_localhost.xml").read_text())
+    assert loopback_profile_path() == (ROOT / "config" / "fastdds_localhost.xml").resolve()
+    assert dds_environment("loopback") == dds_environment(None) == dds_environment("")
+    assert dds_environment(str(own))["FASTRTPS_DEFAULT_PROFILES_FILE"] == str(own.resolve())
+    base = {"ROS_LOCALHOST_ONLY": "1", DDS_PROFILE_ENV: "loopback"}
+    assert "ROS_LOCALHOST_ONLY" not in ros_environment(3, base)  # its 1 would re-add rmw's 0.0.0.0 transport
+    with pytest.raises(ValueError, match="multihost"):
+        dds_environment("multi-host")  # a typo is refused, never all interfaces
+    with pytest.raises(FileNotFoundError, match="fastdds_localhost.xml"):
+        loopback_profile_path(tmp_path)
+
+
+def _launch_actions(monkeypatch, share_dir: Path):
+    """generate_launch_description() of the launch file with launch/launch_ros (not on PyPI) stubbed."""
+
+    def record(kind):
+        return lambda *args, **kwargs: (kind, args, kwargs)
+
+    stubs = {
+        "launch": types.SimpleNamespace(LaunchDescription=lambda actions: actions),
+        "launch.actions": types.SimpleNamespace(
+            DeclareLaunchArgument=record("arg"), SetEnvironmentVariable=record("set"),
+            UnsetEnvironmentVariable=record("unset")),
+        "launch.substitutions": types.SimpleNamespace(LaunchConfiguration=record("config")),
+        "launch_ros": types.SimpleNamespace(),
+        "launch_ros.actions": types.SimpleNamespace(Node=record("node")),
+        "ament_index_python.packages": types.SimpleNamespace(get_package_share_directory=lambda _: str(share_dir)),
+    }
+    for name, module in stubs.items():
+        monkeypatch.setitem(sys.modules, name, module)
+    code = compile((ROOT / "launch" / "stewart_vibration.launch.py").read_text(), "launch.py", "exec")
+    scope: dict = {"__name__": "launch_file"}
+    exec(code, scope)  # noqa: S102 - the project's own launch file
+    return scope["generate_launch_description"]()
+
+
+def test_launch_file_sets_the_profile_from_the_share_dir_before_the_nodes(monkeypatch):
+    monkeypatch.delenv(DDS_PROFILE_ENV, raising=False)
+    actions = _launch_actions(monkeypatch, ROOT)  # share dir stand-in: holds config/
+    kinds = [a[0] for a in actions]
+    env = {a[1][0]: a[1][1] for a in actions if a[0] == "set"}
+    assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str((ROOT / "config" / "fastdds_localhost.xml").resolve())
+    assert env["FASTDDS_DEFAULT_PROFILES_FILE"] == env["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
+    assert max(i for i, k in enumerate(kinds) if k in ("set", "unset")) < kinds.index("node")
+    monkeypatch.setenv(DDS_PROFILE_ENV, "multihost")
+    actions = _launch_actions(monkeypatch, ROOT)
+    assert {a[1][0] for a in actions if a[0] == "unset"} >= {"FASTRTPS_DEFAULT_PROFILES_FILE",
+                                                            "FASTDDS_DEFAULT_PROFILES_FILE"}
+    assert ("set", ("ROS_AUTOMATIC_DISCOVERY_RANGE", "SUBNET"), {}) in actions
