@@ -36,7 +36,7 @@ def load_signals(mcap_path) -> dict:
     """Time series from the run: ground-truth poses, joint states, force estimates (times in s), the stream
     counts and the nodes' last diagnostics."""
     wanted = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
-              "vibration/joint_trajectory": [], "/diagnostics": []}
+              "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": []}
     reader = RunReader(mcap_path)
     counts = stream_counts(reader)
     topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
@@ -50,6 +50,7 @@ def load_signals(mcap_path) -> dict:
         "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=[f"leg_{i}" for i in range(1, 7)]),
         "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
         "stream_counts": counts,
+        "vibration_status": [{kv.key: kv.value for kv in m.values} for m in wanted["vibration/status"]],
         "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
     }
 
@@ -93,10 +94,14 @@ def stream_summary(signals: dict) -> dict:
                 "processed": int(values.get("states_processed", 0)),
                 "lag_p50_ms": float(values.get("states_lag_p50_ms", 0)),
                 "lag_p99_ms": float(values.get("states_lag_p99_ms", 0)), "level": level, "message": message}
+    status = signals.get("vibration_status") or [{}]
+    windows = {"accepted": int(status[-1].get("accepted_windows", 0) or 0),
+               "refused": int(status[-1].get("refused_windows", 0) or 0),
+               "refusals": sorted({s.get("event", "") for s in status if s.get("event", "").startswith("refused")})}
     derived = [topics[t]["ratio"] for t in ("platform/pose_estimate", "legs/force_estimate",
                                             "platform/external_wrench_estimate") if t in topics]
     return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
-            "lost": sum(n["lost"] for n in nodes.values())}
+            "lost": sum(n["lost"] for n in nodes.values()), "windows": windows}
 
 
 def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:

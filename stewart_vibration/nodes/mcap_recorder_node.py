@@ -61,6 +61,8 @@ SUITE_TOPICS = [
     "platform/pose_estimate",
     "legs/force_estimate",
     "platform/external_wrench_estimate",
+    "vibration/status",
+    "robot_markers",
     "/clock",
     "/diagnostics",
     "/rosout",
