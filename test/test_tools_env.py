@@ -29,7 +29,7 @@ def test_sourcing_env_keeps_the_shell_options_and_sets_up_the_tools():
     out = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600).stdout
     assert "survived a failing command" in out
     line = next(x for x in out.splitlines() if x.startswith("options before="))
-    before, after = (part.split("=")[1] for part in line.split())
+    before, after = (part.split("=")[1] for part in line.split()[1:])
     assert before == after, line
     assert "/lib/stewart_vibration/stewart-vibration" in out and "hardware_emulator_node" in out
     assert ".venv" in next(x for x in out.splitlines() if x.startswith("AMENT_PREFIX_PATH="))
