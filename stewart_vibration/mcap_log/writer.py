@@ -1,7 +1,7 @@
 """rosbag2-compatible MCAP writer with its own writer thread (no rclpy).
 
 ``McapRunWriter.submit`` is called from the ROS executor thread and only puts
-a tuple on a queue; a writer thread turns the queue into MCAP records:
+a tuple on a queue; a writer thread drains it every 20 ms into MCAP records:
 profile ``ros2``, one schema per type (``pkg/msg/Type``, ``ros2msg``, full
 definition text), one channel per topic (``cdr``, ``offered_qos_profiles`` and
 ``topic_type_hash`` metadata), zstd chunks with chunk and message indexes,
@@ -22,8 +22,8 @@ Worst-case loss: the open chunk (at most ``chunk_size`` bytes and about
 
 from __future__ import annotations
 
+import collections
 import os
-import queue
 import threading
 import time
 from dataclasses import dataclass, field
@@ -37,6 +37,7 @@ from .msg_definitions import full_message_definition, has_header_first
 
 LIBRARY = "stewart_vibration mcap_recorder (python mcap writer)"
 _STOP = object()
+DRAIN_PERIOD_S = 0.02  # the writer thread takes the queued messages this often
 
 
 class _UnbufferedSink:
@@ -210,7 +211,10 @@ class McapRunWriter:
         compression: str = "zstd",
     ):
         self.stats = WriterStats()
-        self._queue: queue.SimpleQueue = queue.SimpleQueue()
+        # producers append to a deque (thread-safe, no lock handoff); the writer thread drains it every
+        # DRAIN_PERIOD_S instead of waking once per message (2,600 msg/s in a suite run)
+        self._queue: collections.deque = collections.deque()
+        self._wake = threading.Event()
         self._max_queue = int(max_queue)
         self._flush_period_s = float(flush_period_s)
         self._file = BagFileWriter(path, chunk_size=chunk_size, compression=compression)
@@ -223,7 +227,7 @@ class McapRunWriter:
     # -- producer side (any thread) -------------------------------------------------
     def add_topic(self, topic: str, type_name: str, qos_yaml: str, type_hash: str = "") -> None:
         """Declare a topic before its first message (ordered with messages through the queue)."""
-        self._queue.put(("topic", topic, type_name, qos_yaml, type_hash))
+        self._queue.append(("topic", topic, type_name, qos_yaml, type_hash))
 
     def submit(self, topic: str, log_time_ns: int, data: bytes) -> bool:
         """Queue one serialized message; False (and counted as dropped) when the queue is full."""
@@ -235,14 +239,15 @@ class McapRunWriter:
         if backlog > self._max_queue:
             stats.dropped += 1
             return False
-        self._queue.put((topic, log_time_ns, data))
+        self._queue.append((topic, log_time_ns, data))
         return True
 
     def close(self) -> WriterStats:
         """Drain the queue, write the summary and the rosbag2 metadata, close the file."""
         if not self._closed:
             self._closed = True
-            self._queue.put(_STOP)
+            self._queue.append(_STOP)
+            self._wake.set()
             self._thread.join()
             self._file.finish()
         if self._error is not None:
@@ -260,15 +265,14 @@ class McapRunWriter:
     def _run(self) -> None:
         last_flush = time.monotonic()
         pending = 0
+        queue_ = self._queue
         try:
             while True:
-                try:
-                    item = self._queue.get(timeout=self._flush_period_s / 4)
-                except queue.Empty:
-                    item = None
-                if item is _STOP:
-                    return
-                if item is not None:
+                self._wake.wait(DRAIN_PERIOD_S)
+                while queue_:
+                    item = queue_.popleft()
+                    if item is _STOP:
+                        return
                     if item[0] == "topic" and len(item) == 5:
                         self._file.add_topic(*item[1:])
                     else:
