@@ -195,9 +195,8 @@ class StewartSim:
     def platform_position_quaternion(self, data=None) -> tuple[np.ndarray, np.ndarray]:
         """(position (3,) m, unit quaternion (4,) [x, y, z, w]) of the platform frame (base frame)."""
         data = self.data if data is None else data
-        q = data.qpos[self.free_qpos:self.free_qpos + 7]
-        wxyz = q[3:] / np.linalg.norm(q[3:])
-        return q[:3].copy(), np.array([wxyz[1], wxyz[2], wxyz[3], wxyz[0]])
+        q = data.qpos[self.free_qpos:self.free_qpos + 7]  # MuJoCo keeps the quaternion normalised
+        return q[:3].copy(), q[[4, 5, 6, 3]]
 
     def platform_twist(self, data=None) -> np.ndarray:
         """[v, w] (6,) of the platform origin, base frame (MuJoCo stores w in the body frame)."""

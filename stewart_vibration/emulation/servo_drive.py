@@ -127,9 +127,10 @@ class ServoDrive:
     def run(self, controls: np.ndarray) -> None:
         """One physics step per row of ``controls`` [n, 6]."""
         m, d = self.model, self.data
-        for ctrl in controls:
-            d.ctrl[:6] = ctrl
-            mujoco.mj_step(m, d)
+        ctrl, step = d.ctrl, mujoco.mj_step
+        for row in controls:
+            ctrl[:] = row
+            step(m, d)
         self.last_accel = d.qacc[self.slide_v].copy()
         # acceleration and force of the last step, at its start time (for b without an mj_forward)
         self._last_step = (d.time - self.dt, self.last_accel, d.actuator_force[:6].copy())
