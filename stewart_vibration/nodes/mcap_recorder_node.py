@@ -38,6 +38,7 @@ import time
 from pathlib import Path
 
 import rclpy
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -45,7 +46,9 @@ from std_srvs.srv import Trigger
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
+from .common import declare_float, float_param
 from .mcap_ros import (
+    declare_read_only,
     make_executor,
     message_class,
     offered_profile,
@@ -74,14 +77,21 @@ class McapRecorderNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("mcap_recorder", **kwargs)
-        self.declare_parameter("output_dir", "runs")
-        self.declare_parameter("file_pattern", "run_{stamp}.mcap")
-        self.declare_parameter("record_on_start", True)
-        self.declare_parameter("topics", [""])
-        self.declare_parameter("qos_depth", 1000)
-        self.declare_parameter("chunk_size", 256 * 1024)
-        self.declare_parameter("flush_period_s", 0.5)
-        self.declare_parameter("discovery_period_s", 0.2)
+        # output_dir, file_pattern, chunk_size and flush_period_s apply to the next file (live); the others
+        # are read once at start (read-only: ros2 param set says so)
+        self.declare_parameter("output_dir", "runs", ParameterDescriptor(description="folder of the next file"))
+        self.declare_parameter("file_pattern", "run_{stamp}.mcap", ParameterDescriptor(
+            description="name of the next file ({stamp}: local time, {node})"))
+        declare_read_only(self, "record_on_start", True, "open a file at start (else on ~/start)")
+        declare_read_only(self, "topics", [""], "topics to record (empty = the suite's)")
+        declare_read_only(self, "qos_depth", 1000, "history depth of the recording subscriptions")
+        self.declare_parameter("chunk_size", 256 * 1024, ParameterDescriptor(
+            description="MCAP chunk size of the next file, bytes", integer_range=[
+                IntegerRange(from_value=1024, to_value=64 * 1024 * 1024, step=1)]))
+        declare_float(self, "flush_period_s", 0.5, float_param(
+            "a chunk is written at least this often (crash safety), s; next file", 0.01, 60.0))
+        declare_float(self, "discovery_period_s", 0.2, float_param(
+            "topic discovery period, s (read at start)", 0.01, 10.0, read_only=True))
         names = [t for t in self.get_parameter("topics").value if t] or SUITE_TOPICS
         self._wanted = {self.resolve_topic_name(t) for t in names}
         self._known: dict[str, tuple[str, str, str]] = {}  # topic -> (type, qos yaml, hash)
