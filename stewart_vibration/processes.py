@@ -18,6 +18,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from .errors import ConfigError
+
 # Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
 # (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
 # (Fast DDS defaults: every interface, multicast discovery on the subnet) or the path of a Fast DDS
@@ -54,8 +56,8 @@ def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | N
     LOCALHOST, rmw_fastrtps would add its own UDPv4 transport listening on 0.0.0.0 to the profile's.
     SKIP_DEFAULT_XML_FILE=1 keeps a stray DEFAULT_FASTRTPS_PROFILES.xml in the working directory from
     changing it; ROS_LOCALHOST_ONLY is unset (its 1 would mean LOCALHOST). "multihost" unsets the
-    profile files and asks for SUBNET discovery (ROS_STATIC_PEERS apply). Raises ValueError for any
-    other choice: a typo never falls back to all interfaces."""
+    profile files and asks for SUBNET discovery (ROS_STATIC_PEERS apply). Raises ConfigError (a
+    ValueError) for any other choice: a typo never falls back to all interfaces."""
     choice = (choice or "").strip()
     if choice.lower() == "multihost":
         env: dict = dict.fromkeys(_PROFILE_FILE_VARS)
@@ -67,7 +69,7 @@ def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | N
     else:
         path = Path(choice).expanduser()
         if not path.is_file():
-            raise ValueError(f"{DDS_PROFILE_ENV}={choice!r}: not 'loopback', 'multihost' or an existing "
+            raise ConfigError(f"{DDS_PROFILE_ENV}={choice!r}: not 'loopback', 'multihost' or an existing "
                              "Fast DDS XML profile file")
         path = path.resolve()
     env = dict.fromkeys(_PROFILE_FILE_VARS, str(path))
