@@ -36,8 +36,10 @@ def test_every_suite_node_is_an_installed_executable_with_a_module():
         assert (ROOT / (node.module.replace(".", "/") + ".py")).is_file()
 
 
-def test_params_file_names_only_suite_nodes():
+def test_params_file_names_only_suite_nodes_in_any_namespace():
     tree = yaml.safe_load((default_config_dir() / SUITE_PARAMS_FILE).read_text())
-    assert set(tree) - {"/**"} <= {n.name for n in SUITE_NODES}
+    keys = set(tree) - {"/**"}
+    assert keys and all(key.startswith("/**/") for key in keys)  # a bare node name matches the root namespace only
+    assert {key.removeprefix("/**/") for key in keys} <= {n.name for n in SUITE_NODES}
     for block in tree.values():
         assert "ros__parameters" in block
