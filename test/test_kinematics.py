@@ -207,6 +207,25 @@ def test_fk_rejects_other_assembly_mode(robot):
         result.raise_for_failure()
 
 
+def test_fk_flags_a_solution_below_the_base(robot, ref_geometry):
+    """Another real solution of the home leg lengths (found by a search from random guesses) with three
+    platform hinges below the base plane: converged, but not this robot's assembly mode, in the scalar
+    (single pose) and the batched path alike."""
+    base, plat = ref_geometry
+    lengths = inverse_kinematics(robot, robot.home_pose)
+    guess = np.array([0.0614, -0.0978, -0.0123, -2.5449, 0.7933, -1.8749])
+    single = forward_kinematics(robot, lengths, guess=guess)
+    batched = forward_kinematics(robot, np.tile(lengths, (64, 1)), guess=np.tile(guess, (64, 1)))
+    for result in (single, batched):
+        assert np.all(result.converged) and not np.any(result.assembly_ok)
+    assert np.abs(reference_lengths(base, plat, single.pose) - lengths).max() <= 1e-12  # it is a solution
+    rot = reference_rotation(*single.pose[3:])
+    heights = np.array([(single.pose[:3] + rot @ plat[i] - base[i])[2] for i in range(6)])
+    assert (heights < -0.01).sum() == 3
+    with pytest.raises(ForwardKinematicsError, match="assembly mode"):
+        single.raise_for_failure()
+
+
 def test_fk_backtracking_from_a_far_guess(robot):
     pose = random_workspace_poses(robot, 1, seed=7)[0]
     lengths = inverse_kinematics(robot, pose)

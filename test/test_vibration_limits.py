@@ -47,6 +47,9 @@ def test_acceleration_beyond_the_unit(robot):
     assert info.value.limit_name == "acceleration_max"
     assert 1 <= info.value.leg <= 6
     assert info.value.value > robot.vibration_unit.acceleration_max
+    # the message gives the peak and the limit in standard gravities
+    g = 9.80665
+    assert f"{info.value.value / g:.6g} g" in str(info.value) and f"{info.value.limit / g:.6g} g" in str(info.value)
 
 
 def test_pose_near_the_stroke_limit(robot):

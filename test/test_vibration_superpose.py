@@ -153,6 +153,18 @@ def test_still_when_no_leg_moves(robot, pose):
     assert lin.rotational_ratio == 0.0
 
 
+def test_two_incommensurate_frequencies_are_not_periodic():
+    """5 Hz and 5 sqrt(2) Hz never repeat: no common period, not a Lissajous figure."""
+    t = np.linspace(0, 2, 400)
+    f = np.array([5.0, 5.0 * np.sqrt(2.0)])
+    w = 2 * np.pi * f
+    x = np.column_stack([np.sin(w[0] * t), np.sin(w[1] * t), 0.3 * np.cos(w[0] * t)])
+    cls = classify_motion(1e-5 * x, f)
+    assert not cls.periodic and cls.period is None and cls.kind == "non-periodic"
+    rational = classify_motion(1e-5 * x, [5.0, 7.5])  # the same samples said to be at 5 and 7.5 Hz: period 0.4 s
+    assert rational.periodic and rational.kind == "lissajous" and rational.period == pytest.approx(0.4, rel=1e-12)
+
+
 @pytest.mark.parametrize("sign", [1.0, -1.0])
 def test_principal_direction_sign_is_fixed(sign):
     """The direction of a line is reported with its largest component positive, whichever way it was given."""
