@@ -29,7 +29,14 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
-from ..processes import NodeProcess, ros_environment, start_python_module
+from ..processes import (
+    DDS_PROFILE_ENV,
+    NodeProcess,
+    apply_environment,
+    dds_environment,
+    ros_environment,
+    start_python_module,
+)
 from ..robot import default_config_dir
 from ..scenario import MoveStep, Scenario, VibrateStep
 from ..suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
@@ -104,6 +111,9 @@ class SuiteRunner:
         for node in SUITE_NODES:
             self.procs.append(start_python_module(node.name, node.module, common + extra.get(node.name, []), env,
                                                   self.record.log_dir))
+        # the runner's own client gets the suite's DDS transport profile too (loopback only by default); Fast DDS
+        # reads it when this process creates its first participant
+        apply_environment(os.environ, dds_environment(os.environ.get(DDS_PROFILE_ENV)))
         self.context = Context()
         self.context.init(domain_id=opts.domain_id)
         self.client = Node("suite_runner", namespace=opts.namespace, context=self.context)
