@@ -50,6 +50,7 @@ class StepFailed(RuntimeError):
 
 
 CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT
+SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
 
 
 def recorder_stats(log_text: str) -> dict | None:
@@ -375,6 +376,7 @@ class SuiteRunner:
         record["status_active_s"] = ended - t0
         opts.progress(f"{label}: vibration done: the emulator reports the units active from t0 = {t0:.3f} s to "
                       f"{ended:.3f} s ({ended - t0:.3f} s of the planned {duration:.3f} s)")
+        self.wait_sim(SETTLE_AFTER_VIBRATION_S, "the platform to settle after the vibration")
         if ended < t0 + duration - 0.05:
             reason = f"the vibration ended {t0 + duration - ended:.3f} s early: {self.vibration_status.message}"
             record["failure"] = reason
