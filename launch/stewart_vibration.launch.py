@@ -8,16 +8,28 @@ Parameters come from share/stewart_vibration/config/suite_params.yaml (one
 file for both worlds); the node list from stewart_vibration.suite. DDS: like
 the pip-world bring-up, loopback only by default (share/stewart_vibration/config/
 fastdds_localhost.xml); STEWART_DDS_PROFILE=multihost (or a profile path) in the
-launching shell selects another (README, "Security").
+launching shell selects another (README, "Security"). The hardware emulator is a
+lifecycle node: this file configures and then activates it (`ros2 lifecycle get
+/stewart/hardware_emulator`).
 """
 
 import os
 
 from ament_index_python.packages import get_package_share_directory
 from launch import LaunchDescription
-from launch.actions import DeclareLaunchArgument, SetEnvironmentVariable, UnsetEnvironmentVariable
+from launch.actions import (
+    DeclareLaunchArgument,
+    EmitEvent,
+    RegisterEventHandler,
+    SetEnvironmentVariable,
+    UnsetEnvironmentVariable,
+)
+from launch.events import matches_action
 from launch.substitutions import LaunchConfiguration
-from launch_ros.actions import Node
+from launch_ros.actions import LifecycleNode, Node
+from launch_ros.event_handlers import OnStateTransition
+from launch_ros.events.lifecycle import ChangeState
+from lifecycle_msgs.msg import Transition
 
 from stewart_vibration.processes import DDS_PROFILE_ENV, dds_environment
 from stewart_vibration.suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
@@ -33,19 +45,29 @@ def generate_launch_description():
     ]
     namespace = LaunchConfiguration("namespace")
     overrides = {
-        "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor")},
+        "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor"), "autostart": False},
         "mcap_recorder": {"output_dir": LaunchConfiguration("output_dir")},
     }
-    nodes = [
-        Node(
+    nodes = []
+    for node in SUITE_NODES:
+        kind = LifecycleNode if node.name == "hardware_emulator" else Node
+        nodes.append(kind(
             package="stewart_vibration",
             executable=node.executable,
             name=node.name,
             namespace=namespace,
             parameters=[params, overrides.get(node.name, {})],
             output="screen",
-        )
-        for node in SUITE_NODES
+        ))
+    # the hardware emulator is a managed node: configure it at start, activate it once it is inactive
+    emulator = next(n for n, spec in zip(nodes, SUITE_NODES, strict=True) if spec.name == "hardware_emulator")
+    lifecycle = [
+        RegisterEventHandler(OnStateTransition(
+            target_lifecycle_node=emulator, goal_state="inactive",
+            entities=[EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(emulator),
+                                                  transition_id=Transition.TRANSITION_ACTIVATE))])),
+        EmitEvent(event=ChangeState(lifecycle_node_matcher=matches_action(emulator),
+                                    transition_id=Transition.TRANSITION_CONFIGURE)),
     ]
     return LaunchDescription(
         [
@@ -54,5 +76,6 @@ def generate_launch_description():
             DeclareLaunchArgument("output_dir", default_value="runs"),
             *dds,
             *nodes,
+            *lifecycle,
         ]
     )

@@ -166,10 +166,15 @@ def _launch_actions(monkeypatch, share_dir: Path):
         "launch": types.SimpleNamespace(LaunchDescription=lambda actions: actions),
         "launch.actions": types.SimpleNamespace(
             DeclareLaunchArgument=record("arg"), SetEnvironmentVariable=record("set"),
-            UnsetEnvironmentVariable=record("unset")),
+            UnsetEnvironmentVariable=record("unset"), EmitEvent=record("emit"),
+            RegisterEventHandler=record("handler")),
+        "launch.events": types.SimpleNamespace(matches_action=record("matches")),
         "launch.substitutions": types.SimpleNamespace(LaunchConfiguration=record("config")),
         "launch_ros": types.SimpleNamespace(),
-        "launch_ros.actions": types.SimpleNamespace(Node=record("node")),
+        "launch_ros.actions": types.SimpleNamespace(Node=record("node"), LifecycleNode=record("lifecycle_node")),
+        "launch_ros.event_handlers": types.SimpleNamespace(OnStateTransition=record("on_transition")),
+        "launch_ros.events": types.SimpleNamespace(),
+        "launch_ros.events.lifecycle": types.SimpleNamespace(ChangeState=record("change_state")),
         "ament_index_python.packages": types.SimpleNamespace(get_package_share_directory=lambda _: str(share_dir)),
     }
     for name, module in stubs.items():
@@ -188,7 +193,8 @@ def test_launch_file_sets_the_profile_from_the_share_dir_before_the_nodes(monkey
     assert env["FASTRTPS_DEFAULT_PROFILES_FILE"] == str((ROOT / "config" / "fastdds_localhost.xml").resolve())
     assert env["FASTDDS_DEFAULT_PROFILES_FILE"] == env["FASTRTPS_DEFAULT_PROFILES_FILE"]
     assert env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SYSTEM_DEFAULT"
-    assert max(i for i, k in enumerate(kinds) if k in ("set", "unset")) < kinds.index("node")
+    first_node = min(i for i, k in enumerate(kinds) if k in ("node", "lifecycle_node"))
+    assert max(i for i, k in enumerate(kinds) if k in ("set", "unset")) < first_node
     monkeypatch.setenv(DDS_PROFILE_ENV, "multihost")
     actions = _launch_actions(monkeypatch, ROOT)
     assert {a[1][0] for a in actions if a[0] == "unset"} >= {"FASTRTPS_DEFAULT_PROFILES_FILE",

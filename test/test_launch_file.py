@@ -43,3 +43,22 @@ def test_params_file_names_only_suite_nodes_in_any_namespace():
     assert {key.removeprefix("/**/") for key in keys} <= {n.name for n in SUITE_NODES}
     for block in tree.values():
         assert "ros__parameters" in block
+
+
+def test_launch_file_configures_then_activates_the_managed_emulator(monkeypatch):
+    """launch is not on PyPI: run generate_launch_description with launch's classes recorded (see
+    test_dds_loopback._launch_actions) and check the lifecycle wiring of hardware_emulator."""
+    from lifecycle_msgs.msg import Transition
+    from test_dds_loopback import _launch_actions
+
+    actions = _launch_actions(monkeypatch, ROOT)
+    managed = [a for a in actions if a[0] == "lifecycle_node"]
+    assert [a[2]["name"] for a in managed] == ["hardware_emulator"]
+    assert any(isinstance(p, dict) and p.get("autostart") is False for p in managed[0][2]["parameters"])
+    emits = [a for a in actions if a[0] == "emit"]
+    assert [e[2]["event"][2]["transition_id"] for e in emits] == [Transition.TRANSITION_CONFIGURE]
+    (handler,) = [a for a in actions if a[0] == "handler"]
+    on_transition = handler[1][0]
+    assert on_transition[2]["goal_state"] == "inactive"
+    (activate,) = on_transition[2]["entities"]
+    assert activate[2]["event"][2]["transition_id"] == Transition.TRANSITION_ACTIVATE

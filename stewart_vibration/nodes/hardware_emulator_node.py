@@ -24,8 +24,10 @@ import traceback
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped
-from rcl_interfaces.msg import SetParametersResult
-from rclpy.node import Node
+from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
+from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -61,8 +63,20 @@ STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
 LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
 
 
-class HardwareEmulatorNode(Node):
-    """Thin adapter over stewart_vibration.emulation.HardwareEmulator."""
+class HardwareEmulatorNode(LifecycleNode):
+    """Thin adapter over stewart_vibration.emulation.HardwareEmulator, as a managed (lifecycle) node -- the
+    interface a real hardware driver replaces it with:
+
+    - configure: read the robot and simulation configs, build the model (a bad config fails the transition
+      with the reason); create the publishers.
+    - activate: start the physics thread (and /clock); commands are accepted.
+    - deactivate: the robot is held safe -- the vibration ramps out and the struts hold the commanded lengths,
+      physics and /clock go on -- and commands are refused with the reason.
+    - cleanup / shutdown: stop physics and release the model.
+
+    ``autostart`` (default true) configures and activates at start, so ``ros2 run`` gives a running robot;
+    the bring-up and the launch file set it false and drive the transitions themselves.
+    """
 
     LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s")
 
@@ -72,12 +86,15 @@ class HardwareEmulatorNode(Node):
         self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", ro))
         self.declare_parameter("simulation_config", "", text_param(
             "simulation YAML ('' = config/simulation.yaml)", ro))
-        physics = declare_float(self, "physics_rate_hz", 2000.0, float_param(
-            "physics steps per simulated second (read at start)", 200, 20000, read_only=ro))
-        state_rate = declare_float(self, "state_rate_hz", 500.0, float_param(
-            "joint state / pose rate, sim time (read at start)", 10, 5000, read_only=ro))
-        clock_rate = declare_float(self, "clock_rate_hz", 100.0, float_param(
-            "/clock rate, sim time; every sim-time node wakes for each tick (read at start)", 10, 5000, read_only=ro))
+        self.declare_parameter("autostart", True, ParameterDescriptor(
+            description="configure and activate at start (false: wait for the lifecycle transitions)", read_only=ro))
+        declare_float(self, "physics_rate_hz", 2000.0, float_param(
+            "physics steps per simulated second (read at configure)", 200, 20000, read_only=ro))
+        declare_float(self, "state_rate_hz", 500.0, float_param(
+            "joint state / pose rate, sim time (read at configure)", 10, 5000, read_only=ro))
+        declare_float(self, "clock_rate_hz", 100.0, float_param(
+            "/clock rate, sim time; every sim-time node wakes for each tick (read at configure)", 10, 5000,
+            read_only=ro))
         declare_float(self, "real_time_factor", 1.0, float_param(
             "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
         declare_float(self, "watchdog_s", 0.5, float_param(
@@ -87,28 +104,23 @@ class HardwareEmulatorNode(Node):
             "safety ramp-out time of the vibration units (watchdog, e-stop), s (live)", 0.005, 0.1))
         declare_float(self, "max_lookahead_s", 30.0, float_param(
             "a vibration window may reach at most this far ahead of now, s (live)", 0.1, 600.0))
-        gain_interval = self.declare_parameter("drive_gain_interval", 10, int_param(
-            "state periods between refreshes of the strut servos' force-to-acceleration map (read at start)",
-            1, 1000, read_only=ro)).value
-        marker_rate = declare_float(self, "marker_rate_hz", 10.0, float_param(
-            "MarkerArray rate, sim time; 0 = none (read at start)", 0.0, 100.0, read_only=ro))
-        param = self.get_parameter
-        robot = load_robot(param("robot_config").value or None)
-        settings = load_simulation_settings(param("simulation_config").value or None, timestep=1.0 / physics)
-        self.emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
-                                         gain_interval, param("max_lookahead_s").value)
-        self.period = 1.0 / state_rate
-        self.clock_every = max(int(round(state_rate / clock_rate)), 1)
-        self.marker_every = max(int(round(state_rate / marker_rate)), 1) if marker_rate > 0 else 0
-        self.status_every = max(int(round(STATUS_PERIOD_S * state_rate)), 1)
-        self.real_time_factor = param("real_time_factor").value
+        self.declare_parameter("drive_gain_interval", 10, int_param(
+            "state periods between refreshes of the strut servos' force-to-acceleration map (read at configure)",
+            1, 1000, read_only=ro))
+        declare_float(self, "marker_rate_hz", 10.0, float_param(
+            "MarkerArray rate, sim time; 0 = none (read at configure)", 0.0, 100.0, read_only=ro))
+        self.real_time_factor = self.get_parameter("real_time_factor").value
         self.lock = threading.Lock()
+        self.emulator: HardwareEmulator | None = None
+        self.active = False
+        self.running = False
+        self.thread: threading.Thread | None = None
+        self.achieved_rtf = 0.0
+        self.behind_resets = 0
+        self._status_sent = (None, -1, 0.0)  # (state, event_seq, wall time) of the last status message
         self.diagnostics = Diagnostics(self, "hardware emulator")
-        self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
-        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
-        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
-        self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
+        self.diagnostics.set(WARN, "unconfigured (lifecycle: configure, then activate)")
+        self.rejections = RejectionLog(self)
         self.state_encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
@@ -116,23 +128,101 @@ class HardwareEmulatorNode(Node):
         self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
         self.create_service(Trigger, "hardware_emulator/emergency_stop", self.on_emergency_stop)
         self.add_on_set_parameters_callback(self.on_set_parameters)
-        self.rejections = RejectionLog(self)
-        self.running = True
-        self.achieved_rtf = 0.0
-        self.behind_resets = 0
-        self._status_sent = (None, -1, 0.0)  # (state, event_seq, wall time) of the last status message
-        self.thread = threading.Thread(target=self.physics_loop, name="physics", daemon=True)
-        self.thread.start()
-        self.create_timer(STATUS_REPEAT_S, self.repeat_status)
-        self.diagnostics.set(OK, "running", physics_rate_hz=physics, servo_bandwidth_hz=settings.servo_bandwidth_hz)
-        self.get_logger().info(f"hardware emulator running (MuJoCo dt {self.emulator.dt} s, "
-                               f"{settings.emulator_integrator}, robot {robot.source})")
+        self.create_timer(STATUS_REPEAT_S, self.repeat_status, clock=RosClock(clock_type=ClockType.STEADY_TIME))
+        if self.get_parameter("autostart").value:
+            if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
+                raise RuntimeError("configure failed (see the log)")
+            self.trigger_activate()
+
+    # -- lifecycle ------------------------------------------------------------------------
+    def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
+        param = self.get_parameter
+        try:
+            robot = load_robot(param("robot_config").value or None)
+            settings = load_simulation_settings(param("simulation_config").value or None,
+                                                timestep=1.0 / param("physics_rate_hz").value)
+            emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
+                                        param("drive_gain_interval").value, param("max_lookahead_s").value)
+        except (StewartError, ValueError, OSError) as exc:
+            self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
+            self.diagnostics.set(ERROR, f"configure failed: {exc}")
+            return TransitionCallbackReturn.FAILURE
+        state_rate = param("state_rate_hz").value
+        marker_rate = param("marker_rate_hz").value
+        self.period = 1.0 / state_rate
+        self.clock_every = max(int(round(state_rate / param("clock_rate_hz").value)), 1)
+        self.marker_every = max(int(round(state_rate / marker_rate)), 1) if marker_rate > 0 else 0
+        self.status_every = max(int(round(STATUS_PERIOD_S * state_rate)), 1)
+        with self.lock:
+            self.emulator = emulator
+        self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
+        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
+        self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
+        self.diagnostics.set(OK, "configured (inactive: commands are refused until activate)",
+                             physics_rate_hz=param("physics_rate_hz").value,
+                             servo_bandwidth_hz=settings.servo_bandwidth_hz)
+        self.get_logger().info(f"configured: MuJoCo dt {emulator.dt} s, {settings.emulator_integrator}, "
+                               f"robot {robot.source}")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        if not self.running:
+            self.running = True
+            self.thread = threading.Thread(target=self.physics_loop, name="physics", daemon=True)
+            self.thread.start()
+        self.active = True
+        self.diagnostics.set(OK, "running")
+        self.get_logger().info("active: physics running, commands accepted")
+        return super().on_activate(state)
+
+    def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
+        with self.lock:
+            self.active = False
+            now = self.emulator.time
+            self.emulator.vibration.stop(now, "deactivated")
+            self.emulator.struts.hold(self.emulator.struts.sample([now])[0][0])
+            self.emulator.status.safety_ramp(now, "deactivated")
+            self.emulator._changed()
+        self.diagnostics.set(WARN, "inactive: robot held (vibration ramped out, struts holding); commands refused")
+        return super().on_deactivate(state)
+
+    def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop_physics()
+        for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub):
+            self.destroy_publisher(pub)
+        with self.lock:
+            self.emulator = None
+        self.diagnostics.set(WARN, "unconfigured (cleaned up)")
+        return TransitionCallbackReturn.SUCCESS
+
+    def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._stop_physics()
+        return TransitionCallbackReturn.SUCCESS
+
+    def _stop_physics(self) -> None:
+        self.active = False
+        self.running = False
+        if self.thread is not None:
+            self.thread.join(timeout=2.0)
+            self.thread = None
+
+    def _refusal(self) -> str | None:
+        """Why commands cannot be taken now, or None."""
+        if self.emulator is None:
+            return "the hardware emulator is unconfigured (lifecycle: configure, then activate)"
+        if not self.active:
+            return "the hardware emulator is inactive (lifecycle: activate it)"
+        return None
 
     # -- parameters -------------------------------------------------------------------
     def on_set_parameters(self, params) -> SetParametersResult:
         """Live parameters take effect at once; read-only ones are refused by rclpy with the reason."""
         with self.lock:
             for p in params:
+                if self.emulator is None and p.name != "real_time_factor":
+                    continue  # read again at configure
                 if p.name == "real_time_factor":
                     self.real_time_factor = float(p.value)
                     self._pace_reset = True
@@ -146,6 +236,10 @@ class HardwareEmulatorNode(Node):
 
     # -- commands (executor thread) ------------------------------------------------------
     def on_leg_trajectory(self, data: bytes) -> None:
+        refusal = self._refusal()
+        if refusal:
+            self.rejections.add("leg trajectory", refusal)
+            return
         try:
             traj = cdr.decode_joint_trajectory(data)
             with self.lock:
@@ -158,6 +252,10 @@ class HardwareEmulatorNode(Node):
                              last_leg_trajectory_points=len(traj.times))
 
     def on_vibration(self, data: bytes) -> None:
+        refusal = self._refusal()
+        if refusal:
+            self.rejections.add("vibration command", refusal)
+            return
         try:
             traj = cdr.decode_joint_trajectory(data)
         except StewartError as exc:
@@ -175,6 +273,9 @@ class HardwareEmulatorNode(Node):
         self.publish_status(report)
 
     def on_emergency_stop(self, request, response):
+        if self.emulator is None:
+            response.success, response.message = False, self._refusal()
+            return response
         with self.lock:
             self.emulator.emergency_stop()
             report = self.emulator.vibration_report()[0]
@@ -185,6 +286,10 @@ class HardwareEmulatorNode(Node):
         return response
 
     def on_reset(self, request, response):
+        refusal = self._refusal()
+        if refusal:
+            response.success, response.message = False, refusal
+            return response
         try:
             with self.lock:
                 duration = self.emulator.reset()
@@ -201,11 +306,11 @@ class HardwareEmulatorNode(Node):
 
     def _level(self, level):
         """Never report better than ERROR while the e-stop is latched."""
-        return ERROR if self.emulator.estopped else level
+        return ERROR if self.emulator is not None and self.emulator.estopped else level
 
     def _message(self, message: str) -> str:
         """The e-stop stays first in the diagnostics message while it is latched."""
-        if self.emulator.estopped:
+        if self.emulator is not None and self.emulator.estopped:
             return f"emergency stop latched (call hardware_emulator/reset to clear); {message}"
         return message
 
@@ -220,6 +325,8 @@ class HardwareEmulatorNode(Node):
 
     def repeat_status(self) -> None:
         """Republish an unchanged status once a second (its amplitudes and times move on)."""
+        if self.emulator is None:
+            return
         if time.monotonic() - self._status_sent[2] >= STATUS_REPEAT_S * 0.9:
             with self.lock:
                 report = self.emulator.status.report
@@ -308,9 +415,9 @@ class HardwareEmulatorNode(Node):
 
     def shutdown(self) -> None:
         """Stop physics; the emulated robot holds its last state (nothing moves after exit)."""
-        self.running = False
-        self.thread.join(timeout=2.0)
-        self.get_logger().info(f"stopped at sim time {self.emulator.time:.3f} s")
+        self._stop_physics()
+        if self.emulator is not None:
+            self.get_logger().info(f"stopped at sim time {self.emulator.time:.3f} s")
 
 
 class RejectionLog:

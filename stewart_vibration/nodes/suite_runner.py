@@ -19,6 +19,8 @@ from pathlib import Path
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
 from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
 from rclpy.node import Node
@@ -105,8 +107,8 @@ class SuiteRunner:
         self.record.log_dir = opts.out_dir / "logs"
         params = opts.params_file or default_config_dir() / SUITE_PARAMS_FILE
         common = ["--ros-args", "-r", f"__ns:={opts.namespace}", "--params-file", str(params)]
-        extra = {
-            "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}"],
+        extra = {  # the emulator is a lifecycle node: wait_ready() configures and activates it
+            "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}", "-p", "autostart:=false"],
             "mcap_recorder": ["-p", f"output_dir:={opts.out_dir.resolve()}"],
         }
         for node in SUITE_NODES:
@@ -240,9 +242,19 @@ class SuiteRunner:
         self.spin_until(lambda: self.clock >= end, seconds / rtf + 60, what)
 
     # -- readiness ---------------------------------------------------------------
+    def transition(self, node: str, transition_id: int, label: str) -> None:
+        """Drive a lifecycle transition of ``node`` (lifecycle_msgs ChangeState); StepFailed if refused."""
+        request = ChangeState.Request()
+        request.transition.id = transition_id
+        if not self.call(ChangeState, f"{node}/change_state", request, timeout=60.0).success:
+            raise StepFailed(f"{node} refused the lifecycle transition '{label}' (see {self.record.log_dir})")
+
     def wait_ready(self) -> None:
         ns = self.options.namespace.rstrip("/")
         progress = self.options.progress
+        self.transition("hardware_emulator", Transition.TRANSITION_CONFIGURE, "configure")
+        self.transition("hardware_emulator", Transition.TRANSITION_ACTIVATE, "activate")
+        progress("ready: hardware_emulator configured and active (lifecycle)")
         self.spin_until(lambda: self.clock is not None, 60, "the emulator's /clock")
         progress("ready: hardware_emulator (/clock)")
         self.spin_until(lambda: "platform/pose_estimate" in self.latest, 60, "platform/pose_estimate")

@@ -1,0 +1,93 @@
+"""hardware_emulator as a managed (lifecycle) node over real DDS (issue 15): the lifecycle services drive
+configure / activate / deactivate / cleanup; commands are refused when it is not active and the robot holds
+its pose; a bad configuration fails the configure transition."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState, GetState
+from ros_client import node_under_test
+from rosgraph_msgs.msg import Clock
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from stewart_vibration import inverse_kinematics
+from stewart_vibration.nodes.common import duration_msg, pose_from_msg
+
+pytestmark = pytest.mark.integration
+ARGS = ["--ros-args", "-p", "autostart:=false"]
+
+
+def change(client, transition_id):
+    request = ChangeState.Request()
+    request.transition.id = transition_id
+    return client.call(ChangeState, "hardware_emulator/change_state", request).success
+
+
+def state(client):
+    return client.call(GetState, "hardware_emulator/get_state", GetState.Request()).current_state.label
+
+
+def move(robot, delta):
+    """A legal 2 s leg trajectory from home by ``delta`` (m) on every strut."""
+    msg = JointTrajectory(joint_names=[f"leg_{i}" for i in range(1, 7)])
+    goal = inverse_kinematics(robot, robot.home_pose) + delta
+    msg.points = [JointTrajectoryPoint(positions=goal.tolist(), velocities=[0.0] * 6,
+                                       time_from_start=duration_msg(2.0))]
+    return msg
+
+
+def test_lifecycle_transitions_gate_the_commands(robot, ros_domain, tmp_path):
+    with node_under_test("emulator", "stewart_vibration.nodes.hardware_emulator_node", ros_domain, tmp_path,
+                         ARGS) as (proc, client):
+        clock = client.subscribe("/clock", Clock)
+        poses = client.subscribe("platform/pose", PoseStamped)
+        diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
+        legs = client.publisher("legs/joint_trajectory", JointTrajectory)
+
+        assert state(client) == "unconfigured"
+        client.spin_for(0.5)
+        assert not clock  # no physics before activate
+        assert change(client, Transition.TRANSITION_CONFIGURE) and state(client) == "inactive"
+        client.spin_for(0.5)
+        assert not clock
+        assert change(client, Transition.TRANSITION_ACTIVATE) and state(client) == "active"
+        assert client.spin_until(lambda: len(poses) > 10, 20), proc.log_text()
+        assert client.wait_for_subscribers("legs/joint_trajectory")
+
+        # active: a move is followed
+        legs.publish(move(robot, 0.002))
+        assert client.spin_until(lambda: poses and pose_from_msg(poses[-1].pose)[2] > robot.home_pose[2] + 1e-3, 20)
+
+        # inactive: the robot holds where it is and commands are refused with the reason
+        assert change(client, Transition.TRANSITION_DEACTIVATE) and state(client) == "inactive"
+        client.spin_for(0.3)
+        held = pose_from_msg(poses[-1].pose)
+        legs.publish(move(robot, -0.004))
+        assert client.spin_until(lambda: any("inactive" in s.message and "rejected leg trajectory" in s.message
+                                             for a in diagnostics for s in a.status), 10)
+        client.spin_for(1.5)
+        assert len(clock) > 0 and np.abs(pose_from_msg(poses[-1].pose) - held)[:3].max() < 1e-6  # physics on, held
+
+        # active again; then cleanup releases everything (no more states), and configure works again
+        assert change(client, Transition.TRANSITION_ACTIVATE)
+        assert change(client, Transition.TRANSITION_DEACTIVATE)
+        assert change(client, Transition.TRANSITION_CLEANUP) and state(client) == "unconfigured"
+        count = len(poses)
+        client.spin_for(0.5)
+        assert len(poses) <= count + 5  # the last few in flight at most
+        assert change(client, Transition.TRANSITION_CONFIGURE) and state(client) == "inactive"
+        assert proc.alive()
+
+
+def test_bad_configuration_fails_the_configure_transition(ros_domain, tmp_path):
+    bad = tmp_path / "robot.yaml"
+    bad.write_text("geometry: {}\n")
+    with node_under_test("emulator", "stewart_vibration.nodes.hardware_emulator_node", ros_domain, tmp_path,
+                         ARGS + ["-p", f"robot_config:={bad}"]) as (proc, client):
+        assert not change(client, Transition.TRANSITION_CONFIGURE)
+        assert state(client) == "unconfigured" and proc.alive()
+        assert "configure failed" in proc.log_text()
