@@ -20,7 +20,7 @@ from rclpy.parameter import Parameter
 
 from ..errors import InvalidInputError
 from ..rotations import MESSAGE_QUATERNION_TOLERANCE, pose_from_position_quaternion, pose_to_position_quaternion
-from .mcap_ros import make_executor
+from .mcap_ros import make_executor, spin_until_stopped
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
 # reader that stalls longer than depth / rate loses samples, so allow ~1 s of lag.
@@ -37,7 +37,7 @@ def run_node(factory, args=None, executor: str = "events") -> int:
     """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up; returns the exit code.
 
     The signals only set a stop flag (no KeyboardInterrupt inside a callback);
-    the executor is spun in a spin_once loop that checks it.
+    the executor is spun in periods of 0.2 s in C++ that check it in between (spin_until_stopped).
     ``executor="events"``: rclpy's EventsExecutor (half the CPU of the
     SingleThreadedExecutor at the suite's 500 Hz state rate). Its sim-time
     timers fire irregularly under load: timing-critical work polls the sim
@@ -67,8 +67,7 @@ def run_node(factory, args=None, executor: str = "events") -> int:
         else:
             spinner = make_executor()
         spinner.add_node(node)
-        while not stop.is_set() and rclpy.ok():
-            spinner.spin_once(timeout_sec=0.1)
+        spin_until_stopped(spinner, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

@@ -53,6 +53,7 @@ from .mcap_ros import (
     message_class,
     offered_profile,
     rclpy_profile,
+    spin_until_stopped,
 )
 
 SUITE_TOPICS = [
@@ -218,8 +219,7 @@ def main(args=None) -> int:
     executor = make_executor()
     executor.add_node(node)
     try:
-        while rclpy.ok() and not stop.is_set():
-            executor.spin_once(timeout_sec=0.1)
+        spin_until_stopped(executor, stop)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
