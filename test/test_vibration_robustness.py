@@ -87,7 +87,7 @@ class Suite:
         return stamps[sel], np.array([self.states[i].position[6:12] for i in np.flatnonzero(sel)]).reshape(-1, 6)
 
     def planner_says(self, prefix: str) -> list:
-        return [(t, s) for t, s in self.planner_diag if s.message.startswith(prefix)]
+        return [(t, s) for t, s in self.planner_diag if prefix in s.message]
 
     def logs(self) -> str:
         return "\n".join(f"--- {n}\n{p.log_text()[-2500:]}" for n, p in self.procs.items())

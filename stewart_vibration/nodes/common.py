@@ -153,8 +153,9 @@ class Diagnostics:
 
     def publish(self) -> None:
         level, message = self.level, self.message
-        if self._stale:
-            level, message = STALE, f"stale: {'; '.join(self._stale)}; {message}"
+        if self._stale:  # an ERROR of the node's own stays ERROR; the missing inputs are named either way
+            level = ERROR if level == ERROR else STALE
+            message = f"stale: {'; '.join(self._stale)}; {message}"
         status = DiagnosticStatus(
             level=level,
             name=self._name,

@@ -351,7 +351,7 @@ class SuiteRunner:
 
         def failed() -> str | None:
             report, planner = self.vibration_status, self.planner_status
-            if planner is not None and planner.message.startswith("aborted"):
+            if planner is not None and "aborted:" in planner.message:
                 return f"the planner aborted the vibration: {planner.message}"
             if report is not None and report.state in ("estopped", "stopped") and report.since >= t0 - 1e-6:
                 return f"the vibration units {report.message}"
