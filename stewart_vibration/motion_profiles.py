@@ -60,6 +60,9 @@ def checked_path(robot: Robot, start, goal, max_step_m: float = 1e-3, max_step_r
     every waypoint checked (stroke, joints, conditioning). Returns poses [n, 6];
     raises the typed error of the first infeasible waypoint."""
     start, goal = as_batch(start, 6, "start pose"), as_batch(goal, 6, "goal pose")
+    # both ends first: they bound the path to the workspace (a goal 1e7 m away asked for 1e10 waypoints)
+    check_pose(robot, start)
+    check_pose(robot, goal)
     distance = float(np.linalg.norm(goal[:3] - start[:3]))
     angle = float(np.linalg.norm(so3_log(rotation_from_rpy(goal[3:]) @ rotation_from_rpy(start[3:]).T)))
     count = int(np.ceil(max(distance / max_step_m, angle / max_step_rad))) + 1

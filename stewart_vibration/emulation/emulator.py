@@ -17,21 +17,26 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..errors import ActuatorLimitError, StrokeLimitError
-from ..hermite import spline_extremes
+from ..errors import ActuatorLimitError
 from ..kinematics import inverse_kinematics
 from ..mjcf import SimulationSettings
 from ..motion_profiles import minimum_jerk, minimum_jerk_duration
 from ..mujoco_sim import StewartSim
 from ..robot import Robot
 from .servo_drive import ServoDrive
-from .trajectory import JointTrajectory, TrajectoryFollower, build_trajectory
+from .trajectory import (
+    MAX_START_DELAY_S,
+    STEP_SPEED,
+    JointTrajectory,
+    TrajectoryFollower,
+    build_trajectory,
+    checked_command,
+)
 from .vibration_buffer import VibrationBuffer
 from .vibration_status import VibrationReport, VibrationStatusTracker
 
 LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
-SPEED_TOLERANCE = 1.0 + 1e-6
 
 
 class HardwareEmulator:
@@ -42,7 +47,7 @@ class HardwareEmulator:
 
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
-                 reference_horizon_s: float = 0.05, max_start_delay_s: float = 10.0):
+                 reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S):
         self.robot = robot
         self.max_start_delay_s = float(max_start_delay_s)
         self.sim = StewartSim(robot, replace(settings, integrator=settings.emulator_integrator))
@@ -77,71 +82,18 @@ class HardwareEmulator:
         finite-difference velocities (zero at its first and last point) and cubic segments instead of
         linear ones (a linear one steps the velocity at every point). The spline from the departure
         state through every point must stay within the stroke, strut_velocity_max and
-        strut_acceleration_max; a start more than ``max_start_delay_s`` ahead is refused. Raises
+        strut_acceleration_max and end at rest (the last point is held); a start more than
+        ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused. Until
+        a future start the running command goes on (``trajectory.checked_command``). Raises
         InvalidInputError, StrokeLimitError or ActuatorLimitError with the reason; nothing moves then.
         """
         if self.estopped:
             raise ActuatorLimitError("emergency stop is active: call reset first", limit_name="emergency_stop")
         traj = build_trajectory(names, LEG_NAMES, start, times, positions, velocities, accelerations)
-        now = self.time
-        begin = now if traj.start <= 0 else traj.start
-        if begin > now + self.max_start_delay_s:
-            raise ActuatorLimitError(
-                f"the trajectory starts {begin - now:.3f} s in the future; at most max_start_delay_s "
-                f"{self.max_start_delay_s:g} s (stamp 0 = now)", limit_name="max_start_delay_s",
-                value=begin - now, limit=self.max_start_delay_s)
-        pos, vel, acc = traj.positions, traj.velocities, traj.accelerations
-        if vel is None:
-            vel = np.gradient(pos, traj.times, axis=0) if len(traj.times) > 1 else np.zeros_like(pos)
-            vel[[0, -1]] = 0.0
-        absolute = begin + traj.times
-        future = absolute > now
-        if not future.any():
-            raise ActuatorLimitError(
-                f"every point of the trajectory is in the past (its last point was {now - absolute[-1]:.3f} s ago)",
-                limit_name="stale_trajectory", value=float(now - absolute[-1]), limit=0.0)
-        departs = max(now, begin)
-        running = JointTrajectory(departs, absolute[future] - departs, pos[future], vel[future],
-                                  None if acc is None else acc[future])
-        self._check_strut_limits(running, late=begin < now and not future.all(), late_by=now - begin)
+        running = checked_command(self.struts, traj, self.time, self.robot.limits, self.max_start_delay_s,
+                                  STEP_SPEED * self.robot.limits.strut_acceleration_max * self.dt)
         self._changed()
-        return self.struts.replace(running, now)
-
-    def _check_strut_limits(self, traj: JointTrajectory, late: bool = False, late_by: float = 0.0) -> None:
-        """Stroke, velocity and acceleration of the spline the follower will run: from the state
-        commanded at the trajectory's start through its points (absolute start, see command_struts)."""
-        lim = self.robot.limits
-        departure = [x[0] for x in self.struts.sample([traj.start])]
-        knots_t = np.concatenate([[traj.start], traj.start + traj.times])
-        knots_p = np.vstack([departure[0], traj.positions])
-        knots_v = np.vstack([departure[1], traj.velocities])
-        knots_a = None if traj.accelerations is None else np.vstack([departure[2], traj.accelerations])
-        if knots_t[1] - knots_t[0] < 1e-9:  # a first point at the start time: no departure segment
-            knots_t, knots_p, knots_v = knots_t[1:], knots_p[1:], knots_v[1:]
-            knots_a = None if knots_a is None else knots_a[1:]
-            gap = np.abs(traj.positions[0] - departure[0])
-            if gap.max() > 1e-9:
-                leg = int(np.argmax(gap))
-                raise ActuatorLimitError(f"leg_{leg + 1}: the first point is at the start time but "
-                                         f"{gap[leg] * 1e3:.3f} mm away from the commanded length (a step)",
-                                         leg=leg + 1, limit_name="strut_velocity_max", value=float(gap[leg]))
-        low, high, speed, accel = spline_extremes(
-            knots_t, knots_p, knots_v, knots_a, position_bounds=(lim.stroke_min, lim.stroke_max),
-            velocity_bound=lim.strut_velocity_max, acceleration_bound=lim.strut_acceleration_max)
-        why = f" (it started {late_by:.3f} s ago: the motion departs from the commanded state now)" if late else ""
-        for bad, value, limit, word in ((low < lim.stroke_min, low, lim.stroke_min, "below"),
-                                        (high > lim.stroke_max, high, lim.stroke_max, "above")):
-            if bad.any():
-                leg = int(np.argmax(bad))
-                raise StrokeLimitError(f"leg_{leg + 1}: {value[leg]:.6f} m is {word} the stroke limit {limit:.6f} m"
-                                       f"{why}", leg=leg + 1, value=float(value[leg]), limit=limit)
-        for name, values, limit, unit in (("strut_velocity_max", speed, lim.strut_velocity_max, "m/s"),
-                                          ("strut_acceleration_max", accel, lim.strut_acceleration_max, "m/s^2")):
-            if (values > limit * SPEED_TOLERANCE).any():
-                leg = int(np.argmax(values / limit))
-                raise ActuatorLimitError(
-                    f"leg_{leg + 1}: {name.split('_')[1]} {values[leg]:.4g} {unit} exceeds {name} {limit:.4g} "
-                    f"{unit}{why}", leg=leg + 1, limit_name=name, value=float(values[leg]), limit=limit)
+        return self.struts.replace(running, self.time)
 
     def command_vibration(self, names, start, times, positions, velocities=None, accelerations=None) -> float:
         """Validate and splice a vib_* window onto the buffer; returns the splice time (s). Raises

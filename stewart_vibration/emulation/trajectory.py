@@ -6,17 +6,18 @@ velocities/accelerations for a fixed set of joint names. Sampling follows
 the controller: from the state held when the trajectory starts, a spline to
 the first point, then between points a quintic (pos+vel+acc), cubic
 (pos+vel) or linear (pos only) segment; before its start the previous
-command holds, after its last point the last point holds.
+command runs on, after its last point the last point holds.
 """
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InvalidInputError
-from ..hermite import cubic_hermite, quintic_hermite
+from ..errors import ActuatorLimitError, InvalidInputError, StrokeLimitError
+from ..hermite import cubic_hermite, quintic_hermite, spline_extremes
 
 
 @dataclass(frozen=True)
@@ -44,6 +45,8 @@ def build_trajectory(
     """
     names = list(joint_names)
     expected = list(expected_names)
+    if not np.isfinite(start):
+        raise InvalidInputError(f"the start stamp must be finite, got {start}")
     if sorted(names) != sorted(expected) or len(set(names)) != len(names):
         raise InvalidInputError(f"joint names must be exactly {expected} (any order), got {names}")
     order = [names.index(n) for n in expected]
@@ -77,6 +80,9 @@ def build_trajectory(
     if pos is None or pos.shape[0] != times.size:
         raise InvalidInputError("every point needs positions")
     vel, acc = table(velocities, "velocities"), table(accelerations, "accelerations")
+    for arr, what in ((vel, "velocities"), (acc, "accelerations")):
+        if arr is not None and arr.shape[0] != times.size:
+            raise InvalidInputError(f"{arr.shape[0]} rows of {what} for {times.size} points")
     if acc is not None and vel is None:
         raise InvalidInputError("accelerations given without velocities")
     return JointTrajectory(float(start), times, pos, vel, acc)
@@ -100,13 +106,27 @@ class TrajectoryFollower:
         """Drop any trajectory and hold ``positions`` at rest (reset, e-stop)."""
         positions = np.asarray(positions, dtype=float).copy()
         self._active = None
+        self._before = None  # the replaced command, sampled before the active trajectory's start
         self._from = (positions, np.zeros_like(positions), np.zeros_like(positions))
 
     def replace(self, traj: JointTrajectory, now: float) -> JointTrajectory:
         """Make ``traj`` the running trajectory (start 0 = now); it departs from the
-        state commanded at its start time. Returns the trajectory with its absolute start."""
+        state commanded at its start time, and until then the replaced command runs on (it
+        used to jump to its state at the new start). Returns the trajectory with its absolute start.
+
+        At most the running command and one waiting for its start are kept (what ran before a
+        started one is past): a trajectory stamped in the future that replaces one still waiting
+        for its start can cut it short (the emulator refuses that case)."""
         start = now if traj.start <= 0 else traj.start
         p, v, a = self.sample(np.array([start]))
+        before = None
+        if self._active is not None:  # a held state needs no record: it is the departure state
+            before = copy.copy(self)
+            if before._active.start <= now:
+                before._before = None
+            elif before._before is not None:
+                before._before._before = None
+        self._before = before
         self._from = (p[0], v[0], a[0])
         self._active = JointTrajectory(start, traj.times, traj.positions, traj.velocities, traj.accelerations)
         return self._active
@@ -124,6 +144,9 @@ class TrajectoryFollower:
         traj = self._active
         if traj is None:
             return p, v, a
+        earlier = times < traj.start
+        if self._before is not None and earlier.any():
+            p[earlier], v[earlier], a[earlier] = self._before.sample(times[earlier])
         # knots: the departure state at the start, then the points
         kt = np.concatenate([[traj.start], traj.start + traj.times])
         kp = np.vstack([p0, traj.positions])
@@ -153,3 +176,100 @@ class TrajectoryFollower:
                 s, h, kp[seg], kv[seg], ka[seg], kp[seg + 1], kv[seg + 1], ka[seg + 1]
             )
         return p, v, a
+
+
+SPEED_TOLERANCE = 1.0 + 1e-6
+MAX_START_DELAY_S = 10.0
+# a velocity step (at a first point at the start time, or at the held end) allowed: this fraction of what the
+# acceleration limit changes in one physics step
+STEP_SPEED = 1e-3
+
+
+def checked_command(follower: TrajectoryFollower, traj: JointTrajectory, now: float, limits,
+                    max_start_delay_s: float = MAX_START_DELAY_S, step_speed: float = 0.0) -> JointTrajectory:
+    """The trajectory that runs (absolute start) when the validated leg command ``traj`` arrives at ``now``
+    at ``follower``, after checking it against ``limits`` (robot.limits); raises the reason otherwise.
+
+    joint_trajectory_controller rules (see HardwareEmulator.command_struts): points already past are dropped
+    and the motion departs from the state commanded now; positions-only trajectories get finite-difference
+    velocities (zero at both ends). The spline from the departure state through every point must stay
+    within the stroke, strut_velocity_max and strut_acceleration_max and end at rest; ``step_speed`` (m/s)
+    is the velocity step allowed at a first point at the start time and at the held end. A start more than
+    ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused."""
+    begin = now if traj.start <= 0 else traj.start
+    if begin > now + max_start_delay_s:
+        raise ActuatorLimitError(
+            f"the trajectory starts {begin - now:.3f} s in the future; at most max_start_delay_s "
+            f"{max_start_delay_s:g} s (stamp 0 = now)", limit_name="max_start_delay_s",
+            value=begin - now, limit=max_start_delay_s)
+    waiting = follower.active
+    if begin > now and waiting is not None and waiting.start > now:
+        raise ActuatorLimitError(
+            f"the trajectory starts {begin - now:.3f} s in the future while the previous one still waits for "
+            f"its start ({waiting.start - now:.3f} s ahead); stamp it 0 (now) to replace that one",
+            limit_name="waiting_trajectory", value=begin - now, limit=0.0)
+    pos, vel, acc = traj.positions, traj.velocities, traj.accelerations
+    if vel is None:
+        vel = np.gradient(pos, traj.times, axis=0) if len(traj.times) > 1 else np.zeros_like(pos)
+        vel[[0, -1]] = 0.0
+    absolute = begin + traj.times
+    future = absolute > now
+    if not future.any():
+        raise ActuatorLimitError(
+            f"every point of the trajectory is in the past (its last point was {now - absolute[-1]:.3f} s ago)",
+            limit_name="stale_trajectory", value=float(now - absolute[-1]), limit=0.0)
+    departs = max(now, begin)
+    running = JointTrajectory(departs, absolute[future] - departs, pos[future], vel[future],
+                              None if acc is None else acc[future])
+    _check_limits(follower, running, limits, step_speed, late=begin < now and not future.all(), late_by=now - begin)
+    return running
+
+
+def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step_speed: float, late: bool,
+                  late_by: float) -> None:
+    """Stroke, velocity and acceleration of the spline the follower will run: from the state
+    commanded at the trajectory's start through its points (absolute start, see checked_command)."""
+    end_speed = np.abs(traj.velocities[-1])
+    if end_speed.max() > step_speed:
+        leg = int(np.argmax(end_speed))
+        raise ActuatorLimitError(f"leg_{leg + 1}: the trajectory ends moving at {end_speed[leg]:.4g} m/s; its last "
+                                 f"point is held, so it must end at rest (velocity 0)", leg=leg + 1,
+                                 limit_name="strut_acceleration_max", value=float(end_speed[leg]), limit=0.0)
+    departure = [x[0] for x in follower.sample([traj.start])]
+    knots_t = np.concatenate([[traj.start], traj.start + traj.times])
+    knots_p = np.vstack([departure[0], traj.positions])
+    knots_v = np.vstack([departure[1], traj.velocities])
+    knots_a = None if traj.accelerations is None else np.vstack([departure[2], traj.accelerations])
+    if knots_t[1] - knots_t[0] < 1e-9:  # a first point at the start time: no departure segment
+        knots_t, knots_p, knots_v = knots_t[1:], knots_p[1:], knots_v[1:]
+        knots_a = None if knots_a is None else knots_a[1:]
+        gap = np.abs(traj.positions[0] - departure[0])
+        if gap.max() > 1e-9:
+            leg = int(np.argmax(gap))
+            raise ActuatorLimitError(f"leg_{leg + 1}: the first point is at the start time but "
+                                     f"{gap[leg] * 1e3:.3f} mm away from the commanded length (a step)",
+                                     leg=leg + 1, limit_name="strut_velocity_max", value=float(gap[leg]))
+        jump = np.abs(traj.velocities[0] - departure[1])
+        if jump.max() > step_speed:
+            leg = int(np.argmax(jump))
+            raise ActuatorLimitError(
+                f"leg_{leg + 1}: the first point is at the start time but its velocity differs by "
+                f"{jump[leg]:.4g} m/s from the commanded velocity (a velocity step)",
+                leg=leg + 1, limit_name="strut_acceleration_max", value=float(jump[leg]))
+    low, high, speed, accel = spline_extremes(
+        knots_t, knots_p, knots_v, knots_a, position_bounds=(lim.stroke_min, lim.stroke_max),
+        velocity_bound=lim.strut_velocity_max, acceleration_bound=lim.strut_acceleration_max)
+    why = f" (it started {late_by:.3f} s ago: the motion departs from the commanded state now)" if late else ""
+    for bad, value, limit, word in ((low < lim.stroke_min, low, lim.stroke_min, "below"),
+                                    (high > lim.stroke_max, high, lim.stroke_max, "above")):
+        if bad.any():
+            leg = int(np.argmax(bad))
+            raise StrokeLimitError(f"leg_{leg + 1}: {value[leg]:.6f} m is {word} the stroke limit {limit:.6f} m"
+                                   f"{why}", leg=leg + 1, value=float(value[leg]), limit=limit)
+    for name, values, limit, unit in (("strut_velocity_max", speed, lim.strut_velocity_max, "m/s"),
+                                      ("strut_acceleration_max", accel, lim.strut_acceleration_max, "m/s^2")):
+        if (values > limit * SPEED_TOLERANCE).any():
+            leg = int(np.argmax(values / limit))
+            raise ActuatorLimitError(
+                f"leg_{leg + 1}: {name.split('_')[1]} {values[leg]:.4g} {unit} exceeds {name} {limit:.4g} "
+                f"{unit}{why}", leg=leg + 1, limit_name=name, value=float(values[leg]), limit=limit)

@@ -12,7 +12,10 @@ the vibration planner's windows), cubic otherwise. Protocol:
   reaches (``max_lookahead_s``).
 - A window *splices* onto what is buffered at s = max(now, its first sample): the buffered
   command and the new window must agree there in position and velocity (within 0.1 % of the unit's limits);
-  from its first sample on the window replaces the buffer. When nothing is buffered the command
+  from its first sample on the window replaces the buffer (and a stop's ramp: what was faded out by a
+  stop never runs again). Between the last buffered sample before the window and its first sample the
+  command is the join segment, which starts now from the commanded state if that sample is already past
+  (so the output does not jump when the window arrives). When nothing is buffered the command
   is at rest, so a first window must start from rest (a ramp-in). A discontinuous splice is
   refused with the reason; nothing is ever latched: once the output is back at rest, any window
   that starts from rest is accepted.
@@ -86,7 +89,7 @@ class VibrationBuffer:
                  max_lookahead_s: float = 30.0, check_limits: bool = True):
         self.limits, self.watchdog_s, self.ramp_s = limits, float(watchdog_s), float(ramp_s)
         self.max_lookahead_s = float(max_lookahead_s)
-        self.check_limits = check_limits  # False for a mirror of a buffer that checks (the estimator's)
+        self.check_limits = check_limits  # False: accept any window (a mirror that trusts the checks of another)
         # "at rest": within 0.1 % of the unit's amplitude and of its largest vibration velocity
         self.rest_position = 1e-3 * limits.amplitude_max
         self.rest_velocity = 1e-3 * limits.velocity_max
@@ -124,16 +127,24 @@ class VibrationBuffer:
                 f"window ended {now - times[-1]:.3f} s before it arrived (its first sample is "
                 f"{now - times[0]:.3f} s old)", limit_name="splice", value=float(now - times[-1]), limit=0.0)
         keep = (self.times < times[0]) & (self.times >= times[0] - HISTORY_S)
-        new_t = np.concatenate([self.times[keep], times])
-        new_p = np.vstack([self.positions[keep], pos])
-        new_v = np.vstack([self.velocities[keep], vel])
-        new_a = np.vstack([self.accelerations[keep], acc])
+        if self.stop_start is not None:
+            keep &= self.times < self.stop_start  # faded out by a stop: never to run again once it is lifted
+        kept = [self.times[keep], self.positions[keep], self.velocities[keep], self.accelerations[keep]]
+        if times[0] > now and self.times.size and not (kept[0].size and kept[0][-1] >= now):
+            # the join segment to the window's first sample would start at a past sample and change what the
+            # units do now (they brake, ramp out or rest there): it starts now, from the commanded state
+            kept = [np.append(kept[0], now)] + [np.vstack([k, x]) for k, x in zip(kept[1:], self.sample([now]),
+                                                                                    strict=True)]
+        new_t = np.concatenate([kept[0], times])
+        new_p = np.vstack([kept[1], pos])
+        new_v = np.vstack([kept[2], vel])
+        new_a = np.vstack([kept[3], acc])
         splice = max(now, float(times[0]))
         self._check_splice(splice, times, pos, vel, acc, now)
         if self.check_limits:
             # the spline that will be followed, from the last kept sample (the join segment) on, and where
             # the units come to a stop if nothing follows (braking at the acceleration limit)
-            first = max(int(keep.sum()) - 1, 0)
+            first = max(kept[0].size - 1, 0)
             check_command_limits(self.limits, new_t[first:], new_p[first:], new_v[first:], new_a[first:])
             settle = np.abs(pos[-1] + vel[-1] * self.braking_time(vel[-1]))
             if (settle > self.limits.amplitude_max).any():
@@ -143,8 +154,9 @@ class VibrationBuffer:
                     f"the unit would settle at {settle[leg] * 1e6:.1f} um, beyond its amplitude_max "
                     f"{self.limits.amplitude_max * 1e6:.1f} um", leg=leg + 1, limit_name="amplitude_max",
                     value=float(settle[leg]), limit=self.limits.amplitude_max)
-        if self.stop_start is not None and splice >= self.stop_start + self.ramp_s:
-            self.stop_start, self.stop_reason = None, ""  # the ramped-out units are at rest: a new vibration
+        # the window continues what the units do at the splice (ramping out or at rest after a stop), so it
+        # replaces the stop ramp: fading it too would fade the continued command twice (a step)
+        self.stop_start, self.stop_reason = None, ""
         self.times, self.positions, self.velocities, self.accelerations = new_t, new_p, new_v, new_a
         self.last_receive = now
         return splice

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics import leg_forces
-from ..emulation.trajectory import JointTrajectory, TrajectoryFollower
+from ..emulation.trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
 from ..emulation.vibration_buffer import VibrationBuffer
 from ..errors import InvalidInputError
 from ..kinematics import forward_kinematics
@@ -30,6 +30,8 @@ from .motion import external_wrench, platform_accel, platform_twist
 # FK converged to 1e-14 m: a batch (one warm start for all) and single states (each warm-started from the
 # previous) then land on the same pose to ~1e-15 m, so their forces agree to ~1e-13 N.
 FK_TOLERANCE = 1e-14
+# the strut mirror allows the velocity step the emulator allows with its longest physics step (physics_rate_hz >= 200)
+MIRROR_STEP_S = 1 / 200
 
 
 @dataclass(frozen=True)
@@ -51,8 +53,9 @@ class ForceEstimator:
     def __init__(self, robot: Robot, vibration_ramp_s: float = 0.05, watchdog_s: float = 0.5,
                  rms_window_s: float = 1.0):
         self.robot = robot
-        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s=np.inf,
-                                         check_limits=False)  # the emulator checks; this mirrors what it accepted
+        # the emulator's checks too: every window on the topic arrives here, also those the emulator refuses (one
+        # 1e4 s ahead made this mirror command metres), so refuse what it refuses
+        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s=np.inf)
         self.struts: TrajectoryFollower | None = None  # once a state gives the held lengths
         self.pose = None  # last FK pose (warm start)
         self.errors = RunningForceError(rms_window_s)
@@ -70,13 +73,17 @@ class ForceEstimator:
 
     def command_struts(self, traj: JointTrajectory, now: float | None = None) -> None:
         """Follow a leg_* trajectory from the newest measured lengths (raises if none was measured yet);
-        ``now`` (s) defaults to the newest state's stamp."""
+        ``now`` (s) defaults to the newest state's stamp. Checked as the emulator checks it (every command
+        on the topic arrives here, also those the emulator refuses), raising its reasons."""
         now = self.state_time if now is None else now
         if self.struts is None:
             if self._last_struts is None:
                 raise InvalidInputError("no legs/joint_states yet (start state unknown)")
             self.struts = TrajectoryFollower(self._last_struts)
-        self.struts.replace(traj, now)
+        lim = self.robot.limits
+        running = checked_command(self.struts, traj, now, lim, step_speed=STEP_SPEED * lim.strut_acceleration_max
+                                  * MIRROR_STEP_S)
+        self.struts.replace(running, now)
 
     def apply_ramp(self, start: float | None, reason: str) -> None:
         """A safety ramp the emulator reports (e-stop, watchdog) from ``start`` (s); ignored when it

@@ -1,0 +1,452 @@
+"""Hostile input through the real nodes over DDS (issue 13, acceptance 2).
+
+The hardware emulator (real time), kinematics, vibration planner and leg force estimator run as separate
+processes. A client sends a few hundred malformed and boundary messages as a user could -- PoseStamped
+targets, leg and vibration JointTrajectory messages (also raw garbage bytes), bad parameters, GetPlan
+requests, start / stop / e-stop / reset in odd orders -- then checks that every node is still alive, that
+every bad parameter was refused with a reason and changed nothing, that every waypoint GetPlan returned is
+reachable, that no joint state published during the barrage broke a limit (and the force estimator's
+model stayed within the strut force limit: it mirrors the commands, and must refuse what the emulator
+refuses), and that the robot still reaches a valid target (the paper's pose) to 10 um and 0.01 deg.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Duration, Time
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import GetParameters, SetParameters
+from ros_client import RosTestClient
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
+
+from stewart_vibration import inverse_kinematics, load_robot
+from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES
+from stewart_vibration.kinematics import check_pose
+from stewart_vibration.messages import cdr
+from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
+from stewart_vibration.paper import paper_pose
+from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.rotations import quaternion_from_rpy
+from stewart_vibration.vibration.waveform import sinusoid
+
+pytestmark = [pytest.mark.integration]
+SIM = ["--ros-args", "-p", "use_sim_time:=true"]
+NODES = {  # name: (module, arguments)
+    "emulator": ("stewart_vibration.nodes.hardware_emulator_node", ["--ros-args", "-p", "real_time_factor:=1"]),
+    "kinematics": ("stewart_vibration.nodes.kinematics_node", SIM),
+    "planner": ("stewart_vibration.nodes.vibration_planner_node", SIM),
+    "estimator": ("stewart_vibration.nodes.leg_force_estimator_node", SIM),
+}
+NAN, INF = math.nan, math.inf
+CALL_TIMEOUT = 10.0
+
+
+def stamp_msg(seconds: float) -> Time:
+    sec = math.floor(seconds)
+    return Time(sec=int(np.clip(sec, -2**31, 2**31 - 1)), nanosec=int((seconds - sec) * 1e9) % 1_000_000_000)
+
+
+def duration_msg(seconds: float) -> Duration:
+    sec = math.floor(seconds)
+    return Duration(sec=int(np.clip(sec, -2**31, 2**31 - 1)), nanosec=int((seconds - sec) * 1e9) % 1_000_000_000)
+
+
+def trajectory(names, stamp: float, times, positions, velocities=None, accelerations=None) -> JointTrajectory:
+    msg = JointTrajectory()
+    msg.header.stamp = stamp_msg(stamp)
+    msg.joint_names = list(names)
+    for i, t in enumerate(times):
+        point = JointTrajectoryPoint()
+        point.positions = [float(x) for x in positions[i]] if i < len(positions) else []
+        if velocities is not None and i < len(velocities):
+            point.velocities = [float(x) for x in velocities[i]]
+        if accelerations is not None and i < len(accelerations):
+            point.accelerations = [float(x) for x in accelerations[i]]
+        point.time_from_start = duration_msg(t)
+        msg.points.append(point)
+    return msg
+
+
+def hostile_targets(robot, rng) -> list[PoseStamped]:
+    """Malformed and boundary PoseStamped targets, and a few legal ones near home."""
+    home = np.asarray(robot.home_pose, float)
+    out = []
+    specials = [NAN, INF, -INF, 1e308, -1e308, 0.0, 1e9]
+    for i in range(90):
+        pose = home + rng.uniform(-0.03, 0.03, 6) * [1, 1, 1, 10, 10, 10]
+        msg = pose_stamped(pose, Time(), rng.choice(["base", "", "base", "world", "platform", "Base", " base"]))
+        q = msg.pose.orientation
+        kind = i % 6
+        if kind == 0:
+            setattr(msg.pose.position, "xyz"[i % 3], float(rng.choice(specials)))
+        elif kind == 1:
+            q.x, q.y, q.z, q.w = (0.0, 0.0, 0.0, 0.0) if i % 2 else (NAN, 0.0, 0.0, 1.0)
+        elif kind == 2:  # quaternion norm around the 1e-3 tolerance
+            scale = 1.0 + float(rng.choice([5e-4, -9.9e-4, 1.1e-3, -2e-3, 0.5]))
+            q.x, q.y, q.z, q.w = (v * scale for v in (q.x, q.y, q.z, q.w))
+        elif kind == 3:
+            q.x, q.y, q.z, q.w = (float(v) for v in rng.uniform(-1, 1, 4))
+        elif kind == 4:  # legal if reachable: the robot moves
+            msg.header.frame_id = "base"
+            pose = home + rng.uniform(-0.005, 0.005, 6) * [1, 1, 1, 10, 10, 10]
+            msg = pose_stamped(pose, Time(), "base")
+        out.append(msg)
+    return out
+
+
+def hostile_leg_trajectories(robot, rng) -> list[tuple[JointTrajectory, bool]]:
+    """Malformed, boundary and a few legal leg_* trajectories, each with whether its stamp is relative to the
+    sim time it is sent at (else 0 = now)."""
+    home = inverse_kinematics(robot, robot.home_pose)
+    lim = robot.limits
+    out = []
+    for i in range(90):
+        n = int(rng.integers(1, 5))
+        times = np.cumsum(rng.uniform(0.2, 2.0, n))
+        pos = home + rng.uniform(-0.004, 0.004, (n, 6))
+        vel = np.zeros((n, 6))
+        names = list(LEG_NAMES)
+        stamp = 0.0
+        kind = i % 15
+        if kind == 0:
+            names = names[::-1][:5] + ["vib_1"]
+        elif kind == 1:
+            stamp = -5.0  # late: past points dropped, or refused
+        elif kind == 2:
+            stamp = 1000.0
+        elif kind == 3:
+            pos[-1, i % 6] = NAN
+        elif kind == 4:
+            pos[-1] = home + 0.05  # a 50 mm jump
+            times = times * 0.01
+        elif kind == 5:
+            times = times[::-1].copy()
+        elif kind == 6:
+            pos = pos[:, :5]
+        elif kind == 7:
+            vel[-1] = 0.01  # ends moving
+        elif kind == 8:
+            pos[-1, 0] = lim.stroke_max + 0.01
+        elif kind == 9:
+            times = np.array([0.0])[:n] if n == 1 else times - times[0]  # a first point at the start
+        elif kind == 10:
+            vel = None  # positions only
+        elif kind == 11:
+            stamp = float(rng.uniform(0.1, 3.0))  # in the future
+        elif kind == 12:
+            out.append((trajectory(names, 0.0, [], []), False))  # no points
+            continue
+        elif kind == 13:
+            stamp = -float(rng.uniform(0.05, 0.5))
+        out.append((trajectory(names, stamp, times, pos, vel), kind in (1, 2, 11, 13)))
+    return out
+
+
+def hostile_vibration_windows(robot, rng) -> list[tuple[JointTrajectory, bool]]:
+    """Malformed, boundary and a few legal vib_* windows (ramped sinusoids, 1-2 points, late, too large), each
+    stamped relative to the sim time it is sent at."""
+    unit = robot.vibration_unit
+    out = []
+    for i in range(70):
+        t0 = float(rng.uniform(0.1, 0.5))
+        rel = np.arange(0.0, 0.4, 1e-3)
+        amp = float(rng.choice([10e-6, 30e-6, 2 * unit.amplitude_max]))
+        freq = float(rng.choice([35.0, 80.0, 119.0, 300.0]))
+        p, v, a = sinusoid(rel, amp, freq, 0.0, duration=0.4, ramp_time=0.1)
+        gains = rng.uniform(-1, 1, 6)
+        pos, vel, acc = p[:, None] * gains, v[:, None] * gains, a[:, None] * gains
+        names = list(VIB_NAMES)
+        kind = i % 10
+        if kind == 0:
+            names[2] = "leg_3"
+        elif kind == 1:
+            t0 = -0.2  # late: the units are not where it starts
+        elif kind == 2:
+            rel, pos, vel, acc = rel[:1], np.full((1, 6), 5e-5), None, None  # one point away from rest
+        elif kind == 3:
+            rel, pos, vel, acc = rel[:2] * 10, np.array([np.zeros(6), np.full(6, 2e-5)]), None, None
+        elif kind == 4:
+            pos = pos.copy()
+            pos[5, 0] = INF
+        elif kind == 5:
+            acc = acc[:-1]
+        elif kind == 6:
+            t0 = 1e4  # far beyond max_lookahead_s
+        elif kind == 7:
+            rel, pos, vel, acc = rel[:200], pos[:200], vel[:200], acc[:200]  # ends moving (watchdog)
+        out.append((trajectory(names, t0, rel, pos, vel, acc), True))
+    return out
+
+
+def garbage(rng, valid: bytes, count: int) -> list[bytes]:
+    """Truncated, bit-flipped, count-overwritten and random byte strings."""
+    out = []
+    for i in range(count):
+        buf = bytearray(valid)
+        kind = i % 4
+        if kind == 0:
+            del buf[int(rng.integers(0, len(buf))):]
+        elif kind == 1:
+            for at in rng.integers(0, len(buf), 3):
+                buf[at] ^= 1 << int(rng.integers(0, 8))
+        elif kind == 2:
+            at = 4 * int(rng.integers(1, len(buf) // 4))
+            buf[at:at + 4] = int(rng.choice([0xFFFFFFFF, 2**31, 1000, 7])).to_bytes(4, "little")
+        else:
+            buf = bytearray(rng.bytes(int(rng.integers(0, 200))))
+        out.append(bytes(buf))
+    return out
+
+
+def param(name: str, value) -> ParameterMsg:
+    """A parameter message of any type (a string for a double, NaN, an array...)."""
+    v = ParameterValue()
+    if isinstance(value, bool):
+        v.type, v.bool_value = ParameterType.PARAMETER_BOOL, value
+    elif isinstance(value, int):
+        v.type, v.integer_value = ParameterType.PARAMETER_INTEGER, value
+    elif isinstance(value, float):
+        v.type, v.double_value = ParameterType.PARAMETER_DOUBLE, value
+    elif isinstance(value, str):
+        v.type, v.string_value = ParameterType.PARAMETER_STRING, value
+    else:
+        v.type, v.double_array_value = ParameterType.PARAMETER_DOUBLE_ARRAY, [float(x) for x in value]
+    return ParameterMsg(name=name, value=v)
+
+
+BAD_PARAMETERS = {
+    "vibration_planner": [
+        ("frequency_hz", NAN), ("frequency_hz", 1e6), ("frequency_hz", -35.0), ("frequency_hz", "35"),
+        ("amplitude_m", INF), ("amplitude_m", -1e-5), ("acceleration_g", 11.0), ("direction", [0.0, 0.0, 0.0]),
+        ("direction", [NAN, 0.0, 1.0]), ("direction", [1.0, 0.0]), ("direction", "up"), ("frame", "world"),
+        ("frame", 3), ("ramp_s", 0.0), ("duration_s", 0.05), ("lookahead_s", 0.2), ("sample_period_s", 0.0),
+        ("sample_period_s", 0.04), ("start_lead_s", 0.0), ("max_lookahead_s", 1e9), ("robot_config", "/etc/passwd"),
+        ("no_such_parameter", 1.0), ("use_sim_time", "yes"),
+    ],
+    "hardware_emulator": [
+        ("real_time_factor", -1.0), ("real_time_factor", NAN), ("real_time_factor", "fast"), ("real_time_factor", 1e9),
+        ("watchdog_s", 0.0), ("watchdog_s", INF), ("vibration_ramp_s", 1.0), ("max_lookahead_s", -5.0),
+        ("physics_rate_hz", 200.0), ("state_rate_hz", 50.0), ("autostart", False), ("robot_config", ""),
+        ("drive_gain_interval", 0), ("marker_rate_hz", [1.0, 2.0]), ("no_such_parameter", True),
+    ],
+}
+
+
+def hostile_plan_requests(robot, rng) -> list[GetPlan.Request]:
+    out = []
+    for i in range(24):
+        request = GetPlan.Request()
+        goal = np.asarray(robot.home_pose, float) + rng.uniform(-0.01, 0.01, 6)
+        request.goal = pose_stamped(goal, Time(), "base")
+        kind = i % 8
+        if kind == 0:
+            request.goal.pose.position.x = NAN
+        elif kind == 1:
+            request.goal.header.frame_id = "world"
+        elif kind == 2:
+            request.goal.pose.position.z = 1e7  # far: refused before any path is built
+        elif kind == 3:
+            request.goal.pose.orientation.w = 0.0
+            request.goal.pose.orientation.z = 0.0
+        elif kind == 4:
+            request.start = pose_stamped(goal, Time(), "platform")
+        elif kind == 5:
+            request.start.pose.position.z = -INF
+            request.start.header.frame_id = "base"
+        elif kind == 6:
+            request.tolerance = NAN
+        out.append(request)  # kind 7: a legal goal-only request
+    return out
+
+
+TRIGGER_ORDER = ["vibration_planner/start", "vibration_planner/start", "hardware_emulator/reset",
+                 "vibration_planner/stop", "hardware_emulator/emergency_stop", "vibration_planner/start",
+                 "hardware_emulator/emergency_stop", "vibration_planner/stop", "hardware_emulator/reset",
+                 "hardware_emulator/reset", "vibration_planner/start", "hardware_emulator/emergency_stop",
+                 "hardware_emulator/reset", "vibration_planner/start", "vibration_planner/stop",
+                 "vibration_planner/stop", "hardware_emulator/reset"]
+
+
+class Hostile:
+    """The four node processes and a client recording joint states, ground-truth poses and the clock."""
+
+    def __init__(self, domain, log_dir):
+        env = ros_environment(domain)
+        self.procs = {name: start_python_module(name, module, args, env, log_dir)
+                      for name, (module, args) in NODES.items()}
+        self.client = c = RosTestClient("hostile_client")
+        self.states = c.subscribe("legs/joint_states", JointState, depth=5000)
+        self.poses = c.subscribe("platform/pose", PoseStamped, depth=100)
+        self.clock = c.subscribe("/clock", Clock, depth=10)
+        self.estimates = c.subscribe("platform/pose_estimate", PoseStamped, depth=10)
+        self.forces = c.subscribe("legs/force_estimate", JointState, depth=5000)
+        self.answers = []  # (what, success or None, message) of every service call
+        ready = c.spin_until(lambda: self.clock and len(self.estimates) > 10 and len(self.states) > 100, 60)
+        assert ready, self.logs()
+        for srv_type, name in ((Trigger, "vibration_planner/start"), (Trigger, "hardware_emulator/reset"),
+                               (GetPlan, "kinematics/plan_path"), (SetParameters, "vibration_planner/set_parameters"),
+                               (SetParameters, "hardware_emulator/set_parameters")):
+            assert c.node.create_client(srv_type, name).wait_for_service(timeout_sec=30), (name, self.logs())
+
+    def now(self) -> float:
+        c = self.clock[-1].clock
+        return c.sec + c.nanosec * 1e-9
+
+    def call(self, srv_type, name: str, request):
+        response = self.client.call(srv_type, name, request, timeout=CALL_TIMEOUT)
+        self.answers.append((name, getattr(response, "success", None), getattr(response, "message", "")))
+        return response
+
+    def dead(self) -> list[str]:
+        return [name for name, proc in self.procs.items() if not proc.alive()]
+
+    def logs(self) -> str:
+        return "\n".join(f"--- {n}\n{p.log_text()[-3000:]}" for n, p in self.procs.items())
+
+    def close(self) -> None:
+        self.client.close()
+        for proc in self.procs.values():
+            proc.stop()
+
+
+def assert_joint_states_within_limits(robot, states) -> None:
+    """Every published state: strut lengths within the stroke, vib_i within amplitude_max, strut speed from
+    consecutive samples within strut_velocity_max (1 %)."""
+    lim, unit = robot.limits, robot.vibration_unit
+    stamps = np.array([m.header.stamp.sec + m.header.stamp.nanosec * 1e-9 for m in states])
+    pos = np.array([m.position for m in states])
+    order = np.argsort(stamps, kind="stable")
+    stamps, pos = stamps[order], pos[order]
+    struts, vib = pos[:, :6], pos[:, 6:12]
+    assert struts.min() >= lim.stroke_min - 1e-5 and struts.max() <= lim.stroke_max + 1e-5, \
+        f"strut lengths {struts.min()}..{struts.max()} m outside the stroke"
+    assert np.abs(vib).max() <= unit.amplitude_max * (1 + 1e-3), f"vibration {np.abs(vib).max() * 1e6} um"
+    dt = np.diff(stamps)
+    consecutive = (dt > 1e-4) & (dt < 2.5e-3)
+    speed = (np.abs(np.diff(struts, axis=0)).max(axis=1) / np.where(consecutive, dt, 1.0))[consecutive]
+    assert consecutive.sum() > 0.5 * len(stamps), "too few consecutive joint states to judge the strut speed"
+    assert speed.max() <= lim.strut_velocity_max * 1.01, f"strut speed {speed.max()} m/s"
+
+
+def pose_error(msg, target) -> tuple[float, float]:
+    """(position error m, orientation error deg) of a ground-truth PoseStamped against a pose vector."""
+    p, o = msg.pose.position, msg.pose.orientation
+    q = np.array([o.x, o.y, o.z, o.w])
+    qt = quaternion_from_rpy(target[3:])
+    angle = 2 * math.degrees(math.acos(min(1.0, abs(float(np.dot(q / np.linalg.norm(q), qt))))))
+    return float(np.linalg.norm(np.array([p.x, p.y, p.z]) - target[:3])), angle
+
+
+@pytest.fixture
+def hostile(ros_domain, tmp_path):
+    suite = Hostile(ros_domain, tmp_path)
+    try:
+        yield suite
+    finally:
+        suite.close()
+
+
+def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target(hostile):
+    robot = load_robot()
+    rng = np.random.default_rng(13)
+    c = hostile.client
+    target_pub = c.publisher("platform/target_pose", PoseStamped)
+    legs_pub = c.publisher("legs/joint_trajectory", JointTrajectory)
+    vib_pub = c.publisher("vibration/joint_trajectory", JointTrajectory)
+    assert c.wait_for_subscribers("platform/target_pose") and c.wait_for_subscribers("legs/joint_trajectory", 2) \
+        and c.wait_for_subscribers("vibration/joint_trajectory", 2), hostile.logs()
+    first_state = len(hostile.states)
+    now = hostile.now()
+    sent = 0
+
+    def publish(pub, msg):
+        nonlocal sent
+        if isinstance(msg, tuple):  # (trajectory, stamp relative to the sim time now)
+            msg, relative = msg
+            if relative:
+                stamp = msg.header.stamp
+                msg.header.stamp = stamp_msg(hostile.now() + stamp.sec + stamp.nanosec * 1e-9)
+        pub.publish(msg)
+        sent += 1
+        c.spin_for(0.01)
+
+    targets = hostile_targets(robot, rng)
+    legs = hostile_leg_trajectories(robot, rng)
+    windows = hostile_vibration_windows(robot, rng)
+    valid_legs = cdr.encode_joint_trajectory(LEG_NAMES, now, [1.0, 2.0], np.full((2, 6), 0.174))
+    valid_vib = cdr.encode_joint_trajectory(VIB_NAMES, now + 0.2, [0.0, 0.01], np.zeros((2, 6)), np.zeros((2, 6)))
+    raw_legs, raw_vib = garbage(rng, valid_legs, 30), garbage(rng, valid_vib, 30)
+    plans = hostile_plan_requests(robot, rng)
+    triggers = iter(TRIGGER_ORDER)
+    bad_params = [(node, p) for node, params in BAD_PARAMETERS.items() for p in params]
+    refusals = []  # (node, parameter, value, successful, reason)
+    paths = []  # the poses of every GetPlan answer
+    for i in range(max(len(targets), len(legs), len(windows))):
+        for pub, batch in ((target_pub, targets), (legs_pub, legs), (vib_pub, windows), (legs_pub, raw_legs),
+                           (vib_pub, raw_vib)):
+            if i < len(batch):
+                publish(pub, batch[i])
+        if i % 2 == 0 and bad_params:
+            node, (name, value) = bad_params.pop()
+            result = hostile.call(SetParameters, f"{node}/set_parameters",
+                                  SetParameters.Request(parameters=[param(name, value)])).results[0]
+            refusals.append((node, name, value, result.successful, result.reason))
+            sent += 1
+        if i % 3 == 0 and plans:
+            paths.append(hostile.call(GetPlan, "kinematics/plan_path", plans.pop()).plan.poses)
+            sent += 1
+        if i % 5 == 0:
+            name = next(triggers, None)
+            if name is not None:
+                hostile.call(Trigger, name, Trigger.Request())
+                sent += 1
+    assert sent >= 300
+    c.spin_for(1.0)
+    assert not hostile.dead(), f"dead after the barrage: {hostile.dead()}\n{hostile.logs()}"
+    taken = [r for r in refusals if r[3] or not r[4].strip()]
+    assert not taken and len(refusals) == sum(map(len, BAD_PARAMETERS.values())), \
+        f"bad parameters taken or refused without a reason: {taken}"
+    for node, params in BAD_PARAMETERS.items():  # every bad value was refused: the values are unchanged
+        names = sorted({n for n, _ in params if n != "no_such_parameter"})
+        values = hostile.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=names)).values
+        got = dict(zip(names, values, strict=True))
+        if node == "hardware_emulator":
+            assert got["real_time_factor"].double_value == 1.0 and got["watchdog_s"].double_value == 0.5
+        else:
+            assert got["frequency_hz"].double_value == 35.0 and list(got["direction"].double_array_value) == [
+                0.0, 0.0, 1.0] and got["frame"].string_value == "platform"
+    assert_joint_states_within_limits(robot, hostile.states[first_state:])
+    planned = [path for path in paths if path]
+    assert planned and len(planned) < len(paths), "the legal GetPlan requests get a path, the bad ones none"
+    for path in planned:  # every waypoint of every answer is reachable (stroke, joints, conditioning)
+        check_pose(robot, np.array([pose_from_msg(m.pose) for m in path]))
+    # the force estimator mirrors the commands: those the emulator refused must not enter its model (a refused
+    # 50 mm jump made it report 3 kN)
+    modelled = np.abs(np.array([m.effort for m in hostile.forces])).max()
+    assert modelled <= robot.limits.strut_force_max, f"modelled leg force {modelled} N"
+
+    # the robot still works: stop any vibration, clear an e-stop, go to the paper's pose
+    hostile.call(Trigger, "vibration_planner/stop", Trigger.Request())
+    hostile.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request())  # latched now, whatever it was
+    c.spin_for(0.5)
+    assert hostile.call(Trigger, "hardware_emulator/reset", Trigger.Request()).success, hostile.logs()
+    target = paper_pose(robot)
+    c.spin_for(3.0)  # the reset's move home
+    publish(target_pub, pose_stamped(target, Time(), "base"))
+
+    def reached() -> bool:
+        recent = hostile.poses[-50:]
+        return len(recent) == 50 and all(
+            e[0] <= 10e-6 and e[1] <= 0.01 for e in (pose_error(m, target) for m in recent))
+
+    assert c.spin_until(reached, 60), (pose_error(hostile.poses[-1], target), hostile.answers[-6:], hostile.logs())
+    assert not hostile.dead(), f"dead at the end: {hostile.dead()}\n{hostile.logs()}"
