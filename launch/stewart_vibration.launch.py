@@ -2,7 +2,7 @@
 parameters as `stewart-vibration run` in the pip world).
 
     ros2 launch stewart_vibration stewart_vibration.launch.py \
-        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs]
+        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs] [foxglove:=true] [ui:=true]
 
 Parameters come from share/stewart_vibration/config/suite_params.yaml (one
 file for both worlds); the node list from stewart_vibration.suite. DDS: like
@@ -24,6 +24,7 @@ from launch.actions import (
     SetEnvironmentVariable,
     UnsetEnvironmentVariable,
 )
+from launch.conditions import IfCondition
 from launch.events import matches_action
 from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import LifecycleNode, Node
@@ -32,7 +33,7 @@ from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
 from stewart_vibration.processes import DDS_PROFILE_ENV, dds_environment
-from stewart_vibration.suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
+from stewart_vibration.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 
 
 def generate_launch_description():
@@ -59,6 +60,11 @@ def generate_launch_description():
             parameters=[params, overrides.get(node.name, {})],
             output="screen",
         ))
+    optional = [
+        Node(package="stewart_vibration", executable=spec.executable, name=spec.name, namespace=namespace,
+             parameters=[params], output="screen", condition=IfCondition(LaunchConfiguration(key)))
+        for key, spec in OPTIONAL_NODES.items()
+    ]
     # the hardware emulator is a managed node: configure it at start, activate it once it is inactive
     emulator = next(n for n, spec in zip(nodes, SUITE_NODES, strict=True) if spec.name == "hardware_emulator")
     lifecycle = [
@@ -74,8 +80,11 @@ def generate_launch_description():
             DeclareLaunchArgument("namespace", default_value=DEFAULT_NAMESPACE),
             DeclareLaunchArgument("real_time_factor", default_value="1.0"),
             DeclareLaunchArgument("output_dir", default_value="runs"),
+            DeclareLaunchArgument("foxglove", default_value="false"),
+            DeclareLaunchArgument("ui", default_value="false"),
             *dds,
             *nodes,
+            *optional,
             *lifecycle,
         ]
     )

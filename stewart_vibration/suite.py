@@ -20,5 +20,11 @@ SUITE_NODES = [
     SuiteNode("leg_force_estimator", "leg_force_estimator_node", "stewart_vibration.nodes.leg_force_estimator_node"),
     SuiteNode("mcap_recorder", "mcap_recorder", "stewart_vibration.nodes.mcap_recorder_node"),
 ]
+# Nodes the bring-up starts on request (`stewart-vibration run --foxglove / --ui`; launch arguments
+# foxglove:=true / ui:=true): views and user interfaces over the same topics and services as any client.
+OPTIONAL_NODES = {
+    "foxglove": SuiteNode("foxglove_bridge", "foxglove_bridge", "stewart_vibration.nodes.foxglove_bridge_node"),
+    "ui": SuiteNode("planning_ui", "planning_ui", "stewart_vibration.nodes.planning_ui_node"),
+}
 SUITE_PARAMS_FILE = "suite_params.yaml"  # in config/
 DEFAULT_NAMESPACE = "/stewart"

@@ -169,6 +169,7 @@ def _launch_actions(monkeypatch, share_dir: Path):
             UnsetEnvironmentVariable=record("unset"), EmitEvent=record("emit"),
             RegisterEventHandler=record("handler")),
         "launch.events": types.SimpleNamespace(matches_action=record("matches")),
+        "launch.conditions": types.SimpleNamespace(IfCondition=record("if")),
         "launch.substitutions": types.SimpleNamespace(LaunchConfiguration=record("config")),
         "launch_ros": types.SimpleNamespace(),
         "launch_ros.actions": types.SimpleNamespace(Node=record("node"), LifecycleNode=record("lifecycle_node")),

@@ -22,7 +22,7 @@ import numpy as np
 from ..processes import claim_ros_domain
 from ..robot import load_robot
 from ..scenario import load_scenario
-from ..suite import SUITE_NODES
+from ..suite import OPTIONAL_NODES, SUITE_NODES
 from .arguments import nonnegative_float, positive_float
 from .output import to_jsonable
 
@@ -43,6 +43,11 @@ def register(subparsers) -> None:
     cmd.add_argument("--respawn", default=",".join(n.name for n in SUITE_NODES if n.name != "hardware_emulator"),
                      help="with --keep-running: nodes restarted when they exit (comma-separated; default: all "
                           "but hardware_emulator, whose restart would move the robot home)")
+    cmd.add_argument("--foxglove", action="store_true",
+                     help="also start the Foxglove bridge (WebSocket on 127.0.0.1:8765 by default)")
+    cmd.add_argument("--ui", action="store_true",
+                     help="also start the planning UI (a browser page on 127.0.0.1; its URL with the access "
+                          "token is printed)")
     cmd.add_argument("--json", action="store_true", help="print the summary as JSON")
     cmd.set_defaults(func=run)
 
@@ -86,8 +91,9 @@ def run(args) -> int:
         return 2
     out = Path(args.out)
     domain, _lock, source = _choose_domain(args.domain_id)
+    extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
-                         out_dir=out, progress=_log)
+                         out_dir=out, progress=_log, extra_nodes=extra)
     signal.signal(signal.SIGTERM, _on_sigterm)
     runner = SuiteRunner(options)
     status, failure = 0, None
@@ -98,6 +104,7 @@ def run(args) -> int:
     try:
         runner.start()
         runner.wait_ready()
+        _print_views(runner, extra)
         runner.run(scenario)
         if args.keep_running:
             _print_ui_help(args.namespace, domain)
@@ -179,6 +186,21 @@ def _write_report(mcap_path: Path, report_dir: Path) -> str | None:
         _log(f"report failed: {result.stderr.strip()[-500:]}")
         return None
     return str(report_dir)
+
+
+def _print_views(runner, extra) -> None:
+    """The addresses the optional nodes print in their logs (lines with 'http://' or 'ws://')."""
+    for key in extra:
+        node = OPTIONAL_NODES[key].name
+        deadline = time.monotonic() + 20
+        lines = []
+        while time.monotonic() < deadline and not lines:
+            lines = runner.log_lines(node, "://")
+            time.sleep(0.2)
+        for line in lines[-2:]:
+            _log(f"{node}: {line.split('] ')[-1]}")
+        if not lines:
+            _log(f"{node}: no address in its log yet (see {runner.record.log_dir}/{node}.log)")
 
 
 def _print_ui_help(namespace: str, domain: int) -> None:

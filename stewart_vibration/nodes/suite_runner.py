@@ -41,7 +41,7 @@ from ..processes import (
 )
 from ..robot import default_config_dir
 from ..scenario import MoveStep, Scenario, VibrateStep
-from ..suite import DEFAULT_NAMESPACE, SUITE_NODES, SUITE_PARAMS_FILE
+from ..suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 from . import ensure_ament_prefix_path
 from .common import pose_from_msg, pose_stamped
 from .mcap_ros import make_executor
@@ -68,6 +68,7 @@ class RunOptions:
     real_time_factor: float = 1.0
     out_dir: Path = Path("runs")
     params_file: Path | None = None
+    extra_nodes: tuple = ()  # OPTIONAL_NODES keys to start as well ("foxglove", "ui")
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -111,7 +112,7 @@ class SuiteRunner:
             "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}", "-p", "autostart:=false"],
             "mcap_recorder": ["-p", f"output_dir:={opts.out_dir.resolve()}"],
         }
-        for node in SUITE_NODES:
+        for node in SUITE_NODES + [OPTIONAL_NODES[key] for key in opts.extra_nodes]:
             self.procs.append(start_python_module(node.name, node.module, common + extra.get(node.name, []), env,
                                                   self.record.log_dir))
         # the runner's own client gets the suite's DDS transport profile too (loopback only by default); Fast DDS
@@ -248,6 +249,11 @@ class SuiteRunner:
         request.transition.id = transition_id
         if not self.call(ChangeState, f"{node}/change_state", request, timeout=60.0).success:
             raise StepFailed(f"{node} refused the lifecycle transition '{label}' (see {self.record.log_dir})")
+
+    def log_lines(self, node: str, marker: str) -> list[str]:
+        """Lines of ``node``'s log that contain ``marker`` (e.g. the URL an optional node prints)."""
+        proc = next((p for p in self.procs if p.name == node), None)
+        return [line for line in proc.log_text().splitlines() if marker in line] if proc else []
 
     def wait_ready(self) -> None:
         ns = self.options.namespace.rstrip("/")
