@@ -216,3 +216,24 @@ def test_status_follows_the_vibration(buffer):
     status = buffer.status(stamp + 0.62)
     assert status.state == "ramping_out" and status.ramp_reason == "emergency stop"
     assert buffer.status(stamp + 0.8).state == "idle"
+
+
+def test_a_repeated_window_prefix_is_not_checked_twice_but_its_new_tail_is(buffer, robot):
+    """A streamed window repeats the buffered samples up to the old tail; only the new part is checked again,
+    and a new part beyond the limits is still refused."""
+    import stewart_vibration.emulation.vibration_buffer as module
+
+    calls = []
+    checker = module.check_command_limits
+    buffer.add(window(40.0, 0.0, 1.0, tail=0.8), now=39.5)
+    try:
+        module.check_command_limits = lambda *args: (calls.append(len(args[1])), checker(*args))[1]
+        buffer.add(window(40.0, 0.3, 1.6, tail=1.4), now=40.1)
+        assert calls and calls[-1] < 1300 * 0.7  # the 0.5 s repeated prefix (500 knots) is not sampled again
+        bad = window(40.0, 0.6, 2.2, tail=2.0)
+        t = np.arange(round(0.6 * 1000), round(2.2 * 1000) + 1) / 1000.0
+        bad.positions[t > 1.7] *= 4.0  # beyond the amplitude limit after the repeated prefix
+        with pytest.raises(VibrationLimitError):
+            buffer.add(bad, now=40.4)
+    finally:
+        module.check_command_limits = checker

@@ -142,9 +142,12 @@ class VibrationBuffer:
         splice = max(now, float(times[0]))
         self._check_splice(splice, times, pos, vel, acc, now)
         if self.check_limits:
-            # the spline that will be followed, from the last kept sample (the join segment) on, and where
-            # the units come to a stop if nothing follows (braking at the acceleration limit)
-            first = max(kept[0].size - 1, 0)
+            # the spline that will be followed, from the last kept sample (the join segment) on -- less the
+            # leading samples that repeat buffered ones exactly (checked when they came: a streamed window
+            # repeats three quarters of the last) -- and where the units come to a stop if nothing follows
+            # (braking at the acceleration limit)
+            same = self._repeated_prefix(times, pos, vel, acc)
+            first = kept[0].size + same - 1 if same else max(kept[0].size - 1, 0)
             check_command_limits(self.limits, new_t[first:], new_p[first:], new_v[first:], new_a[first:])
             settle = np.abs(pos[-1] + vel[-1] * self.braking_time(vel[-1]))
             if (settle > self.limits.amplitude_max).any():
@@ -160,6 +163,21 @@ class VibrationBuffer:
         self.times, self.positions, self.velocities, self.accelerations = new_t, new_p, new_v, new_a
         self.last_receive = now
         return splice
+
+    def _repeated_prefix(self, times, pos, vel, acc) -> int:
+        """How many leading knots of a window equal buffered knots (time, position, velocity, acceleration)
+        exactly; 0 while a stop ramp is pending (the buffer will change under it)."""
+        if self.stop_start is not None or not self.times.size:
+            return 0
+        i0 = int(np.searchsorted(self.times, times[0]))
+        n = min(len(times), len(self.times) - i0)
+        if n <= 0:
+            return 0
+        sl = slice(i0, i0 + n)
+        same = (self.times[sl] == times[:n]) & (self.positions[sl] == pos[:n]).all(axis=1) & \
+            (self.velocities[sl] == vel[:n]).all(axis=1) & \
+            ((self.accelerations[sl] == acc[:n]) | (np.isnan(self.accelerations[sl]) & np.isnan(acc[:n]))).all(axis=1)
+        return n if same.all() else int(np.argmin(same))
 
     def _check_splice(self, splice: float, times, pos, vel, acc, now: float) -> None:
         old_p, old_v, _ = self.sample([splice])
