@@ -36,25 +36,28 @@ def _solve(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
         raise SingularPoseError("singular Jacobian: platform motion is not determined by the leg rates") from exc
 
 
-def platform_twist(robot, pose, length_rate) -> np.ndarray:
-    """Twist [..., 6] = [v, w] (m/s, rad/s, base frame) from hinge-length rates L_dot [..., 6] (m/s)."""
+def platform_twist(robot, pose, length_rate, jac=None) -> np.ndarray:
+    """Twist [..., 6] = [v, w] (m/s, rad/s, base frame) from hinge-length rates L_dot [..., 6] (m/s).
+    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
     pose = as_batch(pose, 6, "pose")
     rate = as_batch(length_rate, 6, "length_rate")
-    return _solve(jacobian(robot, pose), rate)
+    return _solve(jacobian(robot, pose) if jac is None else jac, rate)
 
 
-def platform_accel(robot, pose, twist, length_accel) -> np.ndarray:
-    """Acceleration [..., 6] = [a, alpha] of the platform origin from L_ddot [..., 6] (m/s^2) and the twist."""
+def platform_accel(robot, pose, twist, length_accel, jac=None) -> np.ndarray:
+    """Acceleration [..., 6] = [a, alpha] of the platform origin from L_ddot [..., 6] (m/s^2) and the twist.
+    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
     pose = as_batch(pose, 6, "pose")
     twist = as_batch(twist, 6, "twist")
     acc = as_batch(length_accel, 6, "length_accel")
     velocity_part = leg_motion(robot, pose, twist, np.zeros_like(twist)).length_accel
-    return _solve(jacobian(robot, pose), acc - velocity_part)
+    return _solve(jacobian(robot, pose) if jac is None else jac, acc - velocity_part)
 
 
-def external_wrench(robot, pose, measured, model) -> np.ndarray:
-    """External wrench on the platform [..., 6] = -J^T (F_measured - F_model) (N, N m about the platform origin)."""
-    jac = jacobian(robot, as_batch(pose, 6, "pose"))
+def external_wrench(robot, pose, measured, model, jac=None) -> np.ndarray:
+    """External wrench on the platform [..., 6] = -J^T (F_measured - F_model) (N, N m about the platform origin).
+    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
+    jac = jacobian(robot, as_batch(pose, 6, "pose")) if jac is None else jac
     diff = as_batch(measured, 6, "measured") - as_batch(model, 6, "model")
     return -np.einsum("...ij,...i->...j", jac, diff)
 

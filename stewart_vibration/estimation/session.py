@@ -23,7 +23,7 @@ from ..dynamics import leg_forces
 from ..emulation.trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
 from ..emulation.vibration_buffer import VibrationBuffer
 from ..errors import InvalidInputError
-from ..kinematics import forward_kinematics
+from ..kinematics import forward_kinematics, jacobian
 from ..robot import Robot
 from .motion import external_wrench, platform_accel, platform_twist
 
@@ -114,9 +114,10 @@ class ForceEstimator:
             return ForceEstimate(ok, *(np.empty((0, 6)) for _ in range(4)))
         pose = fk.pose[ok]
         times = stamps[ok]
-        twist = platform_twist(self.robot, pose, rates[ok])
+        jac = jacobian(self.robot, pose)
+        twist = platform_twist(self.robot, pose, rates[ok], jac)
         accel_legs = self.struts.sample(times)[2] + self.vibration.sample(times)[2]
-        accel = platform_accel(self.robot, pose, twist, accel_legs)
+        accel = platform_accel(self.robot, pose, twist, accel_legs, jac)
         forces = leg_forces(self.robot, pose, twist, accel)
         self.pose = pose[-1]
         wrench = np.full_like(forces, np.nan)
@@ -124,7 +125,7 @@ class ForceEstimator:
             measured = np.asarray(efforts, float)[ok]
             have = np.isfinite(measured).all(axis=1)
             if have.any():
-                wrench[have] = external_wrench(self.robot, pose[have], measured[have], forces[have])
+                wrench[have] = external_wrench(self.robot, pose[have], measured[have], forces[have], jac[have])
                 self.errors.add_batch(times[have], measured[have], forces[have])
         return ForceEstimate(ok, times, pose, forces, wrench)
 
