@@ -1,0 +1,255 @@
+"""The robot's 3D scene as plain data: frame transforms and entities (pure: no rclpy, no Foxglove).
+
+The Foxglove bridge (``nodes/foxglove_bridge_node.py``) turns a :class:`Scene` into Foxglove's
+``FrameTransforms`` and ``SceneUpdate`` messages; the offline renderer (``visualization.render``)
+draws the same scene with matplotlib. Everything is in SI units, quaternions are [x, y, z, w].
+
+Frames (every one a child of the root ``base``):
+
+- ``platform``: the platform pose (origin at the platform hinge-circle centre), exactly the
+  position and quaternion it was built from;
+- ``leg_1`` .. ``leg_6``: origin at base hinge B_i, z along the leg toward platform hinge A_i
+  (x and y by the shortest rotation from base z), so the leg spans z = 0 .. L_i.
+
+Entities (id: frame):
+
+- ``base`` (base): the base ring (hinge circle) and the base hinges (universal joints) as spheres;
+- ``platform`` (platform): the platform ring and the platform hinges (spherical joints);
+- ``leg_i`` (leg_i): two cylinders, the strut's cylinder from the base hinge and its piston ending
+  at the platform hinge (lengths from the robot's leg inertia data, clipped to the leg);
+- ``vibration_direction`` (base), only when a direction is given: an arrow from the platform origin
+  along the planned platform vibration direction.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics import jacobian_from_vectors
+from ..robot import Robot
+from ..rotations import rotation_from_quaternion
+
+Color = tuple[float, float, float, float]
+
+BASE_FRAME = "base"
+PLATFORM_FRAME = "platform"
+LEG_FRAMES = tuple(f"leg_{i}" for i in range(1, 7))
+VIBRATION_ENTITY = "vibration_direction"
+
+# Look (m, RGBA); one place, shared by the bridge and the renderer.
+CYLINDER_DIAMETER = 0.016
+PISTON_DIAMETER = 0.009
+HINGE_DIAMETER = 0.014
+RING_THICKNESS = 0.005
+RING_POINTS = 72
+ARROW_LENGTH = 0.06
+BASE_COLOR: Color = (0.55, 0.57, 0.60, 1.0)
+PLATFORM_COLOR: Color = (0.95, 0.55, 0.15, 1.0)
+HINGE_COLOR: Color = (0.25, 0.25, 0.28, 1.0)
+CYLINDER_COLOR: Color = (0.20, 0.45, 0.85, 1.0)
+PISTON_COLOR: Color = (0.70, 0.80, 0.95, 1.0)
+ARROW_COLOR: Color = (0.90, 0.10, 0.15, 1.0)
+
+
+@dataclass(frozen=True)
+class FrameTransform:
+    """Pose of frame ``child`` in frame ``parent``: a point x in child maps to R(rotation) x + translation."""
+
+    parent: str
+    child: str
+    translation: np.ndarray  # (3,) m
+    rotation: np.ndarray  # (4,) [x, y, z, w]
+
+
+@dataclass(frozen=True)
+class Cylinder:
+    """Axis along the local z of ``orientation``, centred at ``position``; size = (diameter x, diameter y, length)."""
+
+    position: np.ndarray
+    orientation: np.ndarray
+    size: np.ndarray
+    color: Color
+
+
+@dataclass(frozen=True)
+class Sphere:
+    position: np.ndarray
+    diameter: float
+    color: Color
+
+
+@dataclass(frozen=True)
+class Line:
+    """Polyline through ``points`` (n, 3); ``closed``: back to the first point (a loop)."""
+
+    points: np.ndarray
+    thickness: float
+    color: Color
+    closed: bool = False
+
+
+@dataclass(frozen=True)
+class Arrow:
+    """Tail at ``position``, pointing along ``direction`` (unit); Foxglove's arrow points along the local x
+    of ``orientation`` (= quaternion_between(x, direction))."""
+
+    position: np.ndarray
+    direction: np.ndarray
+    orientation: np.ndarray
+    shaft_length: float
+    shaft_diameter: float
+    head_length: float
+    head_diameter: float
+    color: Color
+
+
+@dataclass(frozen=True)
+class Entity:
+    id: str
+    frame_id: str
+    cylinders: tuple[Cylinder, ...] = ()
+    spheres: tuple[Sphere, ...] = ()
+    lines: tuple[Line, ...] = ()
+    arrows: tuple[Arrow, ...] = ()
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Transforms and entities at time ``stamp`` (s, the pose's clock)."""
+
+    stamp: float
+    transforms: tuple[FrameTransform, ...]
+    entities: tuple[Entity, ...]
+
+    def transform(self, child: str) -> FrameTransform:
+        return next(t for t in self.transforms if t.child == child)
+
+    def entity(self, entity_id: str) -> Entity | None:
+        return next((e for e in self.entities if e.id == entity_id), None)
+
+    def to_base(self, frame_id: str, points) -> np.ndarray:
+        """Points (..., 3) given in ``frame_id`` -> base frame (every frame here is a child of base)."""
+        points = np.asarray(points, dtype=float)
+        if frame_id == BASE_FRAME:
+            return points
+        t = self.transform(frame_id)
+        return points @ rotation_from_quaternion(t.rotation).T + t.translation
+
+
+def quaternion_between(a, b) -> np.ndarray:
+    """Unit quaternion [x, y, z, w] of the shortest rotation taking direction ``a`` to direction ``b``."""
+    a = np.asarray(a, dtype=float) / np.linalg.norm(a)
+    b = np.asarray(b, dtype=float) / np.linalg.norm(b)
+    w = 1.0 + float(a @ b)
+    if w < 1e-12:  # opposite: half a turn about any axis normal to a
+        axis = np.cross(a, [1.0, 0.0, 0.0])
+        if np.linalg.norm(axis) < 1e-6:
+            axis = np.cross(a, [0.0, 1.0, 0.0])
+        axis /= np.linalg.norm(axis)
+        return np.array([axis[0], axis[1], axis[2], 0.0])
+    q = np.array([*np.cross(a, b), w])
+    return q / np.linalg.norm(q)
+
+
+def _ring(hinges: np.ndarray) -> np.ndarray:
+    """Circle through the hinge circle (radius: mean distance of the hinges from the z axis)."""
+    radius = float(np.mean(np.hypot(hinges[:, 0], hinges[:, 1])))
+    angles = np.linspace(0.0, 2 * np.pi, RING_POINTS, endpoint=False)
+    return np.column_stack([radius * np.cos(angles), radius * np.sin(angles),
+                            np.full(RING_POINTS, float(np.mean(hinges[:, 2])))])
+
+
+def _hinge_entity(entity_id: str, frame: str, hinges: np.ndarray, ring_color: Color) -> Entity:
+    return Entity(
+        id=entity_id, frame_id=frame,
+        spheres=tuple(Sphere(h.copy(), HINGE_DIAMETER, HINGE_COLOR) for h in hinges),
+        lines=(Line(_ring(hinges), RING_THICKNESS, ring_color, closed=True),),
+    )
+
+
+def _z_cylinder(z0: float, z1: float, diameter: float, color: Color) -> Cylinder:
+    """Cylinder along the leg frame's z from z0 to z1."""
+    return Cylinder(np.array([0.0, 0.0, (z0 + z1) / 2]), np.array([0.0, 0.0, 0.0, 1.0]),
+                    np.array([diameter, diameter, z1 - z0]), color)
+
+
+def robot_scene(robot: Robot, position, quaternion, stamp: float = 0.0,
+                vibration_direction=None) -> Scene:
+    """The scene at platform pose (position (3,) m, unit quaternion (4,) [x, y, z, w], both in base).
+
+    ``vibration_direction`` (3,) in base, any length > 0, or None (no arrow).
+    """
+    position = np.asarray(position, dtype=float).reshape(3)
+    quaternion = np.asarray(quaternion, dtype=float).reshape(4)
+    rot = rotation_from_quaternion(quaternion)
+    tips = position + robot.platform_hinges @ rot.T  # A_i in base
+    legs = tips - robot.base_hinges
+    lengths = np.linalg.norm(legs, axis=1)
+    transforms = [FrameTransform(BASE_FRAME, PLATFORM_FRAME, position.copy(), quaternion.copy())]
+    entities = [_hinge_entity("base", BASE_FRAME, robot.base_hinges, BASE_COLOR),
+                _hinge_entity("platform", PLATFORM_FRAME, robot.platform_hinges, PLATFORM_COLOR)]
+    cylinder_len = 2 * robot.leg.cylinder_com_offset
+    piston_len = 2 * robot.leg.piston_com_offset
+    for frame, base_hinge, leg, length in zip(LEG_FRAMES, robot.base_hinges, legs, lengths, strict=True):
+        transforms.append(FrameTransform(BASE_FRAME, frame, base_hinge.copy(), quaternion_between([0, 0, 1], leg)))
+        entities.append(Entity(id=frame, frame_id=frame, cylinders=(
+            _z_cylinder(0.0, min(cylinder_len, length), CYLINDER_DIAMETER, CYLINDER_COLOR),
+            _z_cylinder(max(length - piston_len, 0.0), length, PISTON_DIAMETER, PISTON_COLOR),
+        )))
+    if vibration_direction is not None:
+        u = np.asarray(vibration_direction, dtype=float).reshape(3)
+        u = u / np.linalg.norm(u)
+        entities.append(Entity(id=VIBRATION_ENTITY, frame_id=BASE_FRAME, arrows=(Arrow(
+            position.copy(), u, quaternion_between([1, 0, 0], u), shaft_length=ARROW_LENGTH * 0.75,
+            shaft_diameter=0.004, head_length=ARROW_LENGTH * 0.25, head_diameter=0.010, color=ARROW_COLOR),)))
+    return Scene(float(stamp), tuple(transforms), tuple(entities))
+
+
+def vibration_direction_from_window(robot: Robot, position, quaternion, vib_positions) -> np.ndarray | None:
+    """Platform vibration direction (unit, base frame) of a vibration command, or None if it has none.
+
+    ``vib_positions`` (n, 6): samples of vib_1..vib_6 (m), e.g. one vibration/joint_trajectory window.
+    The legs of a line vibration move as e(t) g with one gain vector g (the first right singular vector
+    of the samples); the platform moves by J^-1 g at the pose (J: leg-length Jacobian). The direction is
+    its translation, signed toward the platform's +z side (a vibration along a line has no sign).
+    """
+    vib = np.asarray(vib_positions, dtype=float)
+    if vib.ndim != 2 or vib.shape[1] != 6 or len(vib) < 2 or not np.isfinite(vib).all():
+        return None
+    _, singular, vt = np.linalg.svd(vib, full_matrices=False)
+    if singular[0] <= 1e-12:  # no motion (below a picometre)
+        return None
+    rot = rotation_from_quaternion(np.asarray(quaternion, dtype=float))
+    arms = robot.platform_hinges @ rot.T
+    legs = np.asarray(position, dtype=float) + arms - robot.base_hinges
+    try:
+        motion = np.linalg.solve(jacobian_from_vectors(legs, arms), vt[0])
+    except np.linalg.LinAlgError:
+        return None
+    translation = motion[:3]
+    norm = np.linalg.norm(translation)
+    if not np.isfinite(norm) or norm == 0:
+        return None
+    u = translation / norm
+    return -u if u @ rot[:, 2] < 0 else u
+
+
+__all__ = [
+    "ARROW_LENGTH",
+    "BASE_FRAME",
+    "LEG_FRAMES",
+    "PLATFORM_FRAME",
+    "VIBRATION_ENTITY",
+    "Arrow",
+    "Cylinder",
+    "Entity",
+    "FrameTransform",
+    "Line",
+    "Scene",
+    "Sphere",
+    "quaternion_between",
+    "robot_scene",
+    "vibration_direction_from_window",
+]
