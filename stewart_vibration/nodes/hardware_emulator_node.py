@@ -107,7 +107,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.declare_parameter("drive_gain_interval", 10, int_param(
             "state periods between refreshes of the strut servos' force-to-acceleration map (read at configure)",
             1, 1000, read_only=ro))
-        declare_float(self, "pace_period_s", 0.01, float_param(
+        declare_float(self, "pace_period_s", 0.02, float_param(
             "wall time between wake-ups of the physics thread at real_time_factor > 0; the state periods in "
             "between run back to back (read at configure)", 0.0, 0.1, read_only=ro))
         declare_float(self, "marker_rate_hz", 10.0, float_param(

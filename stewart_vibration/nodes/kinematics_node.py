@@ -5,8 +5,8 @@ Topics (relative): sub platform/target_pose (PoseStamped), legs/joint_states
 lengths, m), platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per
 state with its stamp). Service: kinematics/plan_path (nav_msgs/GetPlan).
 Diagnostics on /diagnostics, with the state stream's health (received, lost,
-processed, lag). States arrive raw and are solved in vectorised batches every
-``batch_period_s`` (wall clock; FK warm-started from the previous pose).
+processed, lag). States arrive raw and are solved in vectorised batches of ``batch_size``
+(the emulator's bursts) or every ``batch_period_s`` (wall clock; FK warm-started from the previous pose).
 """
 
 from __future__ import annotations
@@ -37,11 +37,13 @@ from .common import (
     WARN,
     Diagnostics,
     JointColumns,
+    RawBatcher,
     check_frame,
     declare_float,
     duration_msg,
     duration_seconds,
     float_param,
+    int_param,
     pose_from_msg,
     pose_stamped,
     reject,
@@ -65,8 +67,12 @@ class KinematicsNode(Node):
         self.declare_parameter(
             "speed_scale", 0.5, float_param("fraction of strut_velocity_max used by moves", 0.01, 1.0)
         )
-        period = declare_float(self, "batch_period_s", 0.01, float_param(
-            "queued states are solved every this period (wall clock), s (read at start)", 0.001, 0.5, read_only=True))
+        period = declare_float(self, "batch_period_s", 0.02, float_param(
+            "queued states are solved at least this often (wall clock), s (read at start)", 0.001, 0.5,
+            read_only=True))
+        batch_size = self.declare_parameter("batch_size", 10, int_param(
+            "states solved together as soon as this many have queued (read at start)", 1, 1000,
+            read_only=True)).value
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.diagnostics = Diagnostics(self, "kinematics")
@@ -77,15 +83,12 @@ class KinematicsNode(Node):
         self.columns = JointColumns()
         self.decoder = cdr.JointStateDecoder()
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
-        self.pending: list[bytes] = []
-        self.arrivals: list[float] = []
+        self.batcher = RawBatcher(self, batch_size, period, self.process)
         self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
         # 1 s of states at 500 Hz: under CPU load the executor stalls > 0.1 s and depth 50 lost estimates
-        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH, raw=True)
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(period, self.process, clock=steady)
-        self.create_timer(1.0, self.report, clock=steady)
+        self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
+        self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
@@ -93,17 +96,9 @@ class KinematicsNode(Node):
         self.get_logger().info(f"kinematics ready (robot {self.robot.source})")
 
     # -- state estimate ---------------------------------------------------
-    def on_joint_states(self, data: bytes) -> None:
-        self.pending.append(data)
-        self.arrivals.append(time.monotonic())
-
-    def process(self) -> None:
-        """Solve FK for every queued state (one batch per layout) and publish one estimate each."""
-        if not self.pending:
-            return
+    def process(self, messages: list, arrivals: np.ndarray) -> None:
+        """Solve FK for a batch of states (one batch per layout) and publish one estimate each."""
         self.diagnostics.seen("legs/joint_states")
-        messages, arrivals = self.pending, np.array(self.arrivals)
-        self.pending, self.arrivals = [], []
         try:
             batches = cdr.decode_joint_states(messages, self.decoder)
         except StewartError as exc:

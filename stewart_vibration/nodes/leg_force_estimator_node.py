@@ -11,8 +11,9 @@ when the model explains the measurement). Running RMS of F_measured - F_model
 and the input stream's health (received, lost, processed, lag) on /diagnostics.
 
 The math and the per-run state are estimation.ForceEstimator (pure). States
-arrive raw and are processed in vectorised batches every ``batch_period_s``
-(wall clock); every state still gets its own output messages with its stamp.
+arrive raw and are processed in vectorised batches of ``batch_size`` (the
+emulator's bursts) or every ``batch_period_s`` (wall clock); every state still
+gets its own output messages with its stamp.
 """
 
 from __future__ import annotations
@@ -44,8 +45,10 @@ from .common import (
     WARN,
     Diagnostics,
     JointColumns,
+    RawBatcher,
     declare_float,
     float_param,
+    int_param,
     reject,
     run_node,
     text_param,
@@ -62,29 +65,29 @@ class LegForceEstimatorNode(Node):
         self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
         window = declare_float(self, "rms_window_s", 1.0, float_param(
             "window of the running RMS force error, s (read at start)", 0.01, 60.0, read_only=True))
-        period = declare_float(self, "batch_period_s", 0.01, float_param(
-            "queued states are processed every this period (wall clock), s (read at start)", 0.001, 0.5,
+        period = declare_float(self, "batch_period_s", 0.02, float_param(
+            "queued states are processed at least this often (wall clock), s (read at start)", 0.001, 0.5,
             read_only=True))
+        batch_size = self.declare_parameter("batch_size", 10, int_param(
+            "states processed together as soon as this many have queued (read at start)", 1, 1000,
+            read_only=True)).value
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         self.estimator = ForceEstimator(self.robot, rms_window_s=window)
         self.diagnostics = Diagnostics(self, "leg force estimator")
         self.health = StreamHealth()
         self.columns = JointColumns()
         self.decoder = cdr.JointStateDecoder()
-        self.pending: list[bytes] = []
-        self.arrivals: list[float] = []
+        self.batcher = RawBatcher(self, batch_size, period, self.process)
         self.last_reason = None
         self.force_encoder = cdr.JointStateEncoder(LEG_NAMES, BASE_FRAME, fields=("effort",))
         self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
         self.force_pub = self.create_publisher(JointState, "legs/force_estimate", STREAM_DEPTH)
         self.wrench_pub = self.create_publisher(WrenchStamped, "platform/external_wrench_estimate", STREAM_DEPTH)
-        self.create_subscription(JointState, "legs/joint_states", self.on_joint_states, STREAM_DEPTH, raw=True)
+        self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 10, raw=True)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
         self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(period, self.process, clock=steady)
-        self.create_timer(1.0, self.report, clock=steady)
+        self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.diagnostics.set(OK, "waiting for legs/joint_states")
         self.get_logger().info(f"leg force estimator ready (robot {self.robot.source})")
@@ -97,10 +100,6 @@ class LegForceEstimatorNode(Node):
             reject(self, self.diagnostics, what, reason)
 
     # -- inputs ---------------------------------------------------------------------------
-    def on_joint_states(self, data: bytes) -> None:
-        self.pending.append(data)
-        self.arrivals.append(time.monotonic())
-
     def _trajectory(self, data: bytes, names, what: str):
         try:
             t = cdr.decode_joint_trajectory(data)
@@ -132,12 +131,9 @@ class LegForceEstimatorNode(Node):
         self.estimator.apply_ramp(report.ramp_start, report.ramp_reason)
 
     # -- batches --------------------------------------------------------------------------
-    def process(self) -> None:
-        if not self.pending:
-            return
+    def process(self, messages: list, arrivals: np.ndarray) -> None:
+        """Modelled forces for a batch of states; one force and one wrench message per state."""
         self.diagnostics.seen("legs/joint_states")
-        messages, arrivals = self.pending, np.array(self.arrivals)
-        self.pending, self.arrivals = [], []
         try:
             batches = cdr.decode_joint_states(messages, self.decoder)
         except StewartError:

@@ -1,0 +1,336 @@
+"""foxglove_bridge: the suite live in Foxglove (issue 15), over foxglove-sdk's WebSocket server.
+
+Forwards the suite's ROS topics as they are on the wire (raw CDR, never deserialized) on channels
+with message encoding ``cdr`` and the full ``ros2msg`` schema text that rosbag2 (and the recorder,
+mcap_log.msg_definitions) stores, named by their full ROS names (``/stewart/legs/joint_states``).
+It adds a 3D scene in Foxglove's own schemas (stewart_vibration.visualization.scene), published at
+``scene_rate_hz`` from the latest ground-truth pose (the 500 Hz streams are only stored, never
+processed per message):
+
+- ``<ns>/scene/transforms`` (foxglove.FrameTransforms): base -> platform (platform/pose as it is)
+  and base -> leg_1..leg_6 (origin at the base hinge, z along the leg);
+- ``<ns>/scene/entities`` (foxglove.SceneUpdate): legs, hinges, base and platform rings, and the
+  planned vibration direction (an arrow from the platform origin) while vibration/status says a
+  vibration is pending, ramping or running, taken from the planner's vibration/joint_trajectory.
+
+ROS subscriptions follow the Foxglove clients: a topic is subscribed only while a client subscribes
+to its channel (platform/pose also while one watches the scene), so with no client the bridge is
+idle; the scene's low-rate inputs (vibration/status, vibration/joint_trajectory) stay subscribed, as
+a vibration may be sent in one window. Channels are advertised as their topics get a publisher on the
+graph; subscriptions take the QoS the publishers offer (rosbag2's rule, as the recorder). Log times:
+header.stamp for stamped types (as the recorder's publish time), else the node clock (sim time with
+use_sim_time); the server announces the pose's time (Foxglove's "time" capability).
+
+Parameters (read at start): port (8765; 0 = any free port), host (127.0.0.1: this machine only),
+scene_rate_hz (30; 0 = no scene), topics ([] = the suite's, those the recorder records),
+robot_config ('' = config/robot.yaml). A port in use or a host it cannot listen on: one line, exit 2.
+The address is logged as ``Foxglove WebSocket server at ws://HOST:PORT``.
+"""
+
+from __future__ import annotations
+
+import ipaddress
+import sys
+from dataclasses import dataclass
+
+import foxglove
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticStatus
+from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
+from foxglove.messages import (
+    ArrowPrimitive,
+    Color,
+    CylinderPrimitive,
+    FrameTransform,
+    FrameTransforms,
+    LinePrimitive,
+    LinePrimitiveLineType,
+    Point3,
+    Pose,
+    Quaternion,
+    SceneEntity,
+    SceneEntityDeletion,
+    SceneEntityDeletionType,
+    SceneUpdate,
+    SpherePrimitive,
+    Timestamp,
+    Vector3,
+)
+from foxglove.websocket import Capability
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+
+from ..errors import StewartError
+from ..mcap_log.cdr import header_stamp_ns
+from ..mcap_log.msg_definitions import MessageDefinitionError, full_message_definition, has_header_first
+from ..mcap_log.qos_yaml import request_for_offers
+from ..messages import cdr
+from ..robot import load_robot
+from ..visualization import scene as scene_model
+from .common import VIB_NAMES, declare_float, float_param, int_param, run_node, text_param
+from .mcap_recorder_node import SUITE_TOPICS
+from .mcap_ros import declare_read_only, message_class, offered_profile, rclpy_profile
+
+# vibration/status states in which a vibration is planned or under way (emulation.vibration_status)
+VIBRATING_STATES = frozenset({"pending", "ramping_in", "running", "ramping_out"})
+SUBSCRIPTION_DEPTH = 100  # history of the forwarding subscriptions (0.2 s of a 500 Hz stream)
+DISCOVERY_PERIOD_S = 1.0
+RECONCILE_PERIOD_S = 0.2  # subscriptions follow the clients' within this
+
+
+@dataclass
+class BridgedTopic:
+    """One ROS topic: its Foxglove channel (None: only a scene input) and its live subscription."""
+
+    name: str
+    msg_type: type
+    qos: object  # rclpy QoSProfile
+    channel: foxglove.Channel | None = None
+    stamped: bool = False  # the type starts with a std_msgs/Header
+    scene_input: object = None  # callable(bytes) or None
+    subscription: object = None
+    forwarding: bool = False
+
+
+class FoxgloveBridgeNode(Node):
+    def __init__(self, **kwargs):
+        super().__init__("foxglove_bridge", **kwargs)
+        port = self.declare_parameter("port", 8765, int_param(
+            "WebSocket port (0 = any free port; read at start)", 0, 65535, read_only=True)).value
+        host = self.declare_parameter("host", "127.0.0.1", text_param(
+            "address to listen on (127.0.0.1 = this machine only; read at start)", read_only=True)).value
+        rate = declare_float(self, "scene_rate_hz", 30.0, float_param(
+            "3D scene rate (Hz, wall time; 0 = no scene; read at start)", 0.0, 100.0, read_only=True))
+        names = [t for t in declare_read_only(self, "topics", [""], "topics to forward (empty = the suite's)") if t]
+        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
+        self.robot = load_robot(self.get_parameter("robot_config").value or None)
+
+        self.fox_context = foxglove.Context()
+        self._forward = {self.resolve_topic_name(t) for t in (names or SUITE_TOPICS)}
+        self._pose_topic = self.resolve_topic_name("platform/pose")
+        self._scene_inputs = {
+            self._pose_topic: self._on_pose,
+            self.resolve_topic_name("vibration/status"): self._on_vibration_status,
+            self.resolve_topic_name("vibration/joint_trajectory"): self._on_vibration_window,
+        } if rate > 0 else {}
+        self._topics: dict[str, BridgedTopic] = {}
+        self._pose_data: bytes | None = None
+        self._vibrating = False
+        self._window: np.ndarray | None = None  # latest planned vib_1..6 samples (n, 6)
+        self._direction: np.ndarray | None = None
+        self._direction_stale = False
+        self._arrow_shown = False
+        self._clock = self.get_clock()
+
+        self.server = start_websocket_server(host, port, self.fox_context)
+        self._transforms = self._entities = None
+        if rate > 0:
+            ctx = self.fox_context
+            self._transforms = FrameTransformsChannel(self.resolve_topic_name("scene/transforms"), context=ctx)
+            self._entities = SceneUpdateChannel(self.resolve_topic_name("scene/entities"), context=ctx)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DISCOVERY_PERIOD_S, self._discover, clock=steady)
+        self.create_timer(RECONCILE_PERIOD_S, self._reconcile, clock=steady)
+        if rate > 0:
+            self.create_timer(1.0 / rate, self._publish_scene, clock=steady)
+        self._discover()
+        shown = f"[{host}]" if ":" in host else host
+        scope = ("this machine only" if _is_loopback(host)
+                 else "reachable from the network: anyone there can read every topic")
+        self.get_logger().info(
+            f"Foxglove WebSocket server at ws://{shown}:{self.server.port} ({scope}; "
+            f"{len(self._forward)} topics as ros2msg/cdr"
+            + (f", 3D scene at {rate:g} Hz on {self._transforms.topic()} and {self._entities.topic()})" if rate > 0
+               else ", no scene)"))
+
+    # -- topics: discovery, subscriptions that follow the clients ---------------------------------
+    def _discover(self) -> None:
+        missing = (self._forward | self._scene_inputs.keys()) - self._topics.keys()
+        if not missing:
+            return
+        for topic, types in self.get_topic_names_and_types():
+            infos = self.get_publishers_info_by_topic(topic) if topic in missing and len(types) == 1 else None
+            if infos:  # a type and a publisher (its QoS offers decide the subscription's)
+                self._add_topic(topic, types[0], infos)
+
+    def _add_topic(self, topic: str, type_name: str, infos) -> None:
+        try:
+            msg_type = message_class(type_name)
+            channel = None
+            if topic in self._forward:
+                schema = foxglove.Schema(name=type_name, encoding="ros2msg",
+                                         data=full_message_definition(type_name).encode())
+                channel = foxglove.Channel(topic, schema=schema, message_encoding="cdr", context=self.fox_context)
+        except (MessageDefinitionError, ImportError, AttributeError, ValueError) as exc:
+            self.get_logger().error(f"cannot bridge {topic} ({type_name}): {exc}")
+            self._forward.discard(topic)
+            self._scene_inputs.pop(topic, None)
+            return
+        request = request_for_offers([offered_profile(i.qos_profile) for i in infos], SUBSCRIPTION_DEPTH)
+        self._topics[topic] = BridgedTopic(topic, msg_type, rclpy_profile(request), channel,
+                                           has_header_first(type_name), self._scene_inputs.get(topic))
+        self.get_logger().info(f"bridging {topic} [{type_name}] {request.reliability} {request.durability}"
+                               + ("" if channel else " (scene input only)"))
+
+    def scene_watched(self) -> bool:
+        return self._transforms is not None and (self._transforms.has_sinks() or self._entities.has_sinks())
+
+    def _reconcile(self) -> None:
+        """Subscribe a topic while a client watches its channel or the scene it feeds; unsubscribe otherwise.
+        The scene's low-rate inputs (vibration status and windows) stay subscribed: a window may be sent once."""
+        scene = self.scene_watched()
+        for entry in self._topics.values():
+            entry.forwarding = entry.channel is not None and entry.channel.has_sinks()
+            feeds_scene = entry.scene_input is not None and (scene or entry.name != self._pose_topic)
+            wanted = entry.forwarding or feeds_scene
+            if wanted and entry.subscription is None:
+                entry.subscription = self.create_subscription(
+                    entry.msg_type, entry.name, self._callback(entry), entry.qos, raw=True)
+            elif not wanted and entry.subscription is not None:
+                self.destroy_subscription(entry.subscription)
+                entry.subscription = None
+                if entry.name == self._pose_topic:
+                    self._pose_data = None
+
+    def _callback(self, entry: BridgedTopic):
+        """The raw subscription's callback. Log time: header.stamp for stamped types (a few bytes read; the
+        node clock costs ~15 us a call, a fifth of the 500 Hz budget), else the node clock (sim time)."""
+        clock, channel, scene_input, stamped = self._clock, entry.channel, entry.scene_input, entry.stamped
+
+        def forward(data: bytes) -> None:
+            if entry.forwarding:
+                stamp = header_stamp_ns(data) if stamped else None
+                channel.log(data, log_time=stamp if stamp is not None else clock.now().nanoseconds)
+            if scene_input is not None:
+                scene_input(data)
+        return forward
+
+    # -- scene inputs (stored; the scene timer does the work) ---------------------------------------
+    def _on_pose(self, data: bytes) -> None:
+        self._pose_data = data
+
+    def _on_vibration_status(self, data: bytes) -> None:
+        status = deserialize_message(data, DiagnosticStatus)
+        state = next((kv.value for kv in status.values if kv.key == "state"), "")
+        self._vibrating = state in VIBRATING_STATES
+
+    def _on_vibration_window(self, data: bytes) -> None:
+        try:
+            window = cdr.decode_joint_trajectory(data)
+        except StewartError as exc:
+            self.get_logger().warning(f"vibration window not understood: {exc}", throttle_duration_sec=10.0)
+            return
+        index = {name: i for i, name in enumerate(window.names)}
+        if window.positions is None or len(window.times) < 2 or any(n not in index for n in VIB_NAMES):
+            return
+        self._window = window.positions[:, [index[n] for n in VIB_NAMES]]
+        self._direction_stale = True
+
+    # -- the scene ------------------------------------------------------------------------------
+    def _publish_scene(self) -> None:
+        data = self._pose_data
+        if data is None or not self.scene_watched():
+            self._arrow_shown = False  # a client that subscribes again starts from a clean scene
+            return
+        try:
+            stamp, _frame, position, quaternion = cdr.decode_pose_stamped(data)
+        except StewartError as exc:
+            self.get_logger().warning(f"platform/pose not understood: {exc}", throttle_duration_sec=10.0)
+            return
+        if self._direction_stale and self._window is not None:
+            self._direction = scene_model.vibration_direction_from_window(
+                self.robot, position, quaternion, self._window)
+            self._direction_stale = False
+        direction = self._direction if self._vibrating else None
+        scene = scene_model.robot_scene(self.robot, position, quaternion, stamp, direction)
+        now = header_stamp_ns(data) or self._clock.now().nanoseconds  # the pose's time, as its forwarded copy
+        self._transforms.log(foxglove_transforms(scene), log_time=now)
+        deletions = []
+        if direction is None and self._arrow_shown:
+            deletions = [SceneEntityDeletion(timestamp=_timestamp(stamp), type=SceneEntityDeletionType.MatchingId,
+                                             id=scene_model.VIBRATION_ENTITY)]
+        self._arrow_shown = direction is not None
+        self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(scene)), log_time=now)
+        self.server.broadcast_time(now)
+
+    def shutdown(self) -> None:
+        self.server.stop()
+
+
+def _is_loopback(host: str) -> bool:
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return host == "localhost"
+
+
+def start_websocket_server(host: str, port: int, context: foxglove.Context):
+    """foxglove-sdk's WebSocket server; RuntimeError with one clear line when it cannot listen."""
+    try:
+        return foxglove.start_server(name="stewart_vibration foxglove_bridge", host=host, port=port,
+                                     capabilities=[Capability.Time], context=context)
+    except RuntimeError as exc:
+        reason = str(exc).removeprefix("FoxgloveError: ")
+        hint = ("another program (another bridge?) listens there: stop it or choose -p port:=N"
+                if "in use" in reason else "check -p host:= (an address of this machine, e.g. 127.0.0.1)")
+        raise RuntimeError(f"Foxglove WebSocket server cannot listen on {host}:{port}: {reason}; {hint}") from None
+
+
+# -- scene (plain data) -> Foxglove schema objects -------------------------------------------------
+def _timestamp(seconds: float) -> Timestamp:
+    sec, nanosec = cdr.stamp_parts(seconds)
+    return Timestamp(sec, nanosec)
+
+
+def _vector(v) -> Vector3:
+    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def _quaternion(q) -> Quaternion:
+    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+
+
+def _pose(position, orientation) -> Pose:
+    return Pose(position=_vector(position), orientation=_quaternion(orientation))
+
+
+def _color(c) -> Color:
+    return Color(r=c[0], g=c[1], b=c[2], a=c[3])
+
+
+IDENTITY = (0.0, 0.0, 0.0, 1.0)
+
+
+def foxglove_transforms(scene: scene_model.Scene) -> FrameTransforms:
+    stamp = _timestamp(scene.stamp)
+    return FrameTransforms(transforms=[
+        FrameTransform(timestamp=stamp, parent_frame_id=t.parent, child_frame_id=t.child,
+                       translation=_vector(t.translation), rotation=_quaternion(t.rotation))
+        for t in scene.transforms])
+
+
+def foxglove_entities(scene: scene_model.Scene) -> list[SceneEntity]:
+    stamp = _timestamp(scene.stamp)
+    return [SceneEntity(
+        timestamp=stamp, frame_id=e.frame_id, id=e.id, frame_locked=True,
+        cylinders=[CylinderPrimitive(pose=_pose(c.position, c.orientation), size=_vector(c.size),
+                                     bottom_scale=1.0, top_scale=1.0, color=_color(c.color)) for c in e.cylinders],
+        spheres=[SpherePrimitive(pose=_pose(s.position, IDENTITY), size=_vector([s.diameter] * 3),
+                                 color=_color(s.color)) for s in e.spheres],
+        lines=[LinePrimitive(type=LinePrimitiveLineType.LineLoop if line.closed else LinePrimitiveLineType.LineStrip,
+                             pose=_pose((0, 0, 0), IDENTITY), thickness=line.thickness, scale_invariant=False,
+                             points=[Point3(x=float(p[0]), y=float(p[1]), z=float(p[2])) for p in line.points],
+                             color=_color(line.color)) for line in e.lines],
+        arrows=[ArrowPrimitive(pose=_pose(a.position, a.orientation), shaft_length=a.shaft_length,
+                               shaft_diameter=a.shaft_diameter, head_length=a.head_length,
+                               head_diameter=a.head_diameter, color=_color(a.color)) for a in e.arrows],
+    ) for e in scene.entities]
+
+
+def main(args=None) -> int:
+    return run_node(FoxgloveBridgeNode, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,644 @@
+"""planning_ui node: the surgical planning UI (issue 16), a browser page over the suite's own interfaces.
+
+Serves the page (stewart_vibration/ui/static) and a WebSocket on ``host``:``port`` (127.0.0.1:8080 by
+default; port 0 = any free port) behind a random access token, and logs its URL with the token
+(``planning UI at http://127.0.0.1:8080/?token=...``). A taken port: one line, exit code 2.
+
+It uses what any client of the suite uses, nothing private:
+pub platform/target_pose (PoseStamped, base); calls kinematics/plan_path (GetPlan; an empty path's
+reason comes from the kinematics node's /diagnostics), vibration_planner/set_parameters_atomically,
+get_parameters and describe_parameters, vibration_planner/start and /stop, hardware_emulator/emergency_stop
+and /reset (Trigger); subscribes legs/joint_states, platform/pose (ground truth), platform/pose_estimate,
+legs/force_estimate (raw, best effort: a slow page never holds up a publisher), vibration/status,
+/diagnostics and /rosout (the recorder's "recording to <path>").
+
+Commands from the page are checked here with the core's own checks before anything is sent (a move with
+``kinematics.check_pose``, a start with the planner's settings check and the decomposition's limits) and
+rate-limited; stop and the emergency stop are never limited or delayed. Live data go to the page at
+``frame_rate_hz`` with the 500 Hz streams decimated to ``plot_rate_hz``. After a vibration the page gets
+its run summary (amplitude, direction error, phases, force error), computed from the full-rate streams.
+
+The web server runs in a thread of its own (stewart_vibration.ui.server); every rclpy call is made here,
+in the executor's thread: commands are queued and run from a 100 Hz steady timer (the EventsExecutor
+has no guard conditions).
+"""
+
+from __future__ import annotations
+
+import collections
+import math
+import re
+import secrets
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import Log
+from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParametersAtomically
+from rclpy.clock import Clock, ClockType
+from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from ..emulation.vibration_status import report_from_values
+from ..errors import StewartError
+from ..messages import cdr
+from ..paper import paper_pose
+from ..robot import STANDARD_GRAVITY, load_robot
+from ..rotations import pose_from_position_quaternion
+from ..ui import model
+from ..ui.server import UiServer, bind
+from .common import (
+    BASE_FRAME,
+    OK,
+    Diagnostics,
+    JointColumns,
+    declare_float,
+    float_param,
+    int_param,
+    pose_from_msg,
+    pose_stamped,
+    run_node,
+    text_param,
+)
+from .vibration_planner_node import SETTINGS, check_settings
+
+STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+ROSOUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+SETTLE_POSITION_M = 1e-5  # a move is settled when the ground truth holds within 10 um / 0.01 deg for 0.5 s
+SETTLE_ANGLE_RAD = math.radians(0.01)
+SETTLE_HOLD_S = 0.5
+CALL_TIMEOUT_S = 10.0
+COMMAND_POLL_S = 0.01  # the page's commands are run in the executor's thread within this time
+REASON_WAIT_S = 2.0  # how long to wait for a node's reason on /diagnostics after its refusal
+LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
+EVENTS_KEPT = 30
+RUNNING_STATES = ("pending", "ramping_in", "running", "ramping_out")
+
+
+def level_of(status: DiagnosticStatus) -> int:
+    level = status.level
+    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+
+
+class PlanningUiNode(Node):
+    """Backend of stewart_vibration.ui.server: hello(), command(), file()."""
+
+    def __init__(self):
+        super().__init__("planning_ui")
+        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
+        host = self.declare_parameter("host", "127.0.0.1", text_param(
+            "address the page is served on (127.0.0.1: this machine only; read at start)", True)).value
+        port = self.declare_parameter("port", 8080, int_param(
+            "TCP port of the page (0 = any free port; read at start)", 0, 65535, read_only=True)).value
+        self.frame_rate = declare_float(self, "frame_rate_hz", 10.0, float_param(
+            "live frames sent to the page per second (read at start)", 1.0, 30.0, read_only=True))
+        self.plot_rate = declare_float(self, "plot_rate_hz", 250.0, float_param(
+            "samples per second of the 500 Hz streams sent to the page (decimated; read at start)", 10.0, 500.0,
+            read_only=True))
+        self.stale_after = declare_float(self, "stale_after_s", 1.0, float_param(
+            "data older than this (wall s) is shown greyed as stale", 0.1, 60.0))
+        command_rate = declare_float(self, "command_rate_hz", 5.0, float_param(
+            "commands accepted per second from the pages, bursts of twice that (stop and e-stop are never "
+            "limited; read at start)", 0.1, 100.0, read_only=True))
+        keep = declare_float(self, "summary_buffer_s", 60.0, float_param(
+            "full-rate streams kept for the run summary, s (read at start)", 5.0, 600.0, read_only=True))
+        self.robot = load_robot(self.get_parameter("robot_config").value or None)
+        if host not in ("127.0.0.1", "::1", "localhost"):
+            self.get_logger().warning(f"serving on {host}: the page (and the robot) can be reached from other "
+                                      "machines by anyone who has the token")
+        self.token = secrets.token_urlsafe(24)
+        sock = bind(host, int(port))  # PortInUseError: one line, exit code 2 (run_node)
+
+        self.diagnostics = Diagnostics(self, "planning UI")
+        self.lock = threading.Lock()  # guards the command queue (filled by the server thread)
+        self.commands: collections.deque = collections.deque()
+        self.pending_calls: list = []  # (deadline, future, what, reply)
+        self.reason_waiters: list = []  # (deadline, prefix, since_seq, reply, result)
+
+        # -- live state (executor thread only) --
+        self.decoder, self.force_decoder = cdr.JointStateDecoder(), cdr.JointStateDecoder()
+        self.columns = JointColumns()
+        self.raw = {"joints": [], "truth": [], "forces": []}
+        self.estimate_raw = None
+        self.seen: dict[str, float] = {}  # stream -> wall time last received
+        every = max(1, round(500.0 / self.plot_rate))
+        self.decimators = {"joints": model.Decimator(every), "forces": model.Decimator(every)}
+        self.buffers = {k: model.StreamBuffer(keep) for k in ("joints", "truth", "forces")}
+        self.latest = {}  # joints: (stamp, positions[12]); truth / estimate: (stamp, pose)
+        self.plots = {"joints": [], "forces": []}  # decimated rows since the last frame
+        self.vibration = None  # latest VibrationReport
+        self.node_status: dict[str, dict] = {}  # /diagnostics name -> level, message, values, seen
+        self.diag_seq = 0
+        self.events: collections.deque = collections.deque(maxlen=EVENTS_KEPT)
+        self.event_seq = 0
+        self.mcap = {"path": None, "state": "unknown", "seen": None}
+        self.move = None  # target, sent (wall), status, held_since (stamp)
+        self.run = None  # vibration being followed: t0, settings, nominal pose, source
+        self.summary = None
+        self.report_files: list[str] = []
+        self.planner_settings = dict(model.STREAM_DEFAULTS)
+        self.planner_known = False
+        self.planner_ranges: dict = {}
+        self.last_start = None
+
+        # -- interfaces --
+        self.target_pub = self.create_publisher(PoseStamped, "platform/target_pose", 10)
+        self.create_subscription(JointState, "legs/joint_states", lambda d: self._raw("joints", d), STREAM_QOS,
+                                 raw=True)
+        self.create_subscription(PoseStamped, "platform/pose", lambda d: self._raw("truth", d), STREAM_QOS, raw=True)
+        self.create_subscription(JointState, "legs/force_estimate", lambda d: self._raw("forces", d), STREAM_QOS,
+                                 raw=True)
+        self.create_subscription(PoseStamped, "platform/pose_estimate", self._on_estimate, STREAM_QOS, raw=True)
+        self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
+        self.create_subscription(Log, "/rosout", self._on_rosout, ROSOUT_QOS)
+        self.clients_ = {
+            "plan_path": self.create_client(GetPlan, "kinematics/plan_path"),
+            "set": self.create_client(SetParametersAtomically, "vibration_planner/set_parameters_atomically"),
+            "get": self.create_client(GetParameters, "vibration_planner/get_parameters"),
+            "describe": self.create_client(DescribeParameters, "vibration_planner/describe_parameters"),
+            "start": self.create_client(Trigger, "vibration_planner/start"),
+            "stop": self.create_client(Trigger, "vibration_planner/stop"),
+            "estop": self.create_client(Trigger, "hardware_emulator/emergency_stop"),
+            "reset": self.create_client(Trigger, "hardware_emulator/reset"),
+        }
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(1.0 / self.frame_rate, self._frame, clock=steady)
+        # rclpy's EventsExecutor has no guard conditions: the queue is polled (an e-stop waits <= 10 ms)
+        self.create_timer(COMMAND_POLL_S, self._run_commands, clock=steady)
+        self.create_timer(2.0, self._slow_tick, clock=steady)
+        self.server = UiServer(sock, self.token, self, command_rate=command_rate, log=self.get_logger().warning)
+        self.server.start()
+        self.diagnostics.set(OK, "serving", url=f"http://{host}:{self.server.port}/")  # never the token
+        self.get_logger().info(f"planning UI at {self.server.url}")
+
+    def shutdown(self) -> None:
+        self.server.stop()
+
+    # ==== inputs (executor thread) =====================================================================
+    def _raw(self, stream: str, data: bytes) -> None:
+        self.raw[stream].append(data)
+
+    def _on_estimate(self, data: bytes) -> None:
+        self.estimate_raw = data
+
+    def _on_status(self, msg: DiagnosticStatus) -> None:
+        level = {0: "ok", 1: "warn"}.get(level_of(msg), "error")
+        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+        previous, self.vibration = self.vibration, report
+        self.seen["vibration/status"] = time.monotonic()
+        if previous is not None and report.event_seq != previous.event_seq and report.event.startswith(
+                ("refused", "ramp to zero")):
+            self._event("hardware_emulator", f"vibration units: {report.event}", "WARN")
+        if previous is not None and report.state != previous.state and report.state in ("estopped", "stopped"):
+            self._event("hardware_emulator", f"vibration units {report.message}",
+                        "ERROR" if report.state == "estopped" else "WARN")
+        run = self.run
+        if run is not None and not run.get("done") and report.state not in RUNNING_STATES \
+                and report.since >= run["t0"] - 1e-6 and report.time > run["t0"]:
+            run["done"] = True
+            self._summarize(run, report.since)
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        now = time.monotonic()
+        for status in msg.status:
+            self.diag_seq += 1
+            level = level_of(status)
+            values = {kv.key: kv.value for kv in status.values}
+            before = self.node_status.get(status.name)
+            self.node_status[status.name] = {"level": level, "message": status.message, "values": values,
+                                             "seen": now, "seq": self.diag_seq}
+            node = status.name.split(":")[0]
+            changed = before is None or before["message"] != status.message
+            if changed and level >= 1 and status.name != self.diagnostics._name and (
+                    "rejected" in status.message or "aborted" in status.message):
+                self._event(node, status.message, LEVELS.get(level, "ERROR"))
+            if node == "vibration_planner":
+                self._follow_planner(values)
+            self._resolve_waiters(node, status.message)
+
+    def _on_rosout(self, msg: Log) -> None:
+        if not msg.name.endswith("mcap_recorder"):
+            return
+        found = re.match(r"recording to (\S+)", msg.msg) or re.match(r"finished (\S+);", msg.msg)
+        if found:
+            self.mcap = {"path": found.group(1), "state": "recording" if msg.msg.startswith("recording") else
+                         "finished", "seen": time.monotonic()}
+            self._list_report()
+
+    def _event(self, source: str, text: str, level: str = "WARN") -> None:
+        self.event_seq += 1
+        self.events.append({"seq": self.event_seq, "wall": time.time(), "source": source, "level": level,
+                            "text": text})
+
+    # ==== live frames =================================================================================
+    def _drain(self) -> None:
+        now = time.monotonic()
+        joints, self.raw["joints"] = self.raw["joints"], []
+        if joints:
+            self.seen["legs/joint_states"] = now
+            self._decode_joints(joints)
+        forces, self.raw["forces"] = self.raw["forces"], []
+        if forces:
+            self.seen["legs/force_estimate"] = now
+            self._decode_forces(forces)
+        truth, self.raw["truth"] = self.raw["truth"], []
+        if truth:
+            self.seen["platform/pose"] = now
+            self._decode_poses(truth)
+        if self.estimate_raw is not None:
+            data, self.estimate_raw = self.estimate_raw, None
+            try:
+                stamp, _, position, quaternion = cdr.decode_pose_stamped(data)
+                self.latest["estimate"] = (stamp, pose_from_position_quaternion(position, quaternion))
+                self.seen["platform/pose_estimate"] = now
+            except StewartError:
+                pass
+
+    def _decode_joints(self, messages) -> None:
+        try:
+            batches = cdr.decode_joint_states(messages, self.decoder)
+        except StewartError:
+            return
+        for batch in batches:
+            legs, vib = self.columns(batch.names)
+            if legs is None or vib is None:
+                continue
+            cols = np.concatenate([legs, vib])
+            rows = np.concatenate([batch.position[:, cols], batch.effort[:, cols]], axis=1)
+            self.buffers["joints"].add(batch.stamps, rows)
+            self.latest["joints"] = (batch.stamps[-1], rows[-1])
+            keep = self.decimators["joints"].take(len(batch.stamps))
+            for i in keep:  # t, vib_1..6 (um), measured axial force leg_1..6 (N)
+                self.plots["joints"].append([batch.stamps[i], *(rows[i, 6:12] * 1e6), *rows[i, 12:18]])
+
+    def _decode_forces(self, messages) -> None:
+        try:
+            batches = cdr.decode_joint_states(messages, self.force_decoder)
+        except StewartError:
+            return
+        for batch in batches:
+            legs, _ = self.columns(batch.names)
+            if legs is None:
+                continue
+            effort = batch.effort[:, legs]
+            self.buffers["forces"].add(batch.stamps, effort)
+            for i in self.decimators["forces"].take(len(batch.stamps)):
+                self.plots["forces"].append([batch.stamps[i], *effort[i]])
+
+    def _decode_poses(self, messages) -> None:
+        try:
+            decoded = [cdr.decode_pose_stamped(m) for m in messages]
+            stamps = np.array([d[0] for d in decoded])
+            poses = pose_from_position_quaternion(np.array([d[2] for d in decoded]), np.array([d[3] for d in decoded]))
+        except StewartError:
+            return
+        self.buffers["truth"].add(stamps, poses)
+        self.latest["truth"] = (stamps[-1], poses[-1])
+        self._follow_move(stamps, poses)
+
+    def _follow_move(self, stamps, poses) -> None:
+        move = self.move
+        if move is None or move["status"] not in ("moving",):
+            return
+        for stamp, pose in zip(stamps, poses, strict=True):
+            position, angle = model.pose_error(pose, move["target"])
+            if position < SETTLE_POSITION_M and angle < SETTLE_ANGLE_RAD:
+                move["held_since"] = stamp if move.get("held_since") is None else move["held_since"]
+                if stamp - move["held_since"] >= SETTLE_HOLD_S:
+                    move["status"] = "settled"
+                    move["settled_after_s"] = time.monotonic() - move["sent"]
+                    break
+            else:
+                move["held_since"] = None
+
+    def _frame(self) -> None:
+        self._drain()
+        self._expire()
+        now = time.monotonic()
+        frame = {"type": "frame", "wall": time.time(), "stale_after_s": self.stale_after,
+                 "ages": {k: now - t for k, t in self.seen.items()},
+                 "plots": {k: np.round(np.asarray(v), 4).tolist() for k, v in self.plots.items()}}
+        self.plots = {"joints": [], "forces": []}
+        for key in ("truth", "estimate"):
+            if key in self.latest:
+                stamp, pose = self.latest[key]
+                frame[key] = {"stamp": stamp, "fields": model.pose_fields(pose),
+                              "points_mm": (model.platform_points(self.robot, pose) * 1e3).tolist()}
+        if "joints" in self.latest:
+            stamp, row = self.latest["joints"]
+            frame["legs"] = {"stamp": stamp, "length_mm": ((row[:6] + row[6:12]) * 1e3).tolist(),
+                             "vib_um": (row[6:12] * 1e6).tolist(), "force_n": row[12:18].tolist()}
+        if self.move is not None:
+            move = dict(self.move)
+            if "truth" in self.latest:
+                position, angle = model.pose_error(self.latest["truth"][1], move["target"])
+                move.update(error_um=position * 1e6, error_deg=math.degrees(angle))
+            move["target"] = model.pose_fields(move["target"])
+            move["elapsed_s"] = now - move.pop("sent")
+            frame["move"] = move
+        frame["vibration"] = self._vibration_view()
+        frame["nodes"] = [{"name": name, "level": LEVELS.get(s["level"], str(s["level"])), "message": s["message"],
+                           "age_s": now - s["seen"]} for name, s in sorted(self.node_status.items())]
+        frame["mcap"] = {"path": self.mcap["path"], "state": self.mcap["state"]}
+        frame["events"] = list(self.events)
+        frame["summary"] = self.summary
+        frame["report"] = self.report_files
+        frame["planner_known"] = self.planner_known
+        self.server.broadcast(model.jsonable(frame))
+
+    def _vibration_view(self) -> dict | None:
+        r = self.vibration
+        if r is None:
+            return None
+        planner = self.node_status.get("vibration_planner: vibration planner", {})
+        return {"state": r.state, "level": r.level, "reason": r.reason, "since_s": r.since, "time_s": r.time,
+                "amplitude_um": (r.amplitude * 1e6).tolist(), "event": r.event, "accepted": r.accepted,
+                "refused": r.refused, "estopped": r.state == "estopped",
+                "planner": planner.get("values", {}).get("state"), "planner_message": planner.get("message")}
+
+    def _slow_tick(self) -> None:
+        if not self.planner_known:
+            self._fetch_planner()
+        self._list_report()
+
+    def _list_report(self) -> None:
+        path = self.mcap["path"]
+        folder = Path(path).parent / "report" if path else None
+        self.report_files = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".md", ".json")) \
+            if folder is not None and folder.is_dir() else []
+
+    def _follow_planner(self, values: dict) -> None:
+        """A vibration started by another client (the runner, ros2 service call): follow it for the summary."""
+        t0 = values.get("t0_s", "")
+        if values.get("state") != "running" or not t0:
+            return
+        t0 = float(t0)
+        if self.run is not None and abs(self.run["t0"] - t0) < 1e-6:
+            return
+        nominal = self.latest.get("estimate", (None, None))[1]
+        self.run = {"t0": t0, "settings": None, "nominal": nominal, "source": "another client"}
+        self._get_planner_settings(lambda settings, run=self.run: run.__setitem__("settings", settings))
+
+    def _summarize(self, run: dict, ended: float) -> None:
+        if run.get("settings") is None or run.get("nominal") is None:
+            return
+        try:
+            summary = model.run_summary(self.robot, self.buffers["joints"], self.buffers["truth"],
+                                        self.buffers["forces"], run["nominal"], run["settings"], run["t0"], ended)
+            summary["source"] = run["source"]
+            self.summary = summary
+        except Exception as exc:  # noqa: BLE001 - e.g. too short to analyse: say so on the page
+            self.summary = {"t0_s": run["t0"], "ended_s": ended, "error": f"{type(exc).__name__}: {exc}"}
+
+    # ==== server backend (server thread) ==============================================================
+    def hello(self) -> dict:
+        robot, lim, unit = self.robot, self.robot.limits, self.robot.vibration_unit
+        return model.jsonable({
+            "convention": model.CONVENTION, "namespace": self.get_namespace(),
+            "robot": {"base_points_mm": robot.base_hinges * 1e3, "platform_hinges_mm": robot.platform_hinges * 1e3,
+                      "home": model.pose_fields(robot.home_pose), "stroke_mm": [lim.stroke_min * 1e3,
+                                                                                lim.stroke_max * 1e3],
+                      "unit": {"acceleration_max_g": unit.acceleration_max / STANDARD_GRAVITY,
+                               "amplitude_max_um": unit.amplitude_max * 1e6,
+                               "frequency_band_hz": [unit.frequency_min, unit.frequency_max]}},
+            "paper_pose": model.pose_fields(paper_pose(robot)), "settle": {"position_um": SETTLE_POSITION_M * 1e6,
+                                                                        "angle_deg": math.degrees(SETTLE_ANGLE_RAD)},
+        })
+
+    def command(self, cmd: str, args: dict, reply) -> None:
+        with self.lock:
+            self.commands.append((cmd, args, reply))
+
+    def file(self, kind: str, name: str) -> Path | None:
+        if kind != "report" or name not in self.report_files or not self.mcap["path"]:
+            return None
+        return Path(self.mcap["path"]).parent / "report" / name
+
+    # ==== commands (executor thread) ==================================================================
+    def _run_commands(self) -> None:
+        if not self.commands:
+            return
+        while True:
+            with self.lock:
+                if not self.commands:
+                    return
+                cmd, args, reply = self.commands.popleft()
+            try:
+                getattr(self, f"_cmd_{cmd}")(args, reply)
+            except StewartError as exc:
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"{type(exc).__name__}: {exc}"})
+            except Exception as exc:  # noqa: BLE001 - a bug must not kill the node; the page says what failed
+                self.get_logger().error(f"command {cmd} failed: {type(exc).__name__}: {exc}")
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"internal error: {exc}"})
+
+    def _cmd_check_pose(self, args, reply) -> None:
+        result = model.reachability(self.robot, model.pose_from_fields(args))
+        reply({"ok": True, "message": "reachable" if result["reachable"] else result["error"]["message"], **result})
+
+    def _cmd_plan_path(self, args, reply) -> None:
+        goal = model.pose_from_fields(args)
+        request = GetPlan.Request()
+        request.goal = pose_stamped(goal, self.get_clock().now().to_msg())  # start unset: from the estimate
+
+        def done(response):
+            poses = [pose_from_msg(p.pose) for p in response.plan.poses]
+            if poses:
+                reply({"ok": True, "message": f"path of {len(poses)} waypoints",
+                       "path": model.path_margins(self.robot, np.array(poses))})
+            else:
+                self._wait_reason("kinematics", "rejected plan_path request", reply,
+                                  {"ok": False, "refused_by": "kinematics", "path": {"waypoints": 0}})
+
+        self.reason_mark = self.diag_seq
+        self._call("plan_path", request, done, reply)
+
+    def _cmd_move(self, args, reply) -> None:
+        target = model.pose_from_fields(args)
+        check = model.reachability(self.robot, target)
+        if not check["reachable"]:
+            # refused here (nothing is sent); the kinematics node's own reason, asked with a plan_path
+            # (which moves nothing), is shown beside ours
+            error = check["error"]
+
+            def with_node_reason(result):
+                reply({"ok": False, "refused_by": "planning_ui (core check_pose)", "error": error,
+                       "message": f"not sent: {error['type']}: {error['message']}",
+                       "node_reason": result.get("message"), "check": check})
+
+            self._cmd_plan_path(args, with_node_reason)
+            return
+        msg = pose_stamped(target, self.get_clock().now().to_msg(), BASE_FRAME)
+        self.target_pub.publish(msg)
+        self.move = {"target": target, "sent": time.monotonic(), "status": "moving", "held_since": None}
+        fields = model.pose_fields(target)
+        self._event("planning_ui", "target sent: " + ", ".join(f"{k} {v:.3f}" for k, v in fields.items()), "OK")
+        reply({"ok": True, "message": "target sent to kinematics (platform/target_pose); following the move",
+               "check": check})
+
+    def _vibration_settings(self, args) -> tuple[dict, dict]:
+        """(the parameters to set, the planner's full settings with them)."""
+        params = model.vibration_from_fields(args)
+        return params, {**self.planner_settings, **params}
+
+    def _estimate(self) -> np.ndarray:
+        if "estimate" not in self.latest or time.monotonic() - self.seen.get("platform/pose_estimate", 0) > 1.0:
+            raise StewartError("no recent platform/pose_estimate (is the kinematics node running?)")
+        return self.latest["estimate"][1]
+
+    def _cmd_preview_vibration(self, args, reply) -> None:
+        _, settings = self._vibration_settings(args)
+        preview = model.vibration_preview(self.robot, self._estimate(), settings, check_settings, self.planner_ranges)
+        reply({"ok": True, "message": "feasible" if preview["feasible"] else preview["reason"],
+               "preview": preview, "planner_settings_known": self.planner_known})
+
+    def _cmd_start(self, args, reply) -> None:
+        params, settings = self._vibration_settings(args)
+        pose = self._estimate()
+        request = SetParametersAtomically.Request()
+        request.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in params.items()]
+
+        def after_set(response):
+            if not response.result.successful:
+                reply({"ok": False, "refused_by": "vibration_planner",
+                       "message": f"parameters refused: {response.result.reason}"})
+                return
+            self.planner_settings.update(params)
+            preview = model.vibration_preview(self.robot, pose, settings, check_settings, self.planner_ranges)
+            if not preview["feasible"]:
+                reply({"ok": False, "refused_by": "planning_ui (core checks)", "message": f"not started: "
+                       f"{preview['reason']}", "preview": preview})
+                return
+            self._call("start", Trigger.Request(), lambda r: self._after_start(r, preview, pose, reply), reply)
+
+        self._call("set", request, after_set, reply)
+
+    def _after_start(self, response, preview, pose, reply) -> None:
+        if not response.success:
+            reply({"ok": False, "refused_by": "vibration_planner", "message": response.message, "preview": preview})
+            return
+        answer = model.parse_start_answer(response.message)
+        if answer["t0_s"] is not None and answer["settings"] is not None:
+            self.run = {"t0": answer["t0_s"], "settings": answer["settings"], "nominal": pose, "source": "this page"}
+        match = None
+        if answer["leg_amplitudes_um"]:
+            match = float(np.abs(np.array(answer["leg_amplitudes_um"]) - preview["leg_amplitudes_um"]).max())
+        self.last_start = answer
+        self._event("vibration_planner", answer["text"], "OK")
+        reply({"ok": True, "message": answer["text"], "answer": answer, "preview": preview,
+               "preview_vs_answer_um": match})
+
+    def _trigger(self, name: str, reply) -> None:
+        def done(response):
+            reply({"ok": bool(response.success), "message": response.message,
+                   **({} if response.success else {"refused_by": self.clients_[name].srv_name.split("/")[-2]})})
+        self._call(name, Trigger.Request(), done, reply)
+
+    def _cmd_stop(self, args, reply) -> None:
+        self._trigger("stop", reply)
+
+    def _cmd_estop(self, args, reply) -> None:
+        self._event("planning_ui", "emergency stop requested from the page", "ERROR")
+        self._trigger("estop", reply)
+
+    def _cmd_reset(self, args, reply) -> None:
+        self._trigger("reset", reply)
+
+    # ==== service plumbing ============================================================================
+    def _call(self, name: str, request, done, reply) -> None:
+        client = self.clients_[name]
+        if not client.service_is_ready():
+            reply({"ok": False, "refused_by": "planning_ui",
+                   "message": f"service {client.srv_name} is not available (is its node running?)"})
+            return
+        future = client.call_async(request)
+        self.pending_calls.append((time.monotonic() + CALL_TIMEOUT_S, future, client.srv_name, reply))
+
+        def finished(f):
+            self.pending_calls[:] = [p for p in self.pending_calls if p[1] is not f]
+            if f.cancelled() or f.exception() is not None:
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"{client.srv_name} failed: "
+                       f"{f.exception()}"})
+                return
+            try:
+                done(f.result())
+            except StewartError as exc:
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"{type(exc).__name__}: {exc}"})
+
+        future.add_done_callback(finished)
+
+    def _wait_reason(self, node: str, prefix: str, reply, result: dict) -> None:
+        """Reply with the reason ``node`` gave on /diagnostics (a message starting with ``prefix``) after the
+        request was sent; if it came already, at once, else when it comes (at most REASON_WAIT_S)."""
+        since = getattr(self, "reason_mark", 0)
+        for name, s in self.node_status.items():
+            if name.split(":")[0] == node and s["seq"] > since and s["message"].startswith(prefix):
+                reply({**result, "message": s["message"]})
+                return
+        self.reason_waiters.append((time.monotonic() + REASON_WAIT_S, node, prefix, reply, result))
+
+    def _resolve_waiters(self, node: str, message: str) -> None:
+        for waiter in list(self.reason_waiters):
+            if waiter[1] == node and message.startswith(waiter[2]):
+                self.reason_waiters.remove(waiter)
+                waiter[3]({**waiter[4], "message": message})
+
+    def _expire(self) -> None:
+        now = time.monotonic()
+        for waiter in [w for w in self.reason_waiters if w[0] < now]:
+            self.reason_waiters.remove(waiter)
+            waiter[3]({**waiter[4], "message": f"refused by {waiter[1]}; its reason did not arrive on /diagnostics "
+                                               f"within {REASON_WAIT_S} s"})
+        for call in [c for c in self.pending_calls if c[0] < now]:
+            self.pending_calls.remove(call)
+            call[3]({"ok": False, "refused_by": "planning_ui", "message": f"no answer from {call[2]} within "
+                                                                           f"{CALL_TIMEOUT_S} s"})
+
+    def _fetch_planner(self) -> None:
+        """The planner's current settings and declared ranges (for the preview's checks)."""
+        def got(settings):
+            self.planner_settings.update({k: v for k, v in settings.items() if k not in model.VIBRATION_PARAMETERS})
+            self.planner_known = True
+
+        self._get_planner_settings(got)
+        names = [n for n in SETTINGS if n not in ("direction", "frame")]
+        describe = self.clients_["describe"]
+        if describe.service_is_ready():
+            def described(f):
+                if f.exception() is None:
+                    self.planner_ranges = {d.name: (d.floating_point_range[0].from_value,
+                                                    d.floating_point_range[0].to_value)
+                                           for d in f.result().descriptors if d.floating_point_range}
+            describe.call_async(DescribeParameters.Request(names=names)).add_done_callback(described)
+
+    def _get_planner_settings(self, then) -> None:
+        client = self.clients_["get"]
+        if not client.service_is_ready():
+            return
+
+        def got(f):
+            if f.exception() is None and len(f.result().values) == len(SETTINGS):
+                then({n: _plain(parameter_value_to_python(v)) for n, v in zip(SETTINGS, f.result().values,
+                                                                              strict=True)})
+
+        client.call_async(GetParameters.Request(names=list(SETTINGS))).add_done_callback(got)
+
+
+def _plain(value):
+    return list(value) if hasattr(value, "tolist") or isinstance(value, (list, tuple)) else value
+
+
+def main(args=None) -> int:
+    return run_node(PlanningUiNode, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
