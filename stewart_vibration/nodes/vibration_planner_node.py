@@ -62,6 +62,7 @@ from .common import (
     text_param,
 )
 
+MAX_WINDOW_SAMPLES = 100_000  # one message; the emulator refuses windows reaching > 30 s ahead anyway
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -85,6 +86,16 @@ def check_settings(robot, s: dict) -> str | None:
     if not unit.frequency_min <= s["frequency_hz"] <= unit.frequency_max:
         return (f"frequency_hz {s['frequency_hz']} is outside the vibration unit's band "
                 f"[{unit.frequency_min}, {unit.frequency_max}] Hz")
+    for name in ("sample_period_s", "lookahead_s", "window_period_s", "max_lookahead_s", "pose_timeout_s"):
+        if s[name] <= 0:
+            return f"{name} must be > 0, got {s[name]}"
+    for name in ("lead_s", "start_lead_s", "duration_s"):
+        if s[name] < 0:
+            return f"{name} must be >= 0, got {s[name]}"
+    samples = (max(s["max_lookahead_s"], s["lookahead_s"] + s["ramp_s"]) + s["start_lead_s"]) / s["sample_period_s"]
+    if samples > MAX_WINDOW_SAMPLES:
+        return (f"a window could hold {samples:.0f} samples (max_lookahead_s / sample_period_s); at most "
+                f"{MAX_WINDOW_SAMPLES}: raise sample_period_s or lower max_lookahead_s")
     if s["amplitude_m"] < 0:
         return f"amplitude_m must be >= 0, got {s['amplitude_m']}"
     if s["amplitude_m"] == 0 and s["acceleration_g"] <= 0:
@@ -131,8 +142,8 @@ class VibrationPlannerNode(Node):
             ("sample_period_s", 0.001, "sample spacing in a window, s", 1e-4, 0.05),
             ("lead_s", 0.3, "streamed windows start this far ahead of now, s", 0.0, 2.0),
             ("start_lead_s", 1.0, "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0),
-            ("max_lookahead_s", 5.0, "a finite vibration ending within this time is sent whole in one window, s",
-             0.1, 600.0),
+            ("max_lookahead_s", 5.0, "a finite vibration ending within this time is sent whole in one window, s "
+             "(the emulator accepts windows reaching up to 30 s ahead)", 0.1, 30.0),
             ("pose_timeout_s", 1.0, "start needs a pose estimate received within this time, s", 0.01, 60.0),
         ]
         for name, default, text, low, high in number:
