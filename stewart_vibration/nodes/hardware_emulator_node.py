@@ -398,26 +398,31 @@ class HardwareEmulatorNode(LifecycleNode):
         self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
 
     def publish_markers(self, pose, now) -> None:
+        """robot_markers, all in frame base (no /tf needed; the recorder records them, so a run's MCAP shows
+        the robot in Foxglove's 3D panel): the legs (base hinge -> platform hinge), the platform and base
+        hinge polygons, and every hinge as a sphere."""
         robot = self.emulator.robot
         position, quaternion = pose
         rot = rotation_from_quaternion(quaternion)
         tips = position + robot.platform_hinges @ rot.T
         sec, nanosec = cdr.stamp_parts(now)
-        legs = Marker(ns="legs", id=0, type=Marker.LINE_LIST, action=Marker.ADD)
-        legs.header.frame_id = BASE_FRAME
-        legs.header.stamp.sec, legs.header.stamp.nanosec = sec, nanosec
-        legs.scale.x = 0.006
-        legs.color.r, legs.color.g, legs.color.b, legs.color.a = 0.2, 0.5, 0.9, 1.0
-        for b, a in zip(robot.base_hinges, tips, strict=True):
-            legs.points += [Point(x=float(b[0]), y=float(b[1]), z=float(b[2])),
-                            Point(x=float(a[0]), y=float(a[1]), z=float(a[2]))]
-        ring = Marker(ns="platform", id=1, type=Marker.LINE_STRIP, action=Marker.ADD)
-        ring.header.frame_id = BASE_FRAME
-        ring.header.stamp.sec, ring.header.stamp.nanosec = sec, nanosec
-        ring.scale.x = 0.004
-        ring.color.r, ring.color.g, ring.color.b, ring.color.a = 0.9, 0.5, 0.1, 1.0
-        ring.points = [Point(x=float(a[0]), y=float(a[1]), z=float(a[2])) for a in np.vstack([tips, tips[:1]])]
-        self.marker_pub.publish(MarkerArray(markers=[legs, ring]))
+
+        def marker(ns, marker_id, kind, width, rgb, points):
+            m = Marker(ns=ns, id=marker_id, type=kind, action=Marker.ADD)
+            m.header.frame_id = BASE_FRAME
+            m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
+            m.scale.x = m.scale.y = m.scale.z = width  # line width (lines use x only), sphere diameter
+            m.color.r, m.color.g, m.color.b, m.color.a = (*rgb, 1.0)
+            m.points = [Point(x=float(p[0]), y=float(p[1]), z=float(p[2])) for p in points]
+            return m
+
+        base = robot.base_hinges
+        self.marker_pub.publish(MarkerArray(markers=[
+            marker("legs", 0, Marker.LINE_LIST, 0.006, (0.2, 0.5, 0.9), np.stack([base, tips], axis=1).reshape(-1, 3)),
+            marker("platform", 1, Marker.LINE_STRIP, 0.004, (0.9, 0.5, 0.1), np.vstack([tips, tips[:1]])),
+            marker("base", 2, Marker.LINE_STRIP, 0.004, (0.55, 0.57, 0.6), np.vstack([base, base[:1]])),
+            marker("hinges", 3, Marker.SPHERE_LIST, 0.012, (0.25, 0.25, 0.28), np.vstack([base, tips])),
+        ]))
 
     def shutdown(self) -> None:
         """Stop physics; the emulated robot holds its last state (nothing moves after exit)."""
