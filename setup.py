@@ -15,6 +15,7 @@ CONSOLE_SCRIPTS = [
     "vibration_planner_node = stewart_vibration.nodes.vibration_planner_node:main",
     "leg_force_estimator_node = stewart_vibration.nodes.leg_force_estimator_node:main",
     "hardware_emulator_node = stewart_vibration.nodes.hardware_emulator_node:main",
+    "foxglove_bridge = stewart_vibration.nodes.foxglove_bridge_node:main",
 ]
 
 setup(

@@ -14,7 +14,10 @@ from stewart_vibration.rotations import pose_to_position_quaternion
 from stewart_vibration.vibration.decompose import decompose_vibration
 from stewart_vibration.visualization.scene import (
     LEG_FRAMES,
+    STATIC_ENTITIES,
     VIBRATION_ENTITY,
+    SceneBuilder,
+    _z_to,
     quaternion_between,
     robot_scene,
     vibration_direction_from_window,
@@ -109,6 +112,27 @@ def test_quaternion_between_rotates_a_onto_b(a, b):
     assert abs(np.linalg.norm(q) - 1) < 1e-12
     np.testing.assert_allclose(rot(q) @ (np.array(a) / np.linalg.norm(a)), np.array(b) / np.linalg.norm(b),
                                atol=1e-12)
+
+
+def test_builder_shares_the_static_entities_and_matches_robot_scene(robot):
+    builder = SceneBuilder(robot)
+    a, b = (builder.scene(*pose_to_position_quaternion(p), stamp=1.0) for p in POSES[:2])
+    for entity_id in STATIC_ENTITIES:
+        assert a.entity(entity_id) is b.entity(entity_id)
+    c = robot_scene(robot, *pose_to_position_quaternion(POSES[1]), stamp=1.0)
+    for t, u in zip(b.transforms, c.transforms, strict=True):
+        assert t.child == u.child
+        np.testing.assert_array_equal(np.r_[t.translation, t.rotation], np.r_[u.translation, u.rotation])
+    assert [e.id for e in b.entities] == [e.id for e in c.entities]
+
+
+def test_leg_frame_rotations_at_once_match_one_by_one():
+    rng = np.random.default_rng(3)
+    d = np.vstack([rng.normal(size=(20, 3)), [[0, 0, -1.5], [0, 0, 2.0], [0.3, 0, -1]]])
+    q = _z_to(d)
+    for qi, di in zip(q, d, strict=True):
+        np.testing.assert_allclose(rot(qi)[:, 2], di / np.linalg.norm(di), atol=1e-12)
+        assert abs(np.linalg.norm(qi) - 1) < 1e-12
 
 
 @pytest.mark.parametrize("direction,frame", [([0, 0, 1], "platform"), ([1, 0, 0], "base"), ([0.2, -0.5, 0.8], "base")])

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import ipaddress
 import sys
+import time
 from dataclasses import dataclass
 
 import foxglove
@@ -77,6 +78,7 @@ VIBRATING_STATES = frozenset({"pending", "ramping_in", "running", "ramping_out"}
 SUBSCRIPTION_DEPTH = 100  # history of the forwarding subscriptions (0.2 s of a 500 Hz stream)
 DISCOVERY_PERIOD_S = 1.0
 RECONCILE_PERIOD_S = 0.2  # subscriptions follow the clients' within this
+STATIC_PERIOD_S = 1.0  # the scene's static entities (base, platform) are sent again this often, for new clients
 
 
 @dataclass
@@ -104,7 +106,7 @@ class FoxgloveBridgeNode(Node):
             "3D scene rate (Hz, wall time; 0 = no scene; read at start)", 0.0, 100.0, read_only=True))
         names = [t for t in declare_read_only(self, "topics", [""], "topics to forward (empty = the suite's)") if t]
         self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
-        self.robot = load_robot(self.get_parameter("robot_config").value or None)
+        self.scene_builder = scene_model.SceneBuilder(load_robot(self.get_parameter("robot_config").value or None))
 
         self.fox_context = foxglove.Context()
         self._forward = {self.resolve_topic_name(t) for t in (names or SUITE_TOPICS)}
@@ -121,6 +123,7 @@ class FoxgloveBridgeNode(Node):
         self._direction: np.ndarray | None = None
         self._direction_stale = False
         self._arrow_shown = False
+        self._static_sent = float("-inf")  # steady time the static entities were last sent
         self._clock = self.get_clock()
 
         self.server = start_websocket_server(host, port, self.fox_context)
@@ -232,6 +235,7 @@ class FoxgloveBridgeNode(Node):
         data = self._pose_data
         if data is None or not self.scene_watched():
             self._arrow_shown = False  # a client that subscribes again starts from a clean scene
+            self._static_sent = float("-inf")
             return
         try:
             stamp, _frame, position, quaternion = cdr.decode_pose_stamped(data)
@@ -240,10 +244,15 @@ class FoxgloveBridgeNode(Node):
             return
         if self._direction_stale and self._window is not None:
             self._direction = scene_model.vibration_direction_from_window(
-                self.robot, position, quaternion, self._window)
+                self.scene_builder.robot, position, quaternion, self._window)
             self._direction_stale = False
         direction = self._direction if self._vibrating else None
-        scene = scene_model.robot_scene(self.robot, position, quaternion, stamp, direction)
+        scene = self.scene_builder.scene(position, quaternion, stamp, direction)
+        entities = scene.entities
+        if time.monotonic() - self._static_sent < STATIC_PERIOD_S:
+            entities = [e for e in entities if e.id not in scene_model.STATIC_ENTITIES]
+        else:
+            self._static_sent = time.monotonic()
         now = header_stamp_ns(data) or self._clock.now().nanoseconds  # the pose's time, as its forwarded copy
         self._transforms.log(foxglove_transforms(scene), log_time=now)
         deletions = []
@@ -251,7 +260,8 @@ class FoxgloveBridgeNode(Node):
             deletions = [SceneEntityDeletion(timestamp=_timestamp(stamp), type=SceneEntityDeletionType.MatchingId,
                                              id=scene_model.VIBRATION_ENTITY)]
         self._arrow_shown = direction is not None
-        self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(scene)), log_time=now)
+        self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(scene.stamp, entities)),
+                           log_time=now)
         self.server.broadcast_time(now)
 
     def shutdown(self) -> None:
@@ -310,8 +320,8 @@ def foxglove_transforms(scene: scene_model.Scene) -> FrameTransforms:
         for t in scene.transforms])
 
 
-def foxglove_entities(scene: scene_model.Scene) -> list[SceneEntity]:
-    stamp = _timestamp(scene.stamp)
+def foxglove_entities(stamp_s: float, entities) -> list[SceneEntity]:
+    stamp = _timestamp(stamp_s)
     return [SceneEntity(
         timestamp=stamp, frame_id=e.frame_id, id=e.id, frame_locked=True,
         cylinders=[CylinderPrimitive(pose=_pose(c.position, c.orientation), size=_vector(c.size),
@@ -325,7 +335,7 @@ def foxglove_entities(scene: scene_model.Scene) -> list[SceneEntity]:
         arrows=[ArrowPrimitive(pose=_pose(a.position, a.orientation), shaft_length=a.shaft_length,
                                shaft_diameter=a.shaft_diameter, head_length=a.head_length,
                                head_diameter=a.head_diameter, color=_color(a.color)) for a in e.arrows],
-    ) for e in scene.entities]
+    ) for e in entities]
 
 
 def main(args=None) -> int:

@@ -37,6 +37,7 @@ BASE_FRAME = "base"
 PLATFORM_FRAME = "platform"
 LEG_FRAMES = tuple(f"leg_{i}" for i in range(1, 7))
 VIBRATION_ENTITY = "vibration_direction"
+STATIC_ENTITIES = ("base", "platform")  # never change in their frames
 
 # Look (m, RGBA); one place, shared by the bridge and the renderer.
 CYLINDER_DIAMETER = 0.016
@@ -153,6 +154,17 @@ def quaternion_between(a, b) -> np.ndarray:
     return q / np.linalg.norm(q)
 
 
+def _z_to(directions: np.ndarray) -> np.ndarray:
+    """quaternion_between(z, d) for rows d (n, 3) at once (z x d = (-d_y, d_x, 0), w = 1 + z . d)."""
+    d = directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    q = np.column_stack([-d[:, 1], d[:, 0], np.zeros(len(d)), 1.0 + d[:, 2]])
+    with np.errstate(invalid="ignore", divide="ignore"):  # straight down: 0 / 0, replaced below
+        q /= np.linalg.norm(q, axis=1, keepdims=True)
+    for i in np.flatnonzero(1.0 + d[:, 2] < 1e-12):  # straight down: no shortest rotation, any half turn
+        q[i] = quaternion_between([0.0, 0.0, 1.0], d[i])
+    return q
+
+
 def _ring(hinges: np.ndarray) -> np.ndarray:
     """Circle through the hinge circle (radius: mean distance of the hinges from the z axis)."""
     radius = float(np.mean(np.hypot(hinges[:, 0], hinges[:, 1])))
@@ -169,42 +181,58 @@ def _hinge_entity(entity_id: str, frame: str, hinges: np.ndarray, ring_color: Co
     )
 
 
+_NO_ROTATION = np.array([0.0, 0.0, 0.0, 1.0])
+
+
 def _z_cylinder(z0: float, z1: float, diameter: float, color: Color) -> Cylinder:
     """Cylinder along the leg frame's z from z0 to z1."""
-    return Cylinder(np.array([0.0, 0.0, (z0 + z1) / 2]), np.array([0.0, 0.0, 0.0, 1.0]),
-                    np.array([diameter, diameter, z1 - z0]), color)
+    return Cylinder(np.array([0.0, 0.0, (z0 + z1) / 2]), _NO_ROTATION, np.array([diameter, diameter, z1 - z0]), color)
 
 
-def robot_scene(robot: Robot, position, quaternion, stamp: float = 0.0,
-                vibration_direction=None) -> Scene:
-    """The scene at platform pose (position (3,) m, unit quaternion (4,) [x, y, z, w], both in base).
+class SceneBuilder:
+    """Scenes of one robot; the entities that never change in their frame (``STATIC_ENTITIES``: the base
+    and the platform with their rings and hinges) are built once and shared by every scene."""
 
-    ``vibration_direction`` (3,) in base, any length > 0, or None (no arrow).
-    """
-    position = np.asarray(position, dtype=float).reshape(3)
-    quaternion = np.asarray(quaternion, dtype=float).reshape(4)
-    rot = rotation_from_quaternion(quaternion)
-    tips = position + robot.platform_hinges @ rot.T  # A_i in base
-    legs = tips - robot.base_hinges
-    lengths = np.linalg.norm(legs, axis=1)
-    transforms = [FrameTransform(BASE_FRAME, PLATFORM_FRAME, position.copy(), quaternion.copy())]
-    entities = [_hinge_entity("base", BASE_FRAME, robot.base_hinges, BASE_COLOR),
-                _hinge_entity("platform", PLATFORM_FRAME, robot.platform_hinges, PLATFORM_COLOR)]
-    cylinder_len = 2 * robot.leg.cylinder_com_offset
-    piston_len = 2 * robot.leg.piston_com_offset
-    for frame, base_hinge, leg, length in zip(LEG_FRAMES, robot.base_hinges, legs, lengths, strict=True):
-        transforms.append(FrameTransform(BASE_FRAME, frame, base_hinge.copy(), quaternion_between([0, 0, 1], leg)))
-        entities.append(Entity(id=frame, frame_id=frame, cylinders=(
-            _z_cylinder(0.0, min(cylinder_len, length), CYLINDER_DIAMETER, CYLINDER_COLOR),
-            _z_cylinder(max(length - piston_len, 0.0), length, PISTON_DIAMETER, PISTON_COLOR),
-        )))
-    if vibration_direction is not None:
-        u = np.asarray(vibration_direction, dtype=float).reshape(3)
-        u = u / np.linalg.norm(u)
-        entities.append(Entity(id=VIBRATION_ENTITY, frame_id=BASE_FRAME, arrows=(Arrow(
-            position.copy(), u, quaternion_between([1, 0, 0], u), shaft_length=ARROW_LENGTH * 0.75,
-            shaft_diameter=0.004, head_length=ARROW_LENGTH * 0.25, head_diameter=0.010, color=ARROW_COLOR),)))
-    return Scene(float(stamp), tuple(transforms), tuple(entities))
+    def __init__(self, robot: Robot):
+        self.robot = robot
+        self.static = (_hinge_entity("base", BASE_FRAME, robot.base_hinges, BASE_COLOR),
+                       _hinge_entity("platform", PLATFORM_FRAME, robot.platform_hinges, PLATFORM_COLOR))
+        self._cylinder_len = 2 * robot.leg.cylinder_com_offset
+        self._piston_len = 2 * robot.leg.piston_com_offset
+
+    def scene(self, position, quaternion, stamp: float = 0.0, vibration_direction=None) -> Scene:
+        """The scene at platform pose (position (3,) m, unit quaternion (4,) [x, y, z, w], both in base).
+
+        ``vibration_direction`` (3,) in base, any length > 0, or None (no arrow).
+        """
+        robot = self.robot
+        position = np.asarray(position, dtype=float).reshape(3)
+        quaternion = np.asarray(quaternion, dtype=float).reshape(4)
+        tips = position + robot.platform_hinges @ rotation_from_quaternion(quaternion).T  # A_i in base
+        legs = tips - robot.base_hinges
+        lengths = np.linalg.norm(legs, axis=1)
+        rotations = _z_to(legs)
+        transforms = [FrameTransform(BASE_FRAME, PLATFORM_FRAME, position.copy(), quaternion.copy())]
+        entities = list(self.static)
+        for i, frame in enumerate(LEG_FRAMES):
+            length = float(lengths[i])
+            transforms.append(FrameTransform(BASE_FRAME, frame, robot.base_hinges[i].copy(), rotations[i]))
+            entities.append(Entity(id=frame, frame_id=frame, cylinders=(
+                _z_cylinder(0.0, min(self._cylinder_len, length), CYLINDER_DIAMETER, CYLINDER_COLOR),
+                _z_cylinder(max(length - self._piston_len, 0.0), length, PISTON_DIAMETER, PISTON_COLOR),
+            )))
+        if vibration_direction is not None:
+            u = np.asarray(vibration_direction, dtype=float).reshape(3)
+            u = u / np.linalg.norm(u)
+            entities.append(Entity(id=VIBRATION_ENTITY, frame_id=BASE_FRAME, arrows=(Arrow(
+                position.copy(), u, quaternion_between([1, 0, 0], u), shaft_length=ARROW_LENGTH * 0.75,
+                shaft_diameter=0.004, head_length=ARROW_LENGTH * 0.25, head_diameter=0.010, color=ARROW_COLOR),)))
+        return Scene(float(stamp), tuple(transforms), tuple(entities))
+
+
+def robot_scene(robot: Robot, position, quaternion, stamp: float = 0.0, vibration_direction=None) -> Scene:
+    """The scene at one platform pose (see SceneBuilder.scene; a builder saves the static part per call)."""
+    return SceneBuilder(robot).scene(position, quaternion, stamp, vibration_direction)
 
 
 def vibration_direction_from_window(robot: Robot, position, quaternion, vib_positions) -> np.ndarray | None:
@@ -241,6 +269,7 @@ __all__ = [
     "BASE_FRAME",
     "LEG_FRAMES",
     "PLATFORM_FRAME",
+    "STATIC_ENTITIES",
     "VIBRATION_ENTITY",
     "Arrow",
     "Cylinder",
@@ -248,6 +277,7 @@ __all__ = [
     "FrameTransform",
     "Line",
     "Scene",
+    "SceneBuilder",
     "Sphere",
     "quaternion_between",
     "robot_scene",
