@@ -153,3 +153,18 @@ def test_no_vibration_direction_without_motion_or_with_bad_samples(robot):
     position, quat = pose_to_position_quaternion(POSES[0])
     for bad in (np.zeros((100, 6)), np.full((10, 6), np.nan), np.ones((10, 5)), np.ones(6), np.ones((1, 6))):
         assert vibration_direction_from_window(robot, position, quat, bad) is None
+
+
+def test_offline_render_draws_every_primitive_and_refuses_a_missing_run(robot, tmp_path, capsys):
+    import matplotlib.pyplot as plt
+
+    from stewart_vibration.visualization.render import draw_scene, main
+
+    scene = robot_scene(robot, *pose_to_position_quaternion(POSES[1]), vibration_direction=[0, 0, 1])
+    ax = plt.figure().add_subplot(projection="3d")
+    # 2 x (6 hinges + 1 ring) + 6 x 2 leg cylinders + 1 arrow
+    assert draw_scene(ax, scene) == 27
+    plt.close("all")
+    assert main([str(tmp_path / "missing.mcap"), "--out", str(tmp_path / "x.png")]) == 2
+    assert capsys.readouterr().err.startswith("error: ")
+    assert not (tmp_path / "x.png").exists()
