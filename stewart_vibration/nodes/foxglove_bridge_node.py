@@ -214,7 +214,11 @@ class FoxgloveBridgeNode(Node):
         self._pose_data = data
 
     def _on_vibration_status(self, data: bytes) -> None:
-        status = deserialize_message(data, DiagnosticStatus)
+        try:
+            status = deserialize_message(data, DiagnosticStatus)
+        except Exception as exc:  # noqa: BLE001 - a bad message must not stop the bridge
+            self.get_logger().warning(f"vibration/status not understood: {exc}", throttle_duration_sec=10.0)
+            return
         state = next((kv.value for kv in status.values if kv.key == "state"), "")
         self._vibrating = state in VIBRATING_STATES
 
