@@ -15,6 +15,7 @@ CONSOLE_SCRIPTS = [
     "vibration_planner_node = stewart_vibration.nodes.vibration_planner_node:main",
     "leg_force_estimator_node = stewart_vibration.nodes.leg_force_estimator_node:main",
     "hardware_emulator_node = stewart_vibration.nodes.hardware_emulator_node:main",
+    "planning_ui = stewart_vibration.nodes.planning_ui_node:main",
     "foxglove_bridge = stewart_vibration.nodes.foxglove_bridge_node:main",
 ]
 
@@ -22,6 +23,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*"]),
+    package_data={"stewart_vibration.ui": ["static/*"]},  # the planning UI's page (issue 16)
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

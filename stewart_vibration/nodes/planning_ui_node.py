@@ -75,6 +75,7 @@ ROSOUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durab
 SETTLE_POSITION_M = 1e-5  # a move is settled when the ground truth holds within 10 um / 0.01 deg for 0.5 s
 SETTLE_ANGLE_RAD = math.radians(0.01)
 SETTLE_HOLD_S = 0.5
+MOVE_TIMEOUT_S = 120.0  # a move not settled by then no longer blocks a start
 CALL_TIMEOUT_S = 10.0
 COMMAND_POLL_S = 0.01  # the page's commands are run in the executor's thread within this time
 REASON_WAIT_S = 2.0  # how long to wait for a node's reason on /diagnostics after its refusal
@@ -223,6 +224,10 @@ class PlanningUiNode(Node):
                 self._event(node, status.message, LEVELS.get(level, "ERROR"))
             if node == "vibration_planner":
                 self._follow_planner(values)
+            move = self.move
+            if node == "kinematics" and changed and move is not None and move["status"] == "moving" and \
+                    status.message.startswith("rejected target pose"):
+                move["status"], move["reason"] = "rejected by kinematics", status.message
             self._resolve_waiters(node, status.message)
 
     def _on_rosout(self, msg: Log) -> None:
@@ -503,6 +508,11 @@ class PlanningUiNode(Node):
     def _cmd_start(self, args, reply) -> None:
         params, settings = self._vibration_settings(args)
         pose = self._estimate()
+        move = self.move
+        if move is not None and move["status"] == "moving" and time.monotonic() - move["sent"] < MOVE_TIMEOUT_S:
+            reply({"ok": False, "refused_by": "planning_ui", "message": "not started: the platform is still moving "
+                   "to its target (start when the move has settled)"})
+            return
         request = SetParametersAtomically.Request()
         request.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in params.items()]
 

@@ -1,0 +1,17 @@
+"""The surgical planning UI (issue 16): a browser page served by the ``planning_ui`` node.
+
+- ``model``: the page's model and its server-side checks (pure: numpy and the core, no rclpy, no web
+  server): pose entry in mm/deg -> reachability, path margins, vibration preview, start-answer parsing,
+  rate limiting, decimation.
+- ``server``: the HTTP + WebSocket server (asyncio + ``websockets``; no rclpy): token, static page,
+  commands in, live frames out.
+- ``static/``: the page (plain HTML/JS/CSS, plots drawn on <canvas>; no CDN, works offline).
+
+The rclpy side (topics, services, parameters) is ``stewart_vibration.nodes.planning_ui_node``.
+"""
+
+from pathlib import Path
+
+STATIC_DIR = Path(__file__).resolve().parent / "static"
+
+__all__ = ["STATIC_DIR"]
