@@ -15,8 +15,10 @@ legs/force_estimate (raw, best effort: a slow page never holds up a publisher), 
 Commands from the page are checked here with the core's own checks before anything is sent (a move with
 ``kinematics.check_pose``, a start with the planner's settings check and the decomposition's limits) and
 rate-limited; stop and the emergency stop are never limited or delayed. Live data go to the page at
-``frame_rate_hz`` with the 500 Hz streams decimated to ``plot_rate_hz``. After a vibration the page gets
-its run summary (amplitude, direction error, phases, force error), computed from the full-rate streams.
+``frame_rate_hz`` with the 500 Hz streams decimated to ``plot_rate_hz``; those subscriptions exist only while a
+page is open (or a move or vibration it started is followed), so an unwatched UI costs the suite nothing.
+After a vibration the page gets its run summary (amplitude, direction error, phases, force error), computed
+from the full-rate streams.
 
 The web server runs in a thread of its own (stewart_vibration.ui.server); every rclpy call is made here,
 in the executor's thread: commands are queued and run from a 100 Hz steady timer (the EventsExecutor
@@ -81,6 +83,7 @@ COMMAND_POLL_S = 0.01  # the page's commands are run in the executor's thread wi
 REASON_WAIT_S = 2.0  # how long to wait for a node's reason on /diagnostics after its refusal
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 EVENTS_KEPT = 30
+STREAMS_IDLE_S = 5.0  # the 500 Hz subscriptions are dropped this long after the last page closed
 RUNNING_STATES = ("pending", "ramping_in", "running", "ramping_out")
 
 
@@ -137,6 +140,7 @@ class PlanningUiNode(Node):
         self.plots = {"joints": [], "forces": []}  # decimated rows since the last frame
         self.vibration = None  # latest VibrationReport
         self.node_status: dict[str, dict] = {}  # /diagnostics name -> level, message, values, seen
+        self.node_history: dict[str, collections.deque] = {}  # node -> its recent (seq, message)
         self.diag_seq = 0
         self.events: collections.deque = collections.deque(maxlen=EVENTS_KEPT)
         self.event_seq = 0
@@ -152,12 +156,8 @@ class PlanningUiNode(Node):
 
         # -- interfaces --
         self.target_pub = self.create_publisher(PoseStamped, "platform/target_pose", 10)
-        self.create_subscription(JointState, "legs/joint_states", lambda d: self._raw("joints", d), STREAM_QOS,
-                                 raw=True)
-        self.create_subscription(PoseStamped, "platform/pose", lambda d: self._raw("truth", d), STREAM_QOS, raw=True)
-        self.create_subscription(JointState, "legs/force_estimate", lambda d: self._raw("forces", d), STREAM_QOS,
-                                 raw=True)
-        self.create_subscription(PoseStamped, "platform/pose_estimate", self._on_estimate, STREAM_QOS, raw=True)
+        self.streams = []  # the 500 Hz subscriptions: only while a page is open or a move / vibration is followed
+        self.unwatched_since = time.monotonic()
         self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS)
         self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
         self.create_subscription(Log, "/rosout", self._on_rosout, ROSOUT_QOS)
@@ -218,6 +218,7 @@ class PlanningUiNode(Node):
             self.node_status[status.name] = {"level": level, "message": status.message, "values": values,
                                              "seen": now, "seq": self.diag_seq}
             node = status.name.split(":")[0]
+            self.node_history.setdefault(node, collections.deque(maxlen=50)).append((self.diag_seq, status.message))
             changed = before is None or before["message"] != status.message
             if changed and level >= 1 and status.name != self.diagnostics._name and (
                     "rejected" in status.message or "aborted" in status.message):
@@ -325,7 +326,29 @@ class PlanningUiNode(Node):
             else:
                 move["held_since"] = None
 
+    def _watch_streams(self) -> None:
+        """Subscribe the 500 Hz streams while a page is open, or a move or vibration it started is being
+        followed; drop them STREAMS_IDLE_S after that (nobody watching costs the suite nothing)."""
+        now = time.monotonic()
+        following = (self.move is not None and self.move["status"] == "moving") or \
+            (self.run is not None and not self.run.get("done") and self.run["source"] == "this page")
+        if self.server.clients or following:
+            self.unwatched_since = now
+            if not self.streams:
+                raw = [("legs/joint_states", JointState, lambda d: self._raw("joints", d)),
+                       ("platform/pose", PoseStamped, lambda d: self._raw("truth", d)),
+                       ("legs/force_estimate", JointState, lambda d: self._raw("forces", d)),
+                       ("platform/pose_estimate", PoseStamped, self._on_estimate)]
+                self.streams = [self.create_subscription(kind, topic, callback, STREAM_QOS, raw=True)
+                                for topic, kind, callback in raw]
+        elif self.streams and now - self.unwatched_since > STREAMS_IDLE_S:
+            for sub in self.streams:
+                self.destroy_subscription(sub)
+            self.streams = []
+            self.latest.pop("estimate", None)
+
     def _frame(self) -> None:
+        self._watch_streams()
         self._drain()
         self._expire()
         now = time.monotonic()
@@ -589,9 +612,9 @@ class PlanningUiNode(Node):
         """Reply with the reason ``node`` gave on /diagnostics (a message starting with ``prefix``) after the
         request was sent; if it came already, at once, else when it comes (at most REASON_WAIT_S)."""
         since = getattr(self, "reason_mark", 0)
-        for name, s in self.node_status.items():
-            if name.split(":")[0] == node and s["seq"] > since and s["message"].startswith(prefix):
-                reply({**result, "message": s["message"]})
+        for seq, message in self.node_history.get(node, ()):  # a later status may have replaced it already
+            if seq > since and message.startswith(prefix):
+                reply({**result, "message": message})
                 return
         self.reason_waiters.append((time.monotonic() + REASON_WAIT_S, node, prefix, reply, result))
 
