@@ -8,7 +8,9 @@ soon as it appears, keeps the page streaming through the run, and samples every 
 (page open to the last sample) and over the vibration. Then prints the run's figures against their
 bounds (summary.json) and what the page received. ``--baseline`` first runs the same job without the UI.
 
-Run: .venv/bin/python benchmarks/planning_ui.py [--duration 3] [--baseline] [--json]
+``--no-page`` also runs it with the UI node up but no page open (its 500 Hz subscriptions are then dropped).
+
+Run: .venv/bin/python benchmarks/planning_ui.py [--duration 3] [--baseline] [--no-page] [--json]
 Exit code 0 when every run passed its bounds (exit code 0), 1 otherwise.
 """
 
@@ -30,7 +32,7 @@ from cdp_browser import Browser, chromium_binary  # noqa: E402 - the tests' CDP 
 from suite_cpu import children, cpu_seconds, process_name  # noqa: E402 - the suite benchmark's /proc readers
 
 
-def run_job(out: Path, duration: float | None, ui: bool) -> dict:
+def run_job(out: Path, duration: float | None, ui: bool, open_page: bool = True) -> dict:
     cmd = [sys.executable, "-m", "stewart_vibration", "run", "--out", str(out / "run")]
     cmd += ["--duration", str(duration)] if duration else []
     cmd += ["--ui"] if ui else []
@@ -58,7 +60,7 @@ def run_job(out: Path, duration: float | None, ui: bool) -> dict:
     names: dict[int, str] = {}
     page = {}
     try:
-        if ui:
+        if ui and open_page:
             deadline = time.monotonic() + 120
             while not url and time.monotonic() < deadline and proc.poll() is None:
                 time.sleep(0.05)
@@ -92,7 +94,8 @@ def run_job(out: Path, duration: float | None, ui: bool) -> dict:
     reader.join(timeout=5)
     summary_path = out / "run" / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
-    return {"ui": ui, "exit_code": code, "summary": summary, "page": page, "log_tail": "".join(lines[-8:]),
+    return {"ui": ui, "page_open": ui and open_page, "exit_code": code, "summary": summary, "page": page,
+            "log_tail": "".join(lines[-8:]),
             "cores_run": cores(samples, names, None, None),
             "cores_vibration": cores(samples, names, marks.get("vibration"), marks.get("vibration_done"))}
 
@@ -133,6 +136,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--duration", type=float, default=None, help="vibration duration (default: the scenario's)")
     parser.add_argument("--baseline", action="store_true", help="first run the same job without the UI")
+    parser.add_argument("--no-page", action="store_true", help="also run with the UI node but no page open")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args()
     if chromium_binary() is None:
@@ -142,13 +146,16 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for ui in ([False] if args.baseline else []) + [True]:
             runs.append(run_job(Path(tmp) / ("ui" if ui else "baseline"), args.duration, ui))
+        if args.no_page:
+            runs.append(run_job(Path(tmp) / "no_page", args.duration, True, open_page=False))
     ok = all(r["exit_code"] == 0 for r in runs)
     if args.json:
         print(json.dumps([{**{k: v for k, v in r.items() if k != "summary"}, "figures": figures(r["summary"])}
                           for r in runs], indent=2))
         return 0 if ok else 1
     for r in runs:
-        label = "with the planning UI open in Chromium" if r["ui"] else "baseline (no UI)"
+        label = ("with the planning UI open in Chromium" if r["page_open"] else "with the planning UI node, no page"
+                 if r["ui"] else "baseline (no UI)")
         print(f"== main job {label}: exit code {r['exit_code']}")
         for key, value in figures(r["summary"]).items():
             print(f"  {key:<28}{value if not isinstance(value, float) else f'{value:.4g}'}")

@@ -21,8 +21,8 @@ After a vibration the page gets its run summary (amplitude, direction error, pha
 from the full-rate streams.
 
 The web server runs in a thread of its own (stewart_vibration.ui.server); every rclpy call is made here,
-in the executor's thread: commands are queued and run from a 100 Hz steady timer (the EventsExecutor
-has no guard conditions).
+in the executor's thread: commands are queued and run from a 100 Hz steady timer while a page is open (the
+EventsExecutor has no guard conditions).
 """
 
 from __future__ import annotations
@@ -174,7 +174,8 @@ class PlanningUiNode(Node):
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0 / self.frame_rate, self._frame, clock=steady)
         # rclpy's EventsExecutor has no guard conditions: the queue is polled (an e-stop waits <= 10 ms)
-        self.create_timer(COMMAND_POLL_S, self._run_commands, clock=steady)
+        self.command_timer = self.create_timer(COMMAND_POLL_S, self._run_commands, clock=steady)
+        self.command_timer.cancel()  # runs only while a page is open (commands come from pages)
         self.create_timer(2.0, self._slow_tick, clock=steady)
         self.server = UiServer(sock, self.token, self, command_rate=command_rate, log=self.get_logger().warning)
         self.server.start()
@@ -332,6 +333,11 @@ class PlanningUiNode(Node):
         now = time.monotonic()
         following = (self.move is not None and self.move["status"] == "moving") or \
             (self.run is not None and not self.run.get("done") and self.run["source"] == "this page")
+        if self.server.clients and self.command_timer.is_canceled():
+            self.command_timer.reset()
+        elif not self.server.clients and not self.command_timer.is_canceled():
+            self._run_commands()
+            self.command_timer.cancel()
         if self.server.clients or following:
             self.unwatched_since = now
             if not self.streams:
@@ -351,6 +357,9 @@ class PlanningUiNode(Node):
         self._watch_streams()
         self._drain()
         self._expire()
+        if not self.server.clients:  # nobody to show it to
+            self.plots = {"joints": [], "forces": []}
+            return
         now = time.monotonic()
         frame = {"type": "frame", "wall": time.time(), "stale_after_s": self.stale_after,
                  "ages": {k: now - t for k, t in self.seen.items()},
