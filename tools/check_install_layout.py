@@ -2,8 +2,8 @@
 
 Usage: python tools/check_install_layout.py INSTALL_BASE
 Verifies lib/stewart_vibration/<every console script in setup.py>, the ament
-index marker, share/stewart_vibration/package.xml, every config file, and the
-launch files; exits non-zero listing what is missing.
+index marker, share/stewart_vibration/package.xml, every config file, the
+launch files and the planning UI's page (package data); exits non-zero listing what is missing.
 """
 
 from __future__ import annotations
@@ -32,7 +32,15 @@ def main() -> int:
         install / "share/ament_index/resource_index/packages" / PACKAGE,
         install / "share" / PACKAGE / "package.xml",
     ]
-    expected += [install / "share" / PACKAGE / "config" / p.name for p in sorted((REPO / "config").glob("*.yaml"))]
+    config = [p for pattern in ("*.yaml", "*.xml", "*.json") for p in sorted((REPO / "config").glob(pattern))]
+    expected += [install / "share" / PACKAGE / "config" / p.name for p in config]
+    # package data: the planning UI's page, beside the installed modules (lib/python3.X/site-packages)
+    site = sorted((install / "lib").glob("python3*/site-packages"))
+    ui_static = sorted((REPO / PACKAGE / "ui" / "static").iterdir())
+    if site:
+        expected += [site[0] / PACKAGE / "ui" / "static" / p.name for p in ui_static]
+    else:
+        expected.append(install / "lib" / "python3.X" / "site-packages")
     expected += [install / "share" / PACKAGE / "launch" / p.name for p in sorted((REPO / "launch").glob("*.launch.py"))]
     missing = [str(p) for p in expected if not p.exists()]
     for path in expected:
