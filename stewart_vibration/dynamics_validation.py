@@ -7,6 +7,10 @@ platform motion MuJoCo actually produced (pose, twist, and the acceleration
 of each recorded state re-evaluated with mj_forward), never on the
 prescribed one. Scenarios: the paper's example and the clinical 35 Hz, 0.3 g
 vibration along the force line at the paper's pose.
+
+With a soft-tissue model (``tissue``), its wrench is evaluated from the simulated state at the start of
+every step and applied over the step as MuJoCo's ``xfrc_applied`` on the platform (at the centre of
+mass, world frame); the Newton-Euler side gets the same wrench as ``external_wrench``.
 """
 
 from __future__ import annotations
@@ -28,6 +32,8 @@ from .paper import (
     paper_pose,
 )
 from .robot import STANDARD_GRAVITY, Robot
+from .rotations import rotation_from_rpy
+from .tissue import TissueModel, tissue_wrench, wrench_about_point
 from .trajectory import SinusoidalTrajectory, amplitude_for_acceleration, force_line_direction, vibration_trajectory
 
 
@@ -49,10 +55,21 @@ class SimulationRun:
     lengths: np.ndarray
     violation: np.ndarray
     reference_pose: np.ndarray
+    wrench: np.ndarray | None = None
 
 
-def simulate_trajectory(sim: StewartSim, trajectory: SinusoidalTrajectory, duration: float) -> SimulationRun:
-    """Drive the struts along the trajectory's leg lengths for ``duration`` s; record every step."""
+def tissue_xfrc(sim: StewartSim, tissue: TissueModel, data=None) -> tuple[np.ndarray, np.ndarray]:
+    """(wrench about the platform origin, the same as MuJoCo's xfrc_applied: moment about the centre of
+    mass), both (6,) base frame, of the tissue at the platform state in ``data`` (qpos, qvel)."""
+    pose, twist = sim.platform_pose(data), sim.platform_twist(data)
+    wrench = tissue_wrench(tissue, pose, twist)
+    return wrench, wrench_about_point(wrench, rotation_from_rpy(pose[3:]) @ sim.robot.moving_body.com)
+
+
+def simulate_trajectory(sim: StewartSim, trajectory: SinusoidalTrajectory, duration: float,
+                        tissue: TissueModel | None = None) -> SimulationRun:
+    """Drive the struts along the trajectory's leg lengths for ``duration`` s; record every step.
+    ``tissue``: apply that soft-tissue load (evaluated at each step's start state) to the platform."""
     dt = sim.model.opt.timestep
     steps = int(round(duration / dt))
     t = np.arange(steps) * dt
@@ -62,18 +79,23 @@ def simulate_trajectory(sim: StewartSim, trajectory: SinusoidalTrajectory, durat
     sim.set_state(ref.pose[0], ref.twist[0])
     nq, nv = sim.model.nq, sim.model.nv
     qpos, qvel = np.empty((steps, nq)), np.empty((steps, nv))
-    forces = np.empty((steps, 6))
+    forces, wrench, xfrc = np.empty((steps, 6)), np.zeros((steps, 6)), np.zeros((steps, 6))
+    platform = sim.model.body("platform").id
     for k in range(steps):
+        if tissue is not None:
+            wrench[k], xfrc[k] = tissue_xfrc(sim, tissue)
+            sim.data.xfrc_applied[platform] = xfrc[k]
         f = sim.drive_forces(legs.length[k], legs.length_rate[k], legs.length_accel[k])
         qpos[k], qvel[k], forces[k] = sim.data.qpos, sim.data.qvel, f
         sim.step(f)
     pose, twist, accel = np.empty((steps, 6)), np.empty((steps, 6)), np.empty((steps, 6))
     lengths, violation, sensed = np.empty((steps, 6)), np.empty(steps), np.empty((steps, 6))
     for k in range(steps):
+        sim._scratch.xfrc_applied[platform] = xfrc[k]
         pose[k], twist[k], accel[k], violation[k] = sim.evaluate(qpos[k], qvel[k], forces[k])
         lengths[k] = sim.leg_lengths(sim._scratch)
         sensed[k] = sim.actuator_forces(sim._scratch)
-    return SimulationRun(t, pose, twist, accel, sensed, lengths, violation, ref.pose)
+    return SimulationRun(t, pose, twist, accel, sensed, lengths, violation, ref.pose, wrench)
 
 
 @dataclass(frozen=True)
@@ -132,12 +154,16 @@ def clinical_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
 
 
 def run_scenario(robot: Robot, name: str, duration: float, settings: SimulationSettings | None = None,
-                 sim: StewartSim | None = None) -> ScenarioResult:
-    """Simulate scenario ``name`` ("paper" or "clinical") for ``duration`` s and compare both models."""
+                 sim: StewartSim | None = None, tissue: TissueModel | None = None) -> ScenarioResult:
+    """Simulate scenario ``name`` ("paper" or "clinical") for ``duration`` s and compare both models; with
+    ``tissue`` the platform works against that soft-tissue load (both models get its wrench)."""
     traj, description = {"paper": paper_scenario, "clinical": clinical_scenario}[name](robot)
+    if tissue is not None:
+        description += f", against the tissue '{tissue.name}'"
     sim = sim or StewartSim(robot, settings)
-    run = simulate_trajectory(sim, traj, duration)
-    full = compare_forces(leg_forces(robot, run.pose, run.twist, run.accel), run.forces)
-    paper = compare_forces(leg_forces_paper(robot, run.pose, run.twist, run.accel), run.forces)
+    run = simulate_trajectory(sim, traj, duration, tissue)
+    full = compare_forces(leg_forces(robot, run.pose, run.twist, run.accel, external_wrench=run.wrench), run.forces)
+    paper = compare_forces(leg_forces_paper(robot, run.pose, run.twist, run.accel, external_wrench=run.wrench),
+                           run.forces)
     tracking = float(np.abs(run.pose[:, :3] - run.reference_pose[:, :3]).max())
     return ScenarioResult(name, description, run, full, paper, tracking)
