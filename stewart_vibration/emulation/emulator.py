@@ -9,12 +9,21 @@ Stepping: ``advance(duration)`` runs one block of physics steps (the state perio
 steps at 2 kHz) with controls planned for the whole block (``servo_drive``); the references of the
 strut trajectory and the vibration buffer are sampled for ``reference_horizon_s`` at a time in one
 vectorised call and reused until a command changes them.
+
+Soft tissue (optional ``tissue``, a ``stewart_vibration.tissue.TissueModel``): its wrench is evaluated
+from the platform's state at the start of every block and applied over the block as MuJoCo's
+``xfrc_applied`` on the platform body (force at the body's centre of mass and the moment about it,
+world frame: the tissue's moment about the platform origin minus (R c_m) x F). ``tissue_wrench``
+holds the wrench applied from the current time (about the platform origin, base frame). The struts are
+leadscrew actuators, stiff position sources: the servos' feedforward takes the applied load in exactly
+(servo_drive ``load_body``), so the tissue changes the strut forces, not the motion.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 
+import mujoco
 import numpy as np
 
 from ..errors import ActuatorLimitError
@@ -23,6 +32,7 @@ from ..mjcf import SimulationSettings
 from ..motion_profiles import minimum_jerk, minimum_jerk_duration
 from ..mujoco_sim import StewartSim
 from ..robot import Robot
+from ..tissue import TissueModel, tissue_wrench_single
 from .servo_drive import ServoDrive
 from .trajectory import (
     MAX_START_DELAY_S,
@@ -47,12 +57,20 @@ class HardwareEmulator:
 
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
-                 reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S):
+                 reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,
+                 tissue: TissueModel | None = None):
         self.robot = robot
         self.max_start_delay_s = float(max_start_delay_s)
         self.sim = StewartSim(robot, replace(settings, integrator=settings.emulator_integrator))
         self.sim.reset(robot.home_pose)
-        self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio, gain_interval)
+        self.tissue = tissue
+        self.tissue_wrench = np.zeros(6)  # applied from the current time on (N, N m about the platform origin)
+        self._platform_body = self.sim.model.body("platform").id
+        self._com = robot.moving_body.com.tolist()
+        self._rot = np.zeros(9)
+        self._apply_tissue()
+        self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio, gain_interval,
+                                load_body=self._platform_body if tissue is not None else None)
         self.home_lengths = inverse_kinematics(robot, robot.home_pose)
         self.struts = TrajectoryFollower(self.home_lengths)
         self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s)
@@ -145,6 +163,26 @@ class HardwareEmulator:
     def _changed(self) -> None:
         self._version += 1
 
+    def _apply_tissue(self) -> None:
+        """Evaluate the tissue wrench at the current state and apply it until the next call (xfrc_applied)."""
+        if self.tissue is None:
+            return
+        sim, data = self.sim, self.sim.data
+        q = data.qpos[sim.free_qpos:sim.free_qpos + 7]
+        qv = data.qvel[sim.free_dof:sim.free_dof + 6]
+        mujoco.mju_quat2Mat(self._rot, q[3:7])
+        rot = self._rot.reshape(3, 3)
+        omega = (rot @ qv[3:6]).tolist()  # MuJoCo keeps the free joint's angular velocity in the body frame
+        w = tissue_wrench_single(self.tissue, q[:3].tolist(), rot, qv[:3].tolist(), omega)
+        cx, cy, cz = self._com
+        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
+        ax, ay, az = r00 * cx + r01 * cy + r02 * cz, r10 * cx + r11 * cy + r12 * cz, r20 * cx + r21 * cy + r22 * cz
+        fx, fy, fz = w[0], w[1], w[2]
+        # xfrc_applied: force at the centre of mass, moment about it (world frame)
+        data.xfrc_applied[self._platform_body] = (fx, fy, fz, w[3] - (ay * fz - az * fy), w[4] - (az * fx - ax * fz),
+                                                  w[5] - (ax * fy - ay * fx))
+        self.tissue_wrench = np.array(w)
+
     # -- stepping ----------------------------------------------------------------
     def _references(self, time: float, steps: int):
         """(lengths, rates at t - dt/2, accelerations, vib positions, vib velocities) [steps + 1, 6] at the
@@ -186,6 +224,7 @@ class HardwareEmulator:
         """
         steps = max(int(round(duration / self.dt)), 1)
         self.drive.run(self._controls(self.time, steps))
+        self._apply_tissue()  # the tissue's wrench over the next block, from the state now
         now = self.time
         controls = self._controls(now, steps)
         self._planned = (self._version, now, controls)

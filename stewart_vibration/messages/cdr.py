@@ -342,6 +342,14 @@ class WrenchStampedEncoder:
         return bytes(buf)
 
 
+def decode_wrench_stamped(data) -> tuple[float, str, np.ndarray]:
+    """(stamp s, frame_id, wrench (6,) [force N, torque N m]) of WrenchStamped bytes."""
+    r = _Reader(data, "WrenchStamped")
+    sec, nanosec = r.stamp()
+    frame = r.string()
+    return stamp_seconds(sec, nanosec), frame, r.fixed_doubles(6)
+
+
 def encode_clock(stamp_s: float) -> bytes:
     """rosgraph_msgs/Clock bytes."""
     return ENCAPSULATION + _STAMP.pack(*stamp_parts(stamp_s))

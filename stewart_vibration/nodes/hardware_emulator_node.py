@@ -6,7 +6,11 @@ legs/joint_states (leg_*, vib_*: position m, velocity m/s, effort = axial
 force N), platform/pose (ground truth, PoseStamped in `base`),
 vibration/status (diagnostic_msgs/DiagnosticStatus, reliable + transient local:
 what the vibration units really do, see emulation.vibration_status),
-robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics.
+robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics; with a
+``tissue_config`` also platform/tissue_wrench (WrenchStamped in `base`, one per
+state: the soft-tissue wrench the emulator applies from that instant, force N
+and moment N m about the platform origin -- the convention of
+platform/external_wrench_estimate).
 Services: hardware_emulator/reset, hardware_emulator/emergency_stop (Trigger).
 
 Physics runs in its own thread, one block of steps per state period, paced by
@@ -23,7 +27,7 @@ import traceback
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Point, PoseStamped
+from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
@@ -43,6 +47,7 @@ from ..messages import cdr
 from ..mjcf import load_simulation_settings
 from ..robot import load_robot
 from ..rotations import rotation_from_quaternion
+from ..tissue import load_tissue_option
 from .common import (
     BASE_FRAME,
     ERROR,
@@ -86,6 +91,9 @@ class HardwareEmulatorNode(LifecycleNode):
         self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", ro))
         self.declare_parameter("simulation_config", "", text_param(
             "simulation YAML ('' = config/simulation.yaml)", ro))
+        self.declare_parameter("tissue_config", "", text_param(
+            "soft-tissue YAML applied to the platform (e.g. tissue.yaml: a name is looked up in config/; '' = no "
+            "tissue; read at configure)", ro))
         self.declare_parameter("autostart", True, ParameterDescriptor(
             description="configure and activate at start (false: wait for the lifecycle transitions)", read_only=ro))
         declare_float(self, "physics_rate_hz", 2000.0, float_param(
@@ -126,6 +134,8 @@ class HardwareEmulatorNode(LifecycleNode):
         self.rejections = RejectionLog(self)
         self.state_encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
+        self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
+        self.tissue_pub = None
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
         self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
@@ -144,8 +154,10 @@ class HardwareEmulatorNode(LifecycleNode):
             robot = load_robot(param("robot_config").value or None)
             settings = load_simulation_settings(param("simulation_config").value or None,
                                                 timestep=1.0 / param("physics_rate_hz").value)
+            tissue = load_tissue_option(param("tissue_config").value, robot)
             emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
-                                        param("drive_gain_interval").value, param("max_lookahead_s").value)
+                                        param("drive_gain_interval").value, param("max_lookahead_s").value,
+                                        tissue=tissue)
         except (StewartError, ValueError, OSError) as exc:
             self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
             self.diagnostics.set(ERROR, f"configure failed: {exc}")
@@ -164,11 +176,16 @@ class HardwareEmulatorNode(LifecycleNode):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
         self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
+        self.tissue_pub = None
+        if tissue is not None:
+            self.tissue_pub = self.create_publisher(WrenchStamped, "platform/tissue_wrench", STREAM_DEPTH)
         self.diagnostics.set(OK, "configured (inactive: commands are refused until activate)",
                              physics_rate_hz=param("physics_rate_hz").value,
-                             servo_bandwidth_hz=settings.servo_bandwidth_hz)
+                             servo_bandwidth_hz=settings.servo_bandwidth_hz,
+                             tissue=tissue.source if tissue is not None else "none")
         self.get_logger().info(f"configured: MuJoCo dt {emulator.dt} s, {settings.emulator_integrator}, "
-                               f"robot {robot.source}")
+                               f"robot {robot.source}, tissue "
+                               f"{f'{tissue.name} ({tissue.source})' if tissue is not None else 'none'}")
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -194,8 +211,9 @@ class HardwareEmulatorNode(LifecycleNode):
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._stop_physics()
-        for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub):
-            self.destroy_publisher(pub)
+        for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub, self.tissue_pub):
+            if pub is not None:
+                self.destroy_publisher(pub)
         with self.lock:
             self.emulator = None
         self.diagnostics.set(WARN, "unconfigured (cleaned up)")
@@ -385,24 +403,27 @@ class HardwareEmulatorNode(LifecycleNode):
                                                pace_resets=str(self.behind_resets))
 
     def _read_state(self):
-        """(joint state tuple, platform position + quaternion, time) under the lock."""
+        """(joint state tuple, (platform position, quaternion, tissue wrench), time) under the lock."""
         emulator = self.emulator
-        return emulator.joint_state(), emulator.sim.platform_position_quaternion(), emulator.time
+        position, quaternion = emulator.sim.platform_position_quaternion()
+        return emulator.joint_state(), (position, quaternion, emulator.tissue_wrench), emulator.time
 
     def publish_state(self, state, pose, now, clock: bool = True) -> None:
         if clock:
             self.clock_pub.publish(cdr.encode_clock(now))
         _, positions, velocities, efforts = state
         self.state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
-        position, quaternion = pose
+        position, quaternion, wrench = pose
         self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
+        if self.tissue_pub is not None:
+            self.tissue_pub.publish(self.wrench_encoder.encode(now, wrench))
 
     def publish_markers(self, pose, now) -> None:
         """robot_markers, all in frame base (no /tf needed; the recorder records them, so a run's MCAP shows
         the robot in Foxglove's 3D panel): the legs (base hinge -> platform hinge), the platform and base
         hinge polygons, and every hinge as a sphere."""
         robot = self.emulator.robot
-        position, quaternion = pose
+        position, quaternion = pose[:2]
         rot = rotation_from_quaternion(quaternion)
         tips = position + robot.platform_hinges @ rot.T
         sec, nanosec = cdr.stamp_parts(now)

@@ -65,6 +65,8 @@ SUITE_TOPICS = [
     "platform/pose_estimate",
     "legs/force_estimate",
     "platform/external_wrench_estimate",
+    "platform/tissue_wrench",
+    "kinematics/guard_status",
     "vibration/status",
     "robot_markers",
     "/clock",
