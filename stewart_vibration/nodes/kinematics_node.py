@@ -1,12 +1,27 @@
-"""kinematics node: target poses -> checked minimum-jerk leg trajectories; leg states -> pose estimates.
+"""kinematics node: target poses -> checked minimum-jerk leg trajectories; leg states -> pose estimates;
+a force guard over every move.
 
 Topics (relative): sub platform/target_pose (PoseStamped), legs/joint_states
-(JointState); pub legs/joint_trajectory (JointTrajectory, leg_* absolute
-lengths, m), platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per
-state with its stamp). Service: kinematics/plan_path (nav_msgs/GetPlan).
+(JointState), platform/external_wrench_estimate (WrenchStamped, the guard's input);
+pub legs/joint_trajectory (JointTrajectory, leg_* absolute lengths, m),
+platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per state with its stamp),
+kinematics/guard_status (diagnostic_msgs/DiagnosticStatus, reliable + transient local: the force
+guard armed or tripped, with its limits, the trip's figures and the peak load since).
+Services: kinematics/plan_path (nav_msgs/GetPlan), kinematics/reset_guard (std_srvs/Trigger).
 Diagnostics on /diagnostics, with the state stream's health (received, lost,
-processed, lag). States arrive raw and are solved in vectorised batches of ``batch_size``
-(the emulator's bursts) or every ``batch_period_s`` (wall clock; FK warm-started from the previous pose).
+processed, lag); ERROR while the force guard is tripped. States arrive raw and are solved in vectorised
+batches of ``batch_size`` (the emulator's bursts) or every ``batch_period_s`` (wall clock; FK
+warm-started from the previous pose); wrench estimates likewise.
+
+Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
+forces it needs under that tissue model (motion_profiles.check_path_forces: quasi-static Newton-Euler +
+the tissue's elastic wrench), refused with the leg and the waypoint above strut_force_max_n.
+Force guard (stewart_vibration.force_guard): during a move the external-wrench estimate is watched
+(subscribed only while a move runs: no 500 Hz input while the robot holds still); when the force
+(moment) at the end of a stop commanded now would exceed ``guard_force_n`` (``guard_moment_nm``) the
+struts are stopped smoothly along the planned path (a one-point trajectory within
+guard_deceleration_scale x strut_acceleration_max), the node holds there, reports ERROR and refuses
+targets further in that direction until kinematics/reset_guard or a new limit.
 """
 
 from __future__ import annotations
@@ -14,23 +29,36 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from geometry_msgs.msg import PoseStamped
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, WrenchStamped
 from nav_msgs.msg import Path
 from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..errors import InvalidInputError, StewartError
+from ..force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..kinematics import check_pose, forward_kinematics
 from ..messages import cdr
 from ..messages.stream_health import StreamHealth
-from ..motion_profiles import checked_path, interpolate_poses, minimum_jerk, minimum_jerk_duration
+from ..motion_profiles import (
+    check_path_forces,
+    checked_path,
+    interpolate_poses,
+    minimum_jerk,
+    minimum_jerk_duration,
+)
 from ..robot import load_robot
 from ..rotations import pose_to_position_quaternion
+from ..tissue import load_tissue_option
 from .common import (
     BASE_FRAME,
+    ERROR,
     LEG_NAMES,
     OK,
     STREAM_DEPTH,
@@ -51,9 +79,25 @@ from .common import (
     text_param,
 )
 
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale")
+
+
+class GuardedDiagnostics(Diagnostics):
+    """The node's status: never better than ERROR while the force guard is tripped, its reason first."""
+
+    guard: ForceGuard | None = None
+
+    def set(self, level, message: str, **values) -> None:
+        if self.guard is not None and self.guard.tripped:
+            level = ERROR
+            if not message.startswith("force guard"):
+                message = f"force guard {self.guard.message()}; {message}"
+        super().set(level, message, **values)
+
 
 class KinematicsNode(Node):
-    """Thin adapter over stewart_vibration.kinematics and motion_profiles."""
+    """Thin adapter over stewart_vibration.kinematics, motion_profiles and force_guard."""
 
     def __init__(self):
         super().__init__("kinematics")
@@ -73,9 +117,28 @@ class KinematicsNode(Node):
         batch_size = self.declare_parameter("batch_size", 10, int_param(
             "states solved together as soon as this many have queued (read at start)", 1, 1000,
             read_only=True)).value
+        self.declare_parameter("tissue_config", "", text_param(
+            "soft-tissue YAML whose load targets and plan_path are checked against (strut_force_max_n; a name is "
+            "looked up in config/; '' = none; read at start)", True))
+        declare_float(self, "guard_force_n", 200.0, float_param(
+            "force guard: a move is stopped before the estimated external force exceeds this, N (0 = off; example "
+            "value, not a clinical limit; a change clears a trip)", 0.0, 5000.0))
+        declare_float(self, "guard_moment_nm", 15.0, float_param(
+            "force guard: likewise for the moment about the platform origin, N m (0 = off; example value; a change "
+            "clears a trip)", 0.0, 500.0))
+        declare_float(self, "guard_deceleration_scale", 0.8, float_param(
+            "force guard: fraction of strut_acceleration_max a stop may use", 0.1, 1.0))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
-        self.diagnostics = Diagnostics(self, "kinematics")
+        self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
+        param = self.get_parameter
+        self.guard = ForceGuard(self.robot, param("guard_force_n").value, param("guard_moment_nm").value,
+                                param("guard_deceleration_scale").value)
+        self.batch_period = period
+        self.sim_time = bool(self.get_parameter("use_sim_time").value)
+        self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
+        self.diagnostics = GuardedDiagnostics(self, "kinematics")
+        self.diagnostics.guard = self.guard
         self.lengths = None  # latest leg_* (strut) lengths, m
         self.pose = None  # latest pose estimate
         self.fk_failures = 0
@@ -92,8 +155,19 @@ class KinematicsNode(Node):
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
+        self.wrench_decoder_errors = 0
+        self.wrench_batcher = RawBatcher(self, batch_size, period, self.process_wrenches)
+        self.wrench_sub = None  # platform/external_wrench_estimate, subscribed only while the guard watches a move
+        self.guard_pub = self.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
+        self.emulator_rejections = 0  # the hardware emulator's count of refused commands (its /diagnostics)
+        self.stop_sent_at = None  # wall time of the last stop sent (a refusal after it means: stop again)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
+        self.create_service(Trigger, "kinematics/reset_guard", self.on_reset_guard)
+        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.publish_guard_status()
         self.diagnostics.set(OK, "waiting for legs/joint_states")
-        self.get_logger().info(f"kinematics ready (robot {self.robot.source})")
+        self.get_logger().info(f"kinematics ready (robot {self.robot.source}, tissue "
+                               f"{self.tissue.source if self.tissue else 'none'}; {self.guard.message()})")
 
     # -- state estimate ---------------------------------------------------
     def process(self, messages: list, arrivals: np.ndarray) -> None:
@@ -146,15 +220,130 @@ class KinematicsNode(Node):
             self.pose_pub.publish(self.pose_encoder.encode(stamp, p, q))
         self.health.done(arrivals[ok], time.monotonic())
         self.lengths, self.pose = legs[ok][-1], poses[-1]
+        self.state_time = float(stamps[-1])
+        self.guard.observe_states(stamps, legs)
+        retry = self.guard.missed_stop(self.emulator_now())
+        if retry is not None:
+            self.get_logger().error("force guard: the struts ran past the commanded stop (refused or late?); "
+                                    f"stopping again over {retry.duration:.2f} s")
+            self.send_stop(retry)
         if self.diagnostics.message == "waiting for legs/joint_states":
             self.diagnostics.set(OK, "tracking")
 
     def report(self) -> None:
+        if self.wrench_sub is not None and self.guard.move is None:  # the watch is over: no 500 Hz input idle
+            self.destroy_subscription(self.wrench_sub)
+            self.wrench_sub = None
+            self.wrench_batcher.pending, self.wrench_batcher.arrivals = [], []
         self.diagnostics.values.update(self.health.values("states"))
         if self.health.behind:
             p99 = self.health.lag_percentiles_ms()[1]
             self.diagnostics.set(WARN, f"falling behind: {self.health.lost} states lost, lag p99 {p99:.1f} ms")
         self.diagnostics.publish()
+
+    # -- force guard -------------------------------------------------------
+    def watch_wrench(self) -> None:
+        """Subscribe to the external-wrench estimate (a move begins); ``report`` ends it once the guard is done."""
+        if self.wrench_sub is None:
+            self.wrench_sub = self.create_subscription(WrenchStamped, "platform/external_wrench_estimate",
+                                                       self.wrench_batcher.add, STREAM_DEPTH, raw=True)
+
+    def process_wrenches(self, messages: list, arrivals: np.ndarray) -> None:
+        """Wrench estimates: the guard's input (the newest only when it watches no move)."""
+        if self.guard.move is None:
+            messages = messages[-1:]
+        try:
+            decoded = [cdr.decode_wrench_stamped(m) for m in messages]
+        except StewartError as exc:
+            self.wrench_decoder_errors += 1
+            reject(self, self.diagnostics, "external wrench estimate", str(exc))
+            return
+        stamps = np.array([d[0] for d in decoded])
+        wrenches = np.array([d[2] for d in decoded])
+        was_watching = self.guard.move is not None
+        trip = self.guard.observe(stamps, wrenches, self.emulator_now(stamps[-1]), self.batch_period)
+        if trip is not None:
+            self.on_trip(trip)
+        elif self.guard.tripped and was_watching and self.guard.move is None:
+            self.publish_guard_status()  # the stop is over: its peak load
+
+    def emulator_now(self, fallback: float = 0.0) -> float:
+        """The emulator's time as best known here (s): on sim time the newer of /clock and the newest joint state
+        (this node may lag behind its input under load; /clock arrives unbatched), else the newest state."""
+        now = self.state_time if self.state_time is not None else fallback
+        if self.sim_time:
+            now = max(now, self.get_clock().now().nanoseconds * 1e-9)
+        return now
+
+    def on_trip(self, trip) -> None:
+        if trip.stop is not None:
+            self.send_stop(trip.stop)
+        message = self.guard.message()
+        self.get_logger().error(f"force guard {message}")
+        self.diagnostics.set(ERROR, f"force guard {message}")
+        self.publish_guard_status()
+
+    def on_diagnostics(self, msg: DiagnosticArray) -> None:
+        """A refusal by the hardware emulator right after a stop was sent: stop again (over a wider window)."""
+        for status in msg.status:
+            if not status.name.startswith("hardware_emulator"):
+                continue
+            count = next((int(kv.value) for kv in status.values if kv.key == "rejections"), None)
+            if count is None or count <= self.emulator_rejections:
+                continue
+            self.emulator_rejections = count
+            if self.stop_sent_at is not None and time.monotonic() - self.stop_sent_at < 5.0 and \
+                    "rejected leg trajectory" in status.message:
+                retry = self.guard.missed_stop(self.emulator_now(), refused=True)
+                if retry is not None:
+                    self.get_logger().error(f"force guard: the emulator refused the stop ({status.message}); "
+                                            f"stopping again over {retry.duration:.2f} s")
+                    self.send_stop(retry)
+
+    def send_stop(self, stop: StopPlan) -> None:
+        """One-point leg trajectory (stamp 0 = now): the struts come to rest at ``stop.lengths``."""
+        self.stop_sent_at = time.monotonic()
+        msg = JointTrajectory()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+        msg.joint_names = list(LEG_NAMES)
+        point = JointTrajectoryPoint()
+        point.positions = stop.lengths.tolist()
+        point.velocities = [0.0] * 6
+        point.accelerations = [0.0] * 6
+        point.time_from_start = duration_msg(stop.duration)
+        msg.points.append(point)
+        self.traj_pub.publish(msg)
+
+    def publish_guard_status(self) -> None:
+        guard = self.guard
+        level = DiagnosticStatus.ERROR if guard.tripped else DiagnosticStatus.OK
+        self.guard_pub.publish(DiagnosticStatus(
+            level=level, name="kinematics: force guard", message=guard.message(), hardware_id="stewart_vibration",
+            values=[KeyValue(key=k, value=v) for k, v in guard.status_values().items()]))
+
+    def on_reset_guard(self, request, response):
+        was = self.guard.reset()
+        response.success = True
+        response.message = "force guard reset: targets in every direction accepted again" if was else \
+            "the force guard was not tripped (nothing to reset)"
+        self.get_logger().info(response.message)
+        self.diagnostics.set(OK, response.message)
+        self.publish_guard_status()
+        return response
+
+    def on_set_parameters(self, params) -> SetParametersResult:
+        """guard_* take effect at once; a changed limit clears a trip (the operator's decision)."""
+        values = {p.name: float(p.value) for p in params if p.name in GUARD_PARAMS}
+        if not values:
+            return SetParametersResult(successful=True)
+        if "guard_deceleration_scale" in values:
+            self.guard.deceleration_scale = values["guard_deceleration_scale"]
+        cleared = self.guard.set_limits(values.get("guard_force_n"), values.get("guard_moment_nm"))
+        if cleared:
+            self.get_logger().info("force guard: new limit, trip cleared")
+            self.diagnostics.set(OK, "force guard: new limit, trip cleared")
+        self.publish_guard_status()
+        return SetParametersResult(successful=True)
 
     # -- target pose -> trajectory ----------------------------------------
     def on_target_pose(self, msg: PoseStamped) -> None:
@@ -169,17 +358,26 @@ class KinematicsNode(Node):
             reject(self, self.diagnostics, "target pose", "no legs/joint_states received yet")
             return
         try:
+            self.guard.check_target(self.pose, target)
+        except StewartError as exc:
+            reject(self, self.diagnostics, "target pose", str(exc))
+            return
+        try:
             trajectory = self.plan_trajectory(self.lengths, self.pose, goal_lengths, target)
         except StewartError as exc:
             reject(self, self.diagnostics, "target pose", f"path not feasible: {exc}")
             return
+        self.watch_wrench()
         self.traj_pub.publish(trajectory)
         final = duration_seconds(trajectory.points[-1].time_from_start)
+        start_time = self.emulator_now() + RECEIPT_DELAY_S
+        self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target)
         self.diagnostics.set(OK, "trajectory sent", last_target=np.round(target, 6).tolist(), last_duration_s=final)
         self.get_logger().info(f"trajectory to {np.round(target, 5).tolist()} over {final:.3f} s")
 
     def plan_trajectory(self, start_lengths, start_pose, goal_lengths, goal_pose) -> JointTrajectory:
-        """Minimum-jerk leg trajectory, every sample checked through FK (stroke, joints, conditioning)."""
+        """Minimum-jerk leg trajectory, every sample checked through FK (stroke, joints, conditioning) and, with a
+        tissue model, for the strut forces it needs (the waypoints are the trajectory's samples)."""
         speed = self.robot.limits.strut_velocity_max * self.get_parameter("speed_scale").value
         duration = minimum_jerk_duration(start_lengths, goal_lengths, speed, self.get_parameter(
             "trajectory_min_duration_s").value)
@@ -191,6 +389,8 @@ class KinematicsNode(Node):
         fk = forward_kinematics(self.robot, pos, guess=guesses)
         fk.raise_for_failure()
         check_pose(self.robot, fk.pose)
+        if self.tissue is not None:  # waypoint k: the trajectory's sample k (0 = the start, where the robot is)
+            check_path_forces(self.robot, fk.pose, self.tissue, first_index=1, count=count + 1)
         msg = JointTrajectory()
         msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0  # start now (joint_trajectory_controller rule)
         msg.joint_names = list(LEG_NAMES)
@@ -207,8 +407,10 @@ class KinematicsNode(Node):
     def on_plan_path(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
         """Checked straight SE(3) path from start to goal (both in base). An unset start (empty frame_id,
         zero position, zero or identity orientation: what a goal-only request carries) means "from the
-        current pose estimate". An infeasible request gets an empty path; the reason goes to the log and
-        /diagnostics (WARN, value last_plan_failure)."""
+        current pose estimate". With a tissue model every waypoint's predicted strut forces are checked too;
+        while the force guard is tripped a path further in the stopped direction is refused. An infeasible
+        request gets an empty path; the reason goes to the log and /diagnostics (WARN, value
+        last_plan_failure)."""
         response.plan = Path()
         response.plan.header.frame_id = BASE_FRAME
         response.plan.header.stamp = self.get_clock().now().to_msg()
@@ -223,7 +425,8 @@ class KinematicsNode(Node):
                 start = pose_from_msg(start_msg.pose)
             check_frame(request.goal.header.frame_id, "plan_path goal")
             goal = pose_from_msg(request.goal.pose)
-            poses = checked_path(self.robot, start, goal)
+            self.guard.check_target(start, goal)
+            poses = checked_path(self.robot, start, goal, tissue=self.tissue)
         except StewartError as exc:
             reason = f"{type(exc).__name__}: {exc}"
             reject(self, self.diagnostics, "plan_path request (empty path returned)", reason)

@@ -1,0 +1,424 @@
+"""Force-guarded reduction moves (pure numpy): watch the external-wrench estimate during a move, stop
+the struts smoothly before the load passes a limit, hold, and refuse further targets in that direction
+until the operator resets the guard or changes the limit. The kinematics node only wires it to topics.
+
+Moves. The kinematics node sends minimum-jerk moves from rest: L(t) = L0 + D phi(s), s = (t - t0) / T,
+phi(s) = 10 s^3 - 15 s^4 + 6 s^5, so every strut moves along the same straight line in leg space and the
+move's state is one number, its progress sigma = phi(s) in [0, 1] (sigma of measured lengths: the
+projection of L - L0 on D). The move's start t0 in the emulator's clock is first estimated (newest joint
+state + ``RECEIPT_DELAY_S``) and then calibrated from the measured lengths once the struts move.
+
+Trip. For every wrench estimate during a move the guard predicts the load at the end of the stop it
+would command now: the force (and moment) magnitude is fitted against the progress over the last
+``FIT_WINDOW_S`` (quadratic: soft tissue stiffens with distraction) and extrapolated to the progress
+at which that stop would end (the travel until the emulator gets the command plus the braking
+distance). It trips when the predicted force exceeds ``force_limit`` (or the moment ``moment_limit``)
+and the load has risen above what it was at the move's start (a move that relieves a load that is
+already over the limit is not stopped). A limit of 0 switches that check off.
+
+Stop. A leg trajectory stamped 0 (now) with one point: the struts come to rest at L0 + D sigma_f after
+T_s. The emulator departs from the state it commands when the stop arrives, which lies on the move at a
+receipt time known only within a window after the node's "now" (``RECEIPT_WINDOW_S``, widened to twice
+the command delays measured on the moves: each move's start is calibrated from the measured lengths);
+the quintic from any such departure to (sigma_f, rest) must stay within ``deceleration_scale`` x
+strut_acceleration_max and strut_velocity_max (checked on a grid of receipt times), and T_s is the
+shortest that does. If the emulator refuses the stop anyway (it arrived later still) or the measured
+struts run past it, the node asks ``missed_stop`` for another one over a doubled window. sigma_f is
+the natural stopping point of the estimated departure (velocity falling as a cubic smoothstep:
+sigma_f = sigma + T_s (sigma_dot / 2 + sigma_ddot T_s / 12)), so the stop follows the planned path. If
+the move would end before the stop could (sigma_f >= 1), no stop is sent: the move ends at its goal.
+
+Latch. After a trip the guard holds the direction of the move (pose space, rotations scaled by the
+robot's characteristic length): a target whose displacement from the current pose has a component along
+it is refused with the reason; other targets (back, sideways) are allowed and watched like any move (a
+second trip blocks its direction too). ``reset`` or new limits clear the latch.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from .errors import ActuatorLimitError
+from .hermite import quintic_hermite
+from .robot import Robot
+from .rotations import rotation_from_rpy, so3_log
+
+RECEIPT_DELAY_S = 0.02  # expected emulator time between the node's estimate of "now" and its command arriving
+RECEIPT_WINDOW_S = 0.15  # the stop stays within the limits for any arrival within this (at least) after "now"
+FIT_WINDOW_S = 0.15  # estimate history fitted against the progress (s of sim time)
+MIN_FIT_SAMPLES = 8
+MAX_WINDOW_S = 0.6  # the receipt window never grows beyond this (stops would get long)
+STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the states)
+MAX_STOP_RETRIES = 3
+STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
+STOP_RESOLUTION_S = 0.01
+_TAU = np.linspace(0.0, 1.0, 41)[None, :]  # points per stop segment at which the limits are checked
+DIRECTION_TOLERANCE_M = 1e-6  # a target further along a tripped direction than this (m, pose space) is refused
+WATCH_AFTER_S = 0.3  # the guard keeps watching (and recording peaks) this long after a move or stop ends
+
+
+def min_jerk_progress(s):
+    """(phi, dphi/ds, d2phi/ds2) of the minimum-jerk profile at s (clamped to [0, 1])."""
+    s = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
+    return (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3)
+
+
+_S_TABLE = np.linspace(0.0, 1.0, 2001)
+_PHI_TABLE = min_jerk_progress(_S_TABLE)[0]
+
+
+def pose_direction(robot: Robot, start, goal) -> np.ndarray:
+    """Pose-space displacement start -> goal (6,): [dp (m), rotation vector x characteristic length (m)]."""
+    start, goal = np.asarray(start, float), np.asarray(goal, float)
+    phi = so3_log(rotation_from_rpy(goal[3:]) @ rotation_from_rpy(start[3:]).T)
+    return np.concatenate([goal[:3] - start[:3], phi * robot.characteristic_length])
+
+
+@dataclass
+class GuardedMove:
+    """A minimum-jerk move from rest: start time t0 (s, emulator clock, estimated), duration T (s), start and
+    goal strut lengths (6,), start and goal poses (6,)."""
+
+    start_time: float
+    duration: float
+    start_lengths: np.ndarray
+    goal_lengths: np.ndarray
+    start_pose: np.ndarray
+    goal_pose: np.ndarray
+    baseline: tuple | None = None  # force and moment magnitudes at the move's start (its first estimate)
+    calibrated: bool = False
+    samples: list = field(default_factory=list)  # (t, sigma, |F|, |M|) of the estimates during the move
+
+    @property
+    def delta(self) -> np.ndarray:
+        return self.goal_lengths - self.start_lengths
+
+    @property
+    def end(self) -> float:
+        return self.start_time + self.duration
+
+    def progress(self, times):
+        """(sigma, sigma_dot, sigma_ddot) at emulator times [n] (s)."""
+        s = (np.asarray(times, float) - self.start_time) / self.duration
+        phi, d1, d2 = min_jerk_progress(s)
+        inside = (s > 0) & (s < 1)
+        return phi, np.where(inside, d1 / self.duration, 0.0), np.where(inside, d2 / self.duration**2, 0.0)
+
+    def measured_progress(self, lengths) -> np.ndarray:
+        """sigma [n] of measured strut lengths [n, 6] (projection on the move's line)."""
+        d = self.delta
+        return (np.asarray(lengths, float) - self.start_lengths) @ d / max(float(d @ d), 1e-300)
+
+    def calibrate(self, times, lengths) -> float | None:
+        """Fix t0 from the first measured state at clearly nonzero progress (the emulator started the move
+        when it received it, which the node only estimates); returns the correction (s) when it does."""
+        if self.calibrated:
+            return None
+        sigma = self.measured_progress(lengths)
+        good = np.flatnonzero((sigma > 0.02) & (sigma < 0.6))
+        if not good.size:
+            return None
+        k = good[0]
+        s = np.interp(sigma[k], _PHI_TABLE, _S_TABLE)
+        start = float(times[k]) - s * self.duration
+        correction, self.start_time, self.calibrated = start - self.start_time, start, True
+        return correction
+
+
+@dataclass(frozen=True)
+class StopPlan:
+    """Where and how the struts stop: one point (lengths (6,) m, at rest) ``duration`` s after the stop
+    arrives; progress sigma_f of the move; receipt_time (s, estimated); peak_accel (m/s^2, worst strut
+    over the receipt window)."""
+
+    duration: float
+    lengths: np.ndarray
+    progress: float
+    receipt_time: float
+    peak_accel: float
+
+
+@dataclass(frozen=True)
+class GuardTrip:
+    """A trip: time (s, stamp of the estimate), force and moment magnitudes then (N, N m), the predicted
+    ones at the end of the stop, which limit ("force" | "moment"), the stop (None: the move ends first),
+    the tripped move's goal pose and direction (pose space, unit)."""
+
+    time: float
+    force: float
+    moment: float
+    predicted_force: float
+    predicted_moment: float
+    which: str
+    stop: StopPlan | None
+    goal_pose: np.ndarray
+    direction: np.ndarray
+
+
+class ForceGuard:
+    """See the module docstring. Limits in N and N m (0 = off); deceleration_scale: the fraction of
+    strut_acceleration_max a stop may use."""
+
+    def __init__(self, robot: Robot, force_limit: float, moment_limit: float, deceleration_scale: float = 0.8):
+        self.robot = robot
+        self.force_limit, self.moment_limit = float(force_limit), float(moment_limit)
+        self.deceleration_scale = float(deceleration_scale)
+        self.move: GuardedMove | None = None
+        self.trip: GuardTrip | None = None  # the latest trip (latched until reset)
+        self.blocked: list[np.ndarray] = []  # directions of every move stopped since the last reset
+        self._stopping: GuardedMove | None = None  # the move the latest trip stopped
+        self.peak = (0.0, 0.0)  # largest force and moment magnitudes estimated since the trip
+        self.last_wrench = np.zeros(6)
+        self._state_t = np.zeros(0)
+        self._state_sigma = np.zeros(0)
+        self._stop_retries = 0
+        self.receipt_window = RECEIPT_WINDOW_S  # grows with the command delays measured on this robot
+        self._delays = []  # measured command delays (s): the move's calibrated start - the node's "now" at sending
+
+    # -- settings ---------------------------------------------------------------------------------
+    def set_limits(self, force_limit: float | None = None, moment_limit: float | None = None) -> bool:
+        """New limits; a change clears a latched trip (the operator decided). Returns whether it cleared one."""
+        changed = (force_limit is not None and float(force_limit) != self.force_limit) or \
+            (moment_limit is not None and float(moment_limit) != self.moment_limit)
+        if force_limit is not None:
+            self.force_limit = float(force_limit)
+        if moment_limit is not None:
+            self.moment_limit = float(moment_limit)
+        return changed and self.reset()
+
+    def reset(self) -> bool:
+        """Clear a latched trip; returns whether one was latched."""
+        was = self.trip is not None
+        self.trip, self.peak, self.blocked, self._stopping = None, (0.0, 0.0), [], None
+        return was
+
+    @property
+    def tripped(self) -> bool:
+        return self.trip is not None
+
+    # -- moves and targets ----------------------------------------------------------------------------
+    def check_target(self, current_pose, target_pose) -> None:
+        """Raise ActuatorLimitError (limit_name "force_guard") if a trip is latched and the target lies further
+        along the direction of a move the guard stopped since the last reset."""
+        trip = self.trip
+        if trip is None:
+            return
+        step = pose_direction(self.robot, current_pose, target_pose)
+        along = max(float(step @ direction) for direction in self.blocked)
+        if along > DIRECTION_TOLERANCE_M:
+            raise ActuatorLimitError(
+                f"force guard tripped at {trip.time:.3f} s ({trip.which} {self._tripped_value(trip)}): a target "
+                f"{along * 1e3:.3f} mm further along the stopped move's direction is refused until "
+                "kinematics/reset_guard is called or guard_force_n / guard_moment_nm is changed",
+                limit_name="force_guard", value=along, limit=0.0)
+
+    def _tripped_value(self, trip: GuardTrip) -> str:
+        if trip.which == "force":
+            return f"{trip.force:.1f} N, predicted {trip.predicted_force:.1f} N > guard_force_n {self.force_limit:g} N"
+        return (f"{trip.moment:.2f} N m, predicted {trip.predicted_moment:.2f} N m > guard_moment_nm "
+                f"{self.moment_limit:g} N m")
+
+    def begin_move(self, start_time: float, duration: float, start_lengths, goal_lengths, start_pose,
+                   goal_pose) -> None:
+        """A move was sent (estimated start ``start_time`` s, emulator clock): watch it. The load at its start
+        (the baseline a trip must rise above) is its first estimate."""
+        self.move = GuardedMove(float(start_time), float(duration), np.asarray(start_lengths, float).copy(),
+                                np.asarray(goal_lengths, float).copy(), np.asarray(start_pose, float).copy(),
+                                np.asarray(goal_pose, float).copy())
+        self._state_t, self._state_sigma = np.zeros(0), np.zeros(0)
+
+    def observe_states(self, stamps, strut_lengths) -> None:
+        """Measured strut lengths [n, 6] at stamps [n] (s): the move's progress (for the fit) and its start."""
+        move = self.move
+        if move is None:
+            return
+        stamps = np.asarray(stamps, float)
+        correction = move.calibrate(stamps, strut_lengths)
+        if correction is not None:  # how late the emulator really took the move, against the estimate
+            self._delays = (self._delays + [RECEIPT_DELAY_S + correction])[-5:]
+            self.receipt_window = float(np.clip(2.0 * max(self._delays) + 0.05, RECEIPT_WINDOW_S, MAX_WINDOW_S))
+        keep = self._state_t >= stamps[-1] - STATE_HISTORY_S
+        self._state_t = np.concatenate([self._state_t[keep], stamps])
+        self._state_sigma = np.concatenate([self._state_sigma[keep], move.measured_progress(strut_lengths)])
+
+    # -- the watch --------------------------------------------------------------------------------
+    def observe(self, stamps, wrenches, newest_state_time: float, next_check_s: float = 0.0) -> GuardTrip | None:
+        """Wrench estimates [n, 6] at stamps [n] (s); newest_state_time: the newest joint state's stamp (s,
+        the emulator's clock as the node knows it); next_check_s: when the next estimates will be checked
+        (s, the node's batch period): the guard trips now if a stop sent then would end above a limit.
+        Returns a new trip (with its stop plan) or None."""
+        wrenches = np.asarray(wrenches, float)
+        if not len(wrenches):
+            return None
+        self.last_wrench = wrenches[-1]
+        move = self.move
+        if move is None:
+            return None
+        stamps = np.asarray(stamps, float)
+        force = np.linalg.norm(wrenches[:, :3], axis=1)
+        moment = np.linalg.norm(wrenches[:, 3:], axis=1)
+        if move.baseline is None:
+            move.baseline = (float(force[0]), float(moment[0]))
+        if self.trip is not None and move is self._stopping:
+            self.peak = (max(self.peak[0], float(force.max())), max(self.peak[1], float(moment.max())))
+            stop = self.trip.stop
+            if stamps[-1] > (stop.receipt_time + stop.duration if stop else move.end) + WATCH_AFTER_S:
+                self.move = None
+            return None
+        if stamps[-1] > move.end + WATCH_AFTER_S:
+            self.move = None
+            return None
+        if not self._state_t.size:
+            return None
+        sigma = np.interp(stamps, self._state_t, self._state_sigma)
+        move.samples.extend(zip(stamps.tolist(), sigma.tolist(), force.tolist(), moment.tolist()))
+        recent = [row for row in move.samples if row[0] >= stamps[-1] - FIT_WINDOW_S]
+        move.samples = recent
+        later = self.plan_stop(newest_state_time, next_check_s)
+        target = 1.0 if later is None else later.progress
+        checks = []
+        for which, column, limit, base in (("force", 2, self.force_limit, move.baseline[0]),
+                                           ("moment", 3, self.moment_limit, move.baseline[1])):
+            if limit <= 0:
+                continue
+            now, predicted = _predict(recent, column, target)
+            rising = now > base + 0.01 * limit and predicted > now
+            checks.append((which, now, predicted, limit, rising))
+        for which, _now, predicted, limit, rising in checks:
+            if rising and predicted > limit:
+                stop = self.plan_stop(newest_state_time)
+                values = {c[0]: c for c in checks}
+                f = values.get("force", (None, force[-1], force[-1]))
+                m = values.get("moment", (None, moment[-1], moment[-1]))
+                direction = pose_direction(self.robot, move.start_pose, move.goal_pose)
+                norm = np.linalg.norm(direction)
+                self.trip = GuardTrip(float(stamps[-1]), float(f[1]), float(m[1]), float(f[2]), float(m[2]), which,
+                                      stop, move.goal_pose.copy(), direction / norm if norm > 0 else direction)
+                self.blocked.append(self.trip.direction)
+                self._stopping = move
+                self.peak = (float(force.max()), float(moment.max()))
+                self._stop_retries = 0
+                return self.trip
+        return None
+
+    def plan_stop(self, newest_state_time: float, later_s: float = 0.0, window_s: float | None = None
+                  ) -> StopPlan | None:
+        """The stop of the current move if commanded now (see the module docstring), or ``later_s`` s from now;
+        None if the move would end first (or there is none). ``newest_state_time``: the emulator's time as the
+        node knows it (s); the stop is planned for an arrival within ``window_s`` (default: the receipt window)
+        after it."""
+        move = self.move
+        if move is None:
+            return None
+        scale = float(np.abs(move.delta).max())
+        if scale <= 0:
+            return None
+        newest = newest_state_time + later_s
+        t_est = newest + RECEIPT_DELAY_S
+        s0, v0, a0 = (float(x[0]) for x in move.progress([t_est]))
+        window = self.receipt_window if window_s is None else window_s
+        receipt = move.progress(newest + np.linspace(0.0, window, 7))
+        lim = self.robot.limits
+        acc_max, vel_max = self.deceleration_scale * lim.strut_acceleration_max / scale, lim.strut_velocity_max / scale
+
+        def peaks(duration: float):
+            final = s0 + duration * (v0 / 2 + a0 * duration / 12)
+            _, vel, acc = quintic_hermite(_TAU, duration, receipt[0][:, None], receipt[1][:, None],
+                                          receipt[2][:, None], final, 0.0, 0.0)
+            return final, float(np.abs(acc).max()), float(np.abs(vel).max())
+
+        # the shortest duration (to STOP_RESOLUTION_S) whose worst case stays within the limits: grow, then bisect
+        low, high = 0.0, max(STOP_DURATIONS_S[0], 1.5 * abs(v0) / acc_max)
+        final, acc, vel = peaks(high)
+        while (acc > acc_max or vel > vel_max) and high < STOP_DURATIONS_S[-1]:
+            low, high = high, high * 1.5
+            final, acc, vel = peaks(high)
+        while high - low > STOP_RESOLUTION_S and low > 0:
+            mid = 0.5 * (low + high)
+            f, a, v = peaks(mid)
+            if a > acc_max or v > vel_max:
+                low = mid
+            else:
+                high, final, acc = mid, f, a
+        if final >= 1.0:
+            return None
+        return StopPlan(float(high), move.start_lengths + move.delta * final, float(final), t_est, acc * scale)
+
+    def missed_stop(self, newest_state_time: float, refused: bool = False) -> StopPlan | None:
+        """A new stop when the commanded one did not take: the emulator ``refused`` it (it arrived later than the
+        receipt window allowed) or the measured struts ran past it; planned from the running move for twice the
+        window; None otherwise. At most MAX_STOP_RETRIES times per trip."""
+        trip, move = self.trip, self.move
+        if trip is None or trip.stop is None or move is None or move is not self._stopping or \
+                self._stop_retries >= MAX_STOP_RETRIES:
+            return None
+        if not refused:
+            if not self._state_sigma.size or newest_state_time < trip.stop.receipt_time + self.receipt_window:
+                return None
+            if self._state_sigma[-1] <= trip.stop.progress + 0.01:
+                return None
+        self._stop_retries += 1
+        stop = self.plan_stop(newest_state_time, window_s=self.receipt_window * 2**self._stop_retries)
+        if stop is not None:
+            self.trip = replace(trip, stop=stop)
+        return stop
+
+    # -- report ---------------------------------------------------------------------------------------
+    def status_values(self) -> dict:
+        """Key/values for a status message (strings)."""
+        values = {"state": "tripped" if self.trip else "armed", "force_limit_n": f"{self.force_limit:g}",
+                  "moment_limit_nm": f"{self.moment_limit:g}"}
+        trip = self.trip
+        if trip is not None:
+            values.update({
+                "trip_time_s": f"{trip.time:.4f}", "trip_limit": trip.which,
+                "trip_force_n": f"{trip.force:.3f}", "trip_moment_nm": f"{trip.moment:.4f}",
+                "predicted_force_n": f"{trip.predicted_force:.3f}",
+                "predicted_moment_nm": f"{trip.predicted_moment:.4f}",
+                "peak_force_n": f"{self.peak[0]:.3f}", "peak_moment_nm": f"{self.peak[1]:.4f}",
+                "stop_duration_s": f"{trip.stop.duration:.3f}" if trip.stop else "0 (the move ended first)",
+                "stop_progress": f"{trip.stop.progress:.4f}" if trip.stop else "1",
+                "tripped_goal": str(np.round(trip.goal_pose, 6).tolist()),
+                "tripped_direction": str(np.round(trip.direction, 6).tolist()),
+                "blocked_directions": str(len(self.blocked)),
+            })
+        return values
+
+    def message(self) -> str:
+        trip = self.trip
+        if trip is None:
+            return (f"armed: guard_force_n {self.force_limit:g} N, guard_moment_nm {self.moment_limit:g} N m "
+                    "(0 = off)")
+        stop = f"struts stopped over {trip.stop.duration:.2f} s" if trip.stop else "the move ended before a stop"
+        return (f"tripped at {trip.time:.3f} s: {trip.which} {self._tripped_value(trip)}; {stop}; holding; targets "
+                "further in that direction are refused until kinematics/reset_guard or a new limit")
+
+
+def _predict(samples, column: int, target_progress: float) -> tuple[float, float]:
+    """(latest value, predicted value at ``target_progress``) of column 2 (force) or 3 (moment) of the
+    (t, sigma, |F|, |M|) samples: quadratic least squares in sigma around the latest progress (linear with
+    few samples or little spread; the latest value when the progress does not change)."""
+    rows = np.asarray(samples, float)
+    now = float(rows[-1, column])
+    if len(rows) < MIN_FIT_SAMPLES:
+        return now, now
+    x = rows[:, 1] - rows[-1, 1]
+    span = float(np.ptp(x))
+    ahead = max(target_progress - rows[-1, 1], 0.0)
+    if span < 1e-6:
+        return now, now
+    degree = 2 if len(rows) >= 2 * MIN_FIT_SAMPLES and span > 0.2 * ahead else 1
+    coef = np.polyfit(x / span, rows[:, column], degree)
+    return now, now + float(np.polyval(coef, ahead / span) - np.polyval(coef, 0.0))
+
+
+__all__ = [
+    "ForceGuard",
+    "GuardTrip",
+    "GuardedMove",
+    "StopPlan",
+    "min_jerk_progress",
+    "pose_direction",
+]
