@@ -6,6 +6,10 @@ measured vibration (actual hinge length leg_i + vib_i: amplitude against
 |k_i| A, phase against 0/pi, frequency), and the leg-force model error
 (legs/force_estimate against the emulator's measured efforts). For each move:
 the ground-truth pose error after settling. Checked against the scenario bounds.
+
+With a soft-tissue model (issue 17): the external-wrench estimate against the wrench the emulator
+applied (platform/tissue_wrench), in moves and holds and during vibrations, and every force-guard
+trip (kinematics/guard_status) with the peak load it let through.
 """
 
 from __future__ import annotations
@@ -20,6 +24,7 @@ from .analysis import (
     line_vibration,
     phase_error_to_0_or_pi_deg,
 )
+from .dynamics import leg_forces
 from .mcap_log.reader import RunReader
 from .message_arrays import joint_arrays, pose_array, stamp_s
 from .robot import Robot
@@ -36,7 +41,8 @@ def load_signals(mcap_path) -> dict:
     """Time series from the run: ground-truth poses, joint states, force estimates (times in s), the stream
     counts and the nodes' last diagnostics."""
     wanted = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
-              "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": []}
+              "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
+              "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": []}
     reader = RunReader(mcap_path)
     counts = stream_counts(reader)
     topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
@@ -52,7 +58,20 @@ def load_signals(mcap_path) -> dict:
         "stream_counts": counts,
         "vibration_status": [{kv.key: kv.value for kv in m.values} for m in wanted["vibration/status"]],
         "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
+        "tissue_wrench": wrench_array(wanted["platform/tissue_wrench"]),
+        "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
+        "guard_status": [({kv.key: kv.value for kv in m.values}, m.message) for m in wanted["kinematics/guard_status"]],
     }
+
+
+def wrench_array(messages) -> tuple[np.ndarray, np.ndarray]:
+    """WrenchStamped messages -> (times [n] s, wrenches [n, 6] = [force N, torque N m])."""
+    if not messages:
+        return np.empty(0), np.empty((0, 6))
+    times = np.array([stamp_s(m.header) for m in messages])
+    values = np.array([[m.wrench.force.x, m.wrench.force.y, m.wrench.force.z,
+                        m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z] for m in messages])
+    return times, values
 
 
 def stream_counts(reader: RunReader) -> dict:
@@ -188,9 +207,94 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, parameters: d
     ft, forces = signals["force_estimate"]
     fsel = (ft >= t0) & (ft <= t1)
     if fsel.sum() >= 4:
-        out["force"] = force_error(ft[fsel], forces["effort"][fsel], jt[sel], joints["effort"][sel, :6], frequency)
+        measured = joints["effort"][sel, :6] - tissue_leg_forces(robot, signals, jt[sel])
+        out["force"] = force_error(ft[fsel], forces["effort"][fsel], jt[sel], measured, frequency)
     else:
         out["force"] = None
+    return out
+
+
+def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | np.floating:
+    """The axial forces [n, 6] (N) the applied tissue wrench (platform/tissue_wrench, ground truth) puts on the
+    legs at the states ``times`` [n] (s), at the ground-truth poses; 0 without tissue. The leg-force figure
+    compares the robot's model (legs/force_estimate: no external load) with the measured efforts minus this:
+    the tissue is the environment, not part of the model the figure checks."""
+    ta, wrench = signals.get("tissue_wrench", (np.empty(0), None))
+    if not ta.size:
+        return 0.0
+    pt, poses = signals["pose"]
+    times = np.asarray(times, float)
+    w = np.stack([np.interp(times, ta, wrench[:, k]) for k in range(6)], axis=1)
+    pose = np.stack([np.interp(times, pt, poses[:, k]) for k in range(6)], axis=1)
+    zero = np.zeros_like(pose)
+    return leg_forces(robot, pose, zero, zero, external_wrench=w) - leg_forces(robot, pose, zero, zero)
+
+
+def guard_trips(signals: dict) -> list[dict]:
+    """Every force-guard trip in kinematics/guard_status (the last status of each trip: its final peaks)."""
+    trips = {}
+    for values, message in signals.get("guard_status", []):
+        if values.get("state") == "tripped" and "trip_time_s" in values:
+            trips[values["trip_time_s"]] = dict(values, message=message)
+    return [trips[k] for k in sorted(trips, key=float)]
+
+
+def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) -> dict | None:
+    """External-wrench estimate vs the applied tissue wrench (None without platform/tissue_wrench).
+
+    vibrations: (t0, duration) (s) of each vibration; its states count as "vibration", every other state
+    of the run as "moves and holds". Errors: RMS over the states of |estimate - applied| of the force (N) and
+    of the moment (N m); relative = RMS / the run's peak applied magnitude. A run whose peak moment is below
+    1 % of the peak force x ``moment_scale_m`` (e.g. a pure distraction along the tibia axis: ~1e-11 N m)
+    has no relative moment error (None): its absolute error is reported. Guard trips: the peak estimated
+    and applied force from the trip to the end of its stop (+ 0.5 s) against guard_force_n."""
+    ta, applied = signals["tissue_wrench"]
+    te, estimate = signals["wrench_estimate"]
+    if not ta.size or not te.size:
+        return None
+    common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(te, 6), return_indices=True)
+    applied, estimate, t = applied[ia], estimate[ie], common
+    err = estimate - applied
+    in_vib = np.zeros(t.size, dtype=bool)
+    for t0, duration in vibrations:
+        in_vib |= (t >= t0) & (t <= t0 + duration)
+    peak_f = float(np.linalg.norm(applied[:, :3], axis=1).max())
+    peak_m = float(np.linalg.norm(applied[:, 3:], axis=1).max())
+
+    def rms(rows, part):
+        return float(np.sqrt((np.linalg.norm(rows[:, part], axis=1) ** 2).mean())) if len(rows) else float("nan")
+
+    quiet = err[~in_vib]
+    out = {
+        "samples": int(t.size), "peak_force_n": peak_f, "peak_moment_nm": peak_m,
+        "moves_holds": {"samples": int(len(quiet)), "rms_force_error_n": rms(quiet, slice(0, 3)),
+                        "rms_moment_error_nm": rms(quiet, slice(3, 6))},
+        "vibration": None,
+    }
+    mh = out["moves_holds"]
+    mh["relative_force"] = mh["rms_force_error_n"] / peak_f if peak_f > 0 else 0.0
+    mh["relative_moment"] = mh["rms_moment_error_nm"] / peak_m if peak_m >= 0.01 * peak_f * moment_scale_m else None
+    if in_vib.any():
+        out["vibration"] = {"samples": int(in_vib.sum()), "rms_force_error_n": rms(err[in_vib], slice(0, 3)),
+                            "rms_moment_error_nm": rms(err[in_vib], slice(3, 6))}
+    out["guard"] = []
+    for trip in guard_trips(signals):
+        start = float(trip["trip_time_s"])
+        stop = trip.get("stop_duration_s", "0").split()[0]
+        end = start + float(stop) + 0.5
+        sel = (t >= start) & (t <= end)
+        limit = float(trip.get("force_limit_n", "nan"))
+        peak_est = float(np.linalg.norm(estimate[sel, :3], axis=1).max()) if sel.any() else float("nan")
+        peak_app = float(np.linalg.norm(applied[sel, :3], axis=1).max()) if sel.any() else float("nan")
+        out["guard"].append({
+            "trip_time_s": start, "limit": trip.get("trip_limit"), "force_limit_n": limit,
+            "moment_limit_nm": float(trip.get("moment_limit_nm", "nan")),
+            "trip_force_n": float(trip.get("trip_force_n", "nan")),
+            "predicted_force_n": float(trip.get("predicted_force_n", "nan")),
+            "peak_estimated_force_n": peak_est, "peak_applied_force_n": peak_app,
+            "overshoot": peak_est / limit - 1.0 if limit > 0 else float("nan"),
+            "stop_duration_s": float(stop), "message": trip.get("message", ""),
+        })
     return out
 
 
@@ -222,6 +326,22 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
                 failures.append(f"vibration {i}: {name} {value:.4g} {unit} exceeds {bound:g} {unit}")
         if not vib["leg_phase_sign_ok"]:
             failures.append(f"vibration {i}: a leg vibrates in the wrong phase (0 vs pi)")
+    tissue = summary.get("tissue")
+    if tissue is not None:
+        mh, limit = tissue["moves_holds"], bounds.get("wrench_error_relative", 0.02)
+        for name, value in (("force", mh["relative_force"]), ("moment", mh["relative_moment"])):
+            if value is not None and not value <= limit:
+                failures.append(f"external-wrench estimate in moves and holds: RMS {name} error {value * 100:.3f} % "
+                                f"of the peak applied exceeds {limit * 100:g} %")
+        vib, vib_limit = tissue["vibration"], bounds.get("wrench_error_vibration_n", 1.0)
+        if vib is not None and not vib["rms_force_error_n"] <= vib_limit:
+            failures.append(f"external-wrench estimate during the vibration: RMS force error "
+                            f"{vib['rms_force_error_n']:.3f} N exceeds {vib_limit:g} N")
+        for trip in tissue["guard"]:
+            if trip["limit"] == "force" and not trip["overshoot"] <= bounds.get("guard_overshoot", 0.1):
+                failures.append(f"force guard at {trip['trip_time_s']:.3f} s: peak estimated force "
+                                f"{trip['peak_estimated_force_n']:.1f} N is {trip['overshoot'] * 100:.1f} % over "
+                                f"guard_force_n {trip['force_limit_n']:g} N")
     streams = summary.get("streams")
     if streams is not None:
         if not streams["worst_ratio"] >= bounds["sample_ratio_min"]:
@@ -231,3 +351,29 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
             if row["lost"]:
                 failures.append(f"{node} lost {row['lost']} of its input states")
     return failures
+
+
+def tissue_lines(summary: dict) -> list[str]:
+    """The run summary's soft-tissue lines (estimate vs applied, guard trips, guarded moves); [] without tissue."""
+    tissue = summary.get("tissue")
+    if not tissue:
+        return []
+    mh, vib = tissue["moves_holds"], tissue["vibration"]
+    lines = [f"soft tissue ({summary.get('tissue_config')}): peak applied {tissue['peak_force_n']:.1f} N, "
+             f"{tissue['peak_moment_nm']:.2f} N m; external-wrench estimate vs applied, RMS error in moves and holds "
+             f"{mh['rms_force_error_n']:.3f} N ({mh['relative_force'] * 100:.3f} %), "
+             f"{mh['rms_moment_error_nm']:.4f} N m"
+             + (f" ({mh['relative_moment'] * 100:.3f} %)" if mh["relative_moment"] is not None
+                else " (no moment to speak of)")
+             + (f"; during the vibration {vib['rms_force_error_n']:.3f} N, {vib['rms_moment_error_nm']:.4f} N m"
+                if vib else "")]
+    for trip in tissue["guard"]:
+        lines.append(f"force guard tripped at {trip['trip_time_s']:.3f} s ({trip['limit']}): estimated "
+                     f"{trip['trip_force_n']:.1f} N, predicted {trip['predicted_force_n']:.1f} N; peak estimated "
+                     f"{trip['peak_estimated_force_n']:.1f} N (applied {trip['peak_applied_force_n']:.1f} N) against "
+                     f"guard_force_n {trip['force_limit_n']:g} N ({trip['overshoot'] * 100:+.1f} %); stopped over "
+                     f"{trip['stop_duration_s']:.2f} s")
+    for stop in summary.get("guard_stops", []):
+        lines.append(f"guarded move to {np.round(stop['target'], 4).tolist()}: held "
+                     f"{stop['short_of_target_m'] * 1e3:.2f} mm short of the target, as the scenario expects")
+    return lines

@@ -1,13 +1,16 @@
 """Scenario files (config/scenario_*.yaml) for the suite bring-up: load and validate.
 
 A scenario is a list of steps, each ``move_to: paper | home | [x, y, z, roll,
-pitch, yaw]`` (m, rad) or ``vibrate: {planner parameters}``, plus the pass/fail
-bounds of the run summary.
+pitch, yaw]`` (m, rad), ``guarded_move_to: <pose>`` (a move the kinematics node's
+force guard must stop short of its target) or ``vibrate: {planner parameters}``,
+plus the pass/fail bounds of the run summary and optionally ``tissue: <file>``
+(a soft-tissue model the emulator applies and kinematics checks against; a relative
+path is looked up beside the scenario, then in config/).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -16,6 +19,7 @@ import yaml
 from .errors import ConfigError
 from .paper import paper_pose
 from .robot import Robot, default_config_dir
+from .tissue import load_tissue
 
 VIBRATE_KEYS = {"direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s",
                 "ramp_s"}
@@ -31,6 +35,10 @@ DEFAULT_BOUNDS = {
     "leg_amplitude_error": 0.02,  # worst leg: measured vs |k_i| A
     "active_duration_error_s": 0.06,  # measured vs planned time at >= half amplitude (two 35 Hz periods)
     "sample_ratio_min": 0.99,  # pose / force / wrench estimates per joint state over the run
+    # with a tissue model (issue 17): external-wrench estimate vs the wrench the emulator applied
+    "wrench_error_relative": 0.02,  # RMS error in moves and holds / peak applied (force and moment)
+    "wrench_error_vibration_n": 1.0,  # RMS force error during a vibration, N
+    "guard_overshoot": 0.10,  # after a guard stop: peak estimated force / guard_force_n - 1
 }
 
 
@@ -38,6 +46,7 @@ DEFAULT_BOUNDS = {
 class MoveStep:
     name: str
     pose: np.ndarray
+    guarded: bool = False  # the force guard must stop this move (guarded_move_to)
 
 
 @dataclass(frozen=True)
@@ -63,6 +72,7 @@ class Scenario:
     steps: list
     bounds: dict = field(default_factory=lambda: dict(DEFAULT_BOUNDS))
     source: str = ""
+    tissue: str | None = None  # soft-tissue YAML (resolved path) or None
 
 
 def default_scenario_path() -> Path:
@@ -81,10 +91,11 @@ def load_scenario(robot: Robot, path=None, vibration_duration: float | None = No
     steps = []
     for index, step in enumerate(tree["steps"]):
         if not isinstance(step, dict) or len(step) != 1:
-            raise ConfigError(f"scenario {path}: step {index} must be one of move_to / vibrate")
+            raise ConfigError(f"scenario {path}: step {index} must be one of move_to / guarded_move_to / vibrate")
         (kind, value), = step.items()
-        if kind == "move_to":
-            steps.append(_move(robot, value, path, index))
+        if kind in ("move_to", "guarded_move_to"):
+            move = _move(robot, value, path, index)
+            steps.append(replace(move, name="guarded", guarded=True) if kind == "guarded_move_to" else move)
         elif kind == "vibrate":
             params = dict(value or {})
             unknown = set(params) - VIBRATE_KEYS
@@ -99,7 +110,20 @@ def load_scenario(robot: Robot, path=None, vibration_duration: float | None = No
             raise ConfigError(f"scenario {path}: step {index} has unknown kind '{kind}'")
     bounds = dict(DEFAULT_BOUNDS)
     bounds.update({k: float(v) for k, v in (tree.get("bounds") or {}).items()})
-    return Scenario(name=str(tree.get("name", path.stem)), steps=steps, bounds=bounds, source=str(path))
+    tissue = resolve_tissue_path(tree["tissue"], path.parent) if tree.get("tissue") else None
+    if tissue is not None:
+        load_tissue(tissue, robot)  # a bad tissue file fails here, with its reason, before anything starts
+    return Scenario(name=str(tree.get("name", path.stem)), steps=steps, bounds=bounds, source=str(path),
+                    tissue=tissue)
+
+
+def resolve_tissue_path(value, base: Path) -> str:
+    """A tissue file named by a scenario or --tissue: as given, beside the scenario (``base``), or in config/."""
+    given = Path(str(value)).expanduser()
+    for candidate in (given, base / given, default_config_dir() / given):
+        if candidate.is_file():
+            return str(candidate.resolve())
+    raise ConfigError(f"tissue file {value!r} not found (as given, in {base} or in {default_config_dir()})")
 
 
 def _move(robot: Robot, value, path, index) -> MoveStep:

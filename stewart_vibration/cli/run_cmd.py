@@ -21,8 +21,9 @@ import numpy as np
 
 from ..processes import claim_ros_domain
 from ..robot import load_robot
-from ..scenario import load_scenario
+from ..scenario import load_scenario, resolve_tissue_path
 from ..suite import OPTIONAL_NODES, SUITE_NODES
+from ..tissue import load_tissue
 from .arguments import nonnegative_float, positive_float
 from .output import to_jsonable
 
@@ -30,6 +31,8 @@ from .output import to_jsonable
 def register(subparsers) -> None:
     cmd = subparsers.add_parser("run", help="bring up the node suite in emulation and run a scenario (main job)")
     cmd.add_argument("--scenario", help="scenario YAML (default: config/scenario_paper.yaml)")
+    cmd.add_argument("--tissue", help="soft-tissue YAML the emulator applies and kinematics checks against (e.g. "
+                     "tissue.yaml, looked up in config/ too; 'none' = no tissue); default: the scenario's `tissue:`")
     cmd.add_argument("--duration", type=positive_float,
                      help="override every vibration's duration (s, incl. ramps)")
     cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
@@ -84,6 +87,11 @@ def run(args) -> int:
 
     robot = load_robot(args.robot)
     scenario = load_scenario(robot, args.scenario, args.duration)
+    tissue = scenario.tissue
+    if args.tissue is not None:
+        tissue = None if args.tissue.lower() in ("", "none") else resolve_tissue_path(args.tissue, Path.cwd())
+        if tissue is not None:
+            load_tissue(tissue, robot)
     respawn = {n for n in args.respawn.split(",") if n}
     unknown = respawn - {n.name for n in SUITE_NODES}
     if unknown:
@@ -93,12 +101,13 @@ def run(args) -> int:
     domain, _lock, source = _choose_domain(args.domain_id)
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
-                         out_dir=out, progress=_log, extra_nodes=extra)
+                         out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue)
     signal.signal(signal.SIGTERM, _on_sigterm)
     runner = SuiteRunner(options)
     status, failure = 0, None
     _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
-         f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}; output {out.resolve()}")
+         f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}; output {out.resolve()}; "
+         f"soft tissue: {tissue or 'none'}")
     _log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
          "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     try:
@@ -123,7 +132,8 @@ def run(args) -> int:
     summary = {"scenario": scenario.name, "mcap": str(record.mcap_path) if record.mcap_path else None,
                "moves": record.moves, "vibrations": [], "failure": failure, "interrupted": record.interrupted,
                "problems": list(record.failures), "recorder": record.recorder_stats,
-               "restarts": record.restarts, "ros_domain_id": domain}
+               "restarts": record.restarts, "ros_domain_id": domain, "tissue_config": tissue,
+               "guard_stops": record.guard_stops}
     if record.mcap_path is None:
         _log("no MCAP was written")
         summary["problems"].append("no MCAP was written")
@@ -144,7 +154,7 @@ def run(args) -> int:
 def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
     """Analyse what ran (also after a failure or an interruption): every vibration that started, the
     streams, the bounds; write the report. Problems change the verdict."""
-    from ..run_summary import check_bounds, load_signals, stream_summary, summarize_vibration
+    from ..run_summary import check_bounds, load_signals, stream_summary, summarize_tissue, summarize_vibration
 
     try:
         signals = load_signals(record.mcap_path)
@@ -162,6 +172,8 @@ def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
             continue
         result["failure"] = vib.get("failure")
         summary["vibrations"].append(result)
+    summary["tissue"] = summarize_tissue(signals, [(v["t0"], float(v["parameters"]["duration_s"]))
+                                                   for v in record.vibrations if "t0" in v])
     summary["streams"] = stream_summary(signals)
     summary["bound_failures"] = check_bounds(summary, scenario.bounds)
     summary["report_dir"] = _write_report(record.mcap_path, out / "report")
@@ -244,6 +256,10 @@ def _print_summary(summary: dict, bounds: dict) -> None:
               f"{vib['planned_active_duration_s']:.3f} s")
         if vib.get("failure"):
             print(f"  this vibration failed: {vib['failure']}")
+    from ..run_summary import tissue_lines
+
+    for line in tissue_lines(summary):
+        print(line)
     streams = summary.get("streams")
     if streams:
         counts = ", ".join(f"{t} {row['count']} ({row['ratio'] * 100:.2f} %)" for t, row in streams["topics"].items())

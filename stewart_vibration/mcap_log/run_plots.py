@@ -117,6 +117,8 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
             for ax in axes[-2:]:
                 ax.set_xlabel("time (s)")
             _save(fig, out, "forces_vibration.png", plots)
+    if "wrench_applied" in data:
+        _plot_wrench(data, out, plots)
     events = data.get("events", [])
     if events:
         fig, ax = plt.subplots(figsize=(11, 1.2 + 0.35 * min(len(events), 20)))
@@ -135,3 +137,46 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         ax.grid(alpha=0.3, axis="x")
         _save(fig, out, "events.png", plots)
     return plots
+
+
+def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
+    """Soft tissue: the wrench the emulator applied vs the estimator's external wrench, force and moment
+    components and the error magnitudes; the force guard's trips as vertical lines."""
+    fig, axes = plt.subplots(3, 2, figsize=(13, 8), sharex=True)
+    fig.suptitle("Soft tissue: applied (platform/tissue_wrench, solid) vs estimated "
+                 "(platform/external_wrench_estimate, dashed); base frame, moment about the platform origin")
+    ta, wa = data["wrench_applied_t"], data["wrench_applied"]
+    te, we = data.get("wrench_estimated_t"), data.get("wrench_estimated")
+    for col, (what, unit, first) in enumerate((("force", "N", 0), ("moment", "N m", 3))):
+        ax = axes[0, col]
+        for k, name in enumerate("xyz"):
+            ax.plot(ta, wa[:, first + k], color=COLORS[k], lw=1.0, label=f"{name} applied")
+            if we is not None:
+                ax.plot(te, we[:, first + k], color=COLORS[k], lw=1.0, ls="--", label=f"{name} estimated")
+        ax.set_title(f"{what} components")
+        ax.set_ylabel(f"{what} ({unit})")
+        ax.legend(loc="upper right", fontsize=7, ncol=2)
+        ax = axes[1, col]
+        ax.plot(ta, np.linalg.norm(wa[:, first:first + 3], axis=1), color="black", lw=1.0, label="|applied|")
+        if we is not None:
+            ax.plot(te, np.linalg.norm(we[:, first:first + 3], axis=1), color="tab:orange", lw=1.0, ls="--",
+                    label="|estimated|")
+        ax.set_ylabel(f"|{what}| ({unit})")
+        ax.legend(loc="best", fontsize=7)
+        ax = axes[2, col]
+        if we is not None:
+            common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(te, 6), return_indices=True)
+            err = np.linalg.norm(we[ie, first:first + 3] - wa[ia, first:first + 3], axis=1)
+            ax.plot(common, err, color="tab:red", lw=0.8)
+        ax.set_ylabel(f"|error| ({unit})")
+        ax.set_xlabel("time (s)")
+    for trip in data.get("guard_trips", []):
+        for ax in axes.ravel():
+            ax.axvline(trip["t_s"], color="tab:red", lw=1.0, ls=":")
+        axes[0, 0].annotate(f"guard stop ({trip.get('trip_limit', '')})", (trip["t_s"], axes[0, 0].get_ylim()[0]),
+                            xytext=(4, 4), textcoords="offset points", fontsize=8, color="tab:red")
+        if trip.get("trip_limit") == "force":
+            axes[1, 0].axhline(float(trip["force_limit_n"]), color="tab:red", lw=0.8, ls=":")
+    for ax in axes.ravel():
+        ax.grid(alpha=0.3)
+    _save(fig, out, "tissue_wrench.png", plots)

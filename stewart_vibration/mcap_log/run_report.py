@@ -3,7 +3,9 @@
 Topics are matched by suffix so namespaced runs work: ``legs/joint_states``
 (leg_* lengths, vib_* displacements, leg_* efforts = measured axial force),
 ``platform/pose``, ``legs/force_estimate``, ``/diagnostics`` and ``/rosout``
-(events). Times in the plots are seconds from the first message; lengths and
+(events); with a soft-tissue run also ``platform/tissue_wrench`` (applied) against
+``platform/external_wrench_estimate``, and the force guard's trips
+(``kinematics/guard_status``). Times in the plots are seconds from the first message; lengths and
 displacements are plotted in mm (labelled), everything in the JSON is SI.
 """
 
@@ -27,6 +29,15 @@ def _find(reader: RunReader, suffix: str) -> str | None:
         if t.topic.endswith(suffix) and t.message_count:
             return t.topic
     return None
+
+
+def _wrench_series(reader, topic):
+    t, rows = [], []
+    for raw, msg in reader.decoded([topic]):
+        f, m = msg.wrench.force, msg.wrench.torque
+        t.append(raw.publish_time)
+        rows.append([f.x, f.y, f.z, m.x, m.y, m.z])
+    return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, 6)
 
 
 def _joint_series(reader, topic, names, field):
@@ -86,6 +97,19 @@ def extract(reader: RunReader) -> dict:
             t.append(raw.publish_time)
             xyz.append([p.x, p.y, p.z])
         data["pose_t"], data["pose_xyz"] = (np.array(t) - t0) / 1e9, np.array(xyz)
+    for key, suffix in (("applied", "platform/tissue_wrench"), ("estimated", "platform/external_wrench_estimate")):
+        if (topic := _find(reader, suffix)) and (key == "applied" or "wrench_applied" in data):
+            t, wrench = _wrench_series(reader, topic)
+            if len(t):
+                data[f"wrench_{key}_t"], data[f"wrench_{key}"] = (t - t0) / 1e9, wrench
+    if guard := _find(reader, "kinematics/guard_status"):
+        trips = {}
+        for _raw, msg in reader.decoded([guard]):
+            values = {kv.key: kv.value for kv in msg.values}
+            if values.get("state") == "tripped" and "trip_time_s" in values:
+                trips[values["trip_time_s"]] = dict(values, message=msg.message)
+        data["guard_trips"] = [dict(v, t_s=(float(k) * 1e9 - t0) / 1e9) for k, v in sorted(trips.items(),
+                                                                                         key=lambda kv: float(kv[0]))]
     events = []
     for topic in ("/diagnostics", "/rosout"):
         if _find(reader, topic) != topic:
@@ -140,6 +164,21 @@ def summarize(reader: RunReader, data: dict) -> dict:
         if window:
             sel = _within(data["est_t"], window)
             out["force_error_rms_n_vibration"] = dict(zip(LEGS, np.sqrt(np.mean(err[sel] ** 2, axis=0)).tolist()))
+    if "wrench_applied" in data and "wrench_estimated" in data:
+        ta, te = np.round(data["wrench_applied_t"], 6), np.round(data["wrench_estimated_t"], 6)
+        _, ia, ie = np.intersect1d(ta, te, return_indices=True)
+        err = data["wrench_estimated"][ie] - data["wrench_applied"][ia]
+
+        def rms(part):
+            return float(np.sqrt((np.linalg.norm(err[:, part], axis=1) ** 2).mean())) if len(err) else None
+
+        out["tissue_wrench"] = {
+            "peak_applied_force_n": float(np.linalg.norm(data["wrench_applied"][:, :3], axis=1).max()),
+            "peak_applied_moment_nm": float(np.linalg.norm(data["wrench_applied"][:, 3:], axis=1).max()),
+            "rms_force_error_n": rms(slice(0, 3)), "rms_moment_error_nm": rms(slice(3, 6)), "samples": int(len(err)),
+        }
+    if data.get("guard_trips"):
+        out["guard_trips"] = data["guard_trips"]
     out["events"] = data["events"]
     return out
 
@@ -169,6 +208,14 @@ def markdown(summary: dict, plots: list[str]) -> str:
     if "force_error_rms_n_vibration" in summary:
         lines += ["", "During the steady vibration, RMS error (N): "
                   + ", ".join(f"{k} {v:.4f}" for k, v in summary["force_error_rms_n_vibration"].items())]
+    if "tissue_wrench" in summary:
+        w = summary["tissue_wrench"]
+        lines += ["", f"Soft tissue: peak applied {w['peak_applied_force_n']:.1f} N, "
+                  f"{w['peak_applied_moment_nm']:.2f} N m; external-wrench estimate vs applied over the whole run, "
+                  f"RMS error {w['rms_force_error_n']:.3f} N, {w['rms_moment_error_nm']:.4f} N m "
+                  f"({w['samples']} states)"]
+    for trip in summary.get("guard_trips", []):
+        lines += ["", f"Force guard tripped at {trip['t_s']:.3f} s: {trip['message']}"]
     if summary["events"]:
         lines += ["", "| t (s) | source | level | event |", "|---|---|---|---|"]
         lines += [f"| {e['t_s']:.3f} | {e['source']} | {e['level']} | {e['text']} |" for e in summary["events"]]

@@ -69,6 +69,7 @@ class RunOptions:
     out_dir: Path = Path("runs")
     params_file: Path | None = None
     extra_nodes: tuple = ()  # OPTIONAL_NODES keys to start as well ("foxglove", "ui")
+    tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -87,6 +88,7 @@ class RunRecord:
     failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
     recorder_stats: dict | None = None  # the recorder's counts of its last file (received, written, dropped)
     restarts: list = field(default_factory=list)  # (node, exit code) of nodes restarted under --keep-running
+    guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
 
 
 class SuiteRunner:
@@ -112,6 +114,9 @@ class SuiteRunner:
             "hardware_emulator": ["-p", f"real_time_factor:={opts.real_time_factor}", "-p", "autostart:=false"],
             "mcap_recorder": ["-p", f"output_dir:={opts.out_dir.resolve()}"],
         }
+        if opts.tissue_config:
+            for name in ("hardware_emulator", "kinematics"):
+                extra[name] = extra.get(name, []) + ["-p", f"tissue_config:={opts.tissue_config}"]
         for node in SUITE_NODES + [OPTIONAL_NODES[key] for key in opts.extra_nodes]:
             self.procs.append(start_python_module(node.name, node.module, common + extra.get(node.name, []), env,
                                                   self.record.log_dir))
@@ -139,6 +144,9 @@ class SuiteRunner:
                                 durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.client.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, status_qos)
         self.client.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
+        self.guard_status = None  # latest kinematics/guard_status
+        self.client.create_subscription(DiagnosticStatus, "kinematics/guard_status",
+                                        lambda m: setattr(self, "guard_status", m), status_qos)
 
     def _on_clock(self, msg: Clock) -> None:
         self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
@@ -301,7 +309,7 @@ class SuiteRunner:
         ground_truth = self.client.create_subscription(
             PoseStamped, "platform/pose", lambda m: self.latest.__setitem__("platform/pose", m), 1)
         try:
-            self._settle(step, label, start)
+            (self._guarded if step.guarded else self._settle)(step, label, start)
         finally:
             self.client.destroy_subscription(ground_truth)
 
@@ -331,6 +339,49 @@ class SuiteRunner:
         })
         opts.progress(f"{label}: settled at {step.name} in {self.clock - start:.2f} s sim; ground-truth error "
                       f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
+
+    def _guarded(self, step: MoveStep, label: str, start: float) -> None:
+        """A move the force guard must stop: send the target, wait for kinematics/guard_status to report a trip
+        during it, then for the platform to come to rest short of the target (0.5 s of sim time still)."""
+        opts = self.options
+        self.target_pub.publish(pose_stamped(step.pose, self.client.get_clock().now().to_msg()))
+
+        def values():
+            status = self.guard_status
+            return {kv.key: kv.value for kv in status.values} if status is not None else {}
+
+        def tripped():
+            v = values()
+            return v.get("state") == "tripped" and float(v.get("trip_time_s", -1.0)) >= start - 1e-6
+
+        def reached():
+            msg = self.latest.get("platform/pose")
+            tolerance = opts.settle_tolerance_m
+            return msg is not None and np.abs(pose_from_msg(msg.pose)[:3] - step.pose[:3]).max() < tolerance
+
+        self.spin_until(lambda: tripped() or reached(), opts.step_timeout_s, "the force guard to stop the move")
+        if not tripped():
+            raise StepFailed(f"the force guard did not stop the move to {np.round(step.pose, 5).tolist()}: the "
+                             "platform reached the target")
+        last, still = [None], [None]
+
+        def at_rest():
+            msg = self.latest.get("platform/pose")
+            if msg is None:
+                return False
+            pose = pose_from_msg(msg.pose)
+            if last[0] is None or np.abs(pose[:3] - last[0][:3]).max() > 1e-6:
+                last[0], still[0] = pose, self.clock
+                return False
+            return self.clock - still[0] >= 0.5
+
+        self.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
+        held = last[0]
+        record = {"target": step.pose.tolist(), "time": self.clock, "guard": values(), "stopped_pose": held.tolist(),
+                  "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3]))}
+        self.record.guard_stops.append(record)
+        opts.progress(f"{label}: the force guard stopped the move as expected: {self.guard_status.message}; "
+                      f"held {record['short_of_target_m'] * 1e3:.2f} mm short of the target")
 
     def vibrate(self, step: VibrateStep, label: str) -> None:
         """Set the planner's parameters, start, and follow the emulator's vibration/status until the
