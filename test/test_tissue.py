@@ -1,0 +1,334 @@
+"""Soft tissue (issue 17) without DDS: the tissue wrench against closed forms, Newton-Euler with the tissue
+wrench against MuJoCo with the tissue applied, the tissue-aware path check, the emulator against the tissue
+(struts as stiff position actuators, the estimate against the applied wrench) and the force guard in a
+closed loop with the emulator and the estimator."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from stewart_vibration import inverse_kinematics
+from stewart_vibration.dynamics import leg_forces
+from stewart_vibration.dynamics_validation import run_scenario
+from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from stewart_vibration.emulation.trajectory import TrajectoryFollower, build_trajectory, checked_command
+from stewart_vibration.errors import ActuatorLimitError, ConfigError
+from stewart_vibration.estimation import ForceEstimator
+from stewart_vibration.force_guard import RECEIPT_WINDOW_S, ForceGuard
+from stewart_vibration.mjcf import load_simulation_settings
+from stewart_vibration.motion_profiles import check_path_forces, checked_path, minimum_jerk, minimum_jerk_duration
+from stewart_vibration.robot import default_config_dir
+from stewart_vibration.rotations import rotation_from_rpy
+from stewart_vibration.scenario import load_scenario
+from stewart_vibration.tissue import (
+    load_tissue,
+    tissue_from_dict,
+    tissue_wrench,
+    tissue_wrench_single,
+    wrench_about_point,
+)
+from stewart_vibration.vibration import decompose_vibration
+from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream
+
+K_AX, K_LAT, K_TOR, K_BEND = 12000.0, 3000.0, 3.0, 8.0
+C_AX, C_LAT, C_TOR, C_BEND = 150.0, 60.0, 0.03, 0.05
+PRELOAD, LENGTH = 30.0, 0.005
+
+
+def tree(**changes):
+    base = {"rest_pose": "home", "center_m": [0.0, 0.0, -0.06],
+            "axial": {"stiffness_n_m": K_AX, "damping_n_s_m": C_AX},
+            "lateral": {"stiffness_n_m": K_LAT, "damping_n_s_m": C_LAT},
+            "torsional": {"stiffness_nm_rad": K_TOR, "damping_nm_s_rad": C_TOR},
+            "bending": {"stiffness_nm_rad": K_BEND, "damping_nm_s_rad": C_BEND},
+            "preload_n": PRELOAD, "stiffening": {"type": "exponential", "length_m": LENGTH}}
+    base.update(changes)
+    return base
+
+
+@pytest.fixture(scope="module")
+def tissue(robot):
+    return tissue_from_dict(tree(), robot)
+
+
+def test_the_config_file_is_the_documented_example(robot, tissue):
+    model = load_tissue("tissue.yaml", robot)  # a bare name is found in config/
+    assert np.allclose(model.stiffness, tissue.stiffness) and np.allclose(model.damping, tissue.damping)
+    assert model.preload == PRELOAD and model.stiffening == "exponential" and model.length_m == LENGTH
+    assert "not patient data" in open(model.source).read()
+
+
+def test_pure_translation_matches_the_closed_form(robot, tissue):
+    home = robot.home_pose
+    for d in (-0.002, 0.0, 0.001, 0.003, 0.006):  # along the tibia axis (base z at home): compression, distraction
+        w = tissue_wrench(tissue, home + [0, 0, d, 0, 0, 0])
+        spring = K_AX * d if d <= 0 else K_AX * LENGTH * (np.exp(d / LENGTH) - 1)
+        np.testing.assert_allclose(w, [0, 0, -(PRELOAD + spring), 0, 0, 0], atol=1e-9)
+    # lateral: F = -k_lat d, at the centre 60 mm below the platform origin: M = r x F with r = R c
+    d = np.array([0.002, -0.001, 0.0])
+    w = tissue_wrench(tissue, home + np.r_[d, 0, 0, 0])
+    force = np.array([-K_LAT * d[0], -K_LAT * d[1], -PRELOAD])
+    np.testing.assert_allclose(w[:3], force, atol=1e-9)
+    np.testing.assert_allclose(w[3:], np.cross([0, 0, -0.06], force), atol=1e-12)
+    # the exponential stiffens: 6 mm needs more than twice the force of 3 mm
+    f3, f6 = (-tissue_wrench(tissue, home + [0, 0, x, 0, 0, 0])[2] - PRELOAD for x in (0.003, 0.006))
+    assert f6 > 2.5 * f3
+
+
+def test_pure_rotation_matches_the_closed_form(robot, tissue):
+    home = robot.home_pose
+    # about the tibia axis (through the centre): torsion only
+    for theta in (-0.2, 0.05, 0.3):
+        w = tissue_wrench(tissue, home + [0, 0, 0, 0, 0, theta])
+        np.testing.assert_allclose(w, [0, 0, -PRELOAD, 0, 0, -K_TOR * theta], atol=1e-9)
+    # about x through the platform origin: bending, and the centre (0, 0, c) swings by R c - c
+    theta, c = 0.1, -0.06
+    w = tissue_wrench(tissue, home + [0, 0, 0, theta, 0, 0])
+    u = np.array([0.0, -c * np.sin(theta), c * (np.cos(theta) - 1)])
+    assert u[2] > 0  # the centre below the platform swings up: a small distraction (exponential spring)
+    axial = K_AX * LENGTH * np.expm1(u[2] / LENGTH)
+    force = np.array([0.0, -K_LAT * u[1], -(PRELOAD + axial)])
+    arm = np.array([0.0, -c * np.sin(theta), c * np.cos(theta)])
+    np.testing.assert_allclose(w[:3], force, atol=1e-9)
+    np.testing.assert_allclose(w[3:], np.array([-K_BEND * theta, 0, 0]) + np.cross(arm, force), atol=1e-9)
+
+
+def test_damping_and_a_rotated_rest_pose(robot):
+    rest = robot.home_pose + [0.001, 0.0, 0.002, 0.1, -0.05, 0.2]
+    model = tissue_from_dict(tree(rest_pose=rest.tolist(), center_m=[0.0, 0.0, 0.0], preload_n=0.0), robot)
+    axis = rotation_from_rpy(rest[3:])[:, 2]
+    # at rest, moving along the rest pose's axis and spinning about it: pure damping along / about that axis
+    w = tissue_wrench(model, rest, np.r_[0.01 * axis, 0.5 * axis])
+    np.testing.assert_allclose(w, np.r_[-C_AX * 0.01 * axis, -C_TOR * 0.5 * axis], atol=1e-12)
+    # distraction along that axis
+    w = tissue_wrench(model, rest + np.r_[0.002 * axis, 0, 0, 0])
+    np.testing.assert_allclose(w[:3], -K_AX * LENGTH * np.expm1(0.002 / LENGTH) * axis, atol=1e-9)
+
+
+def test_piecewise_linear_stiffening(robot):
+    model = tissue_from_dict(tree(stiffening={"type": "piecewise_linear", "breakpoints_m": [0.0, 0.002, 0.004],
+                                              "stiffness_n_m": [K_AX, 2 * K_AX, 5 * K_AX]}), robot)
+    spring = model.axial_spring([-0.001, 0.001, 0.003, 0.005])
+    expected = [-K_AX * 0.001, K_AX * 0.001, K_AX * 0.002 + 2 * K_AX * 0.001,
+                K_AX * 0.002 + 2 * K_AX * 0.002 + 5 * K_AX * 0.001]
+    np.testing.assert_allclose(spring, expected, rtol=1e-12)
+    with pytest.raises(ConfigError, match="piecewise_linear"):
+        tissue_from_dict(tree(stiffening={"type": "piecewise_linear", "breakpoints_m": [0.0, 0.002],
+                                          "stiffness_n_m": [5.0, 10.0]}), robot)
+
+
+@pytest.mark.parametrize("change, match", [
+    ({"axial": {"stiffness_n_m": -1.0, "damping_n_s_m": 0.0}}, "stiffness_n_m"),
+    ({"lateral": None}, "lateral"),
+    ({"friction": 1.0}, "unknown keys"),
+    ({"stiffening": {"type": "cubic"}}, "stiffening.type"),
+    ({"rest_pose": [0.0, 0.0]}, "rest_pose"),
+])
+def test_bad_configs_are_refused_with_the_reason(robot, change, match):
+    with pytest.raises(ConfigError, match=match):
+        tissue_from_dict(tree(**change), robot)
+
+
+def test_vectorised_and_single_state_paths_agree(robot, tissue):
+    rng = np.random.default_rng(17)
+    poses = robot.home_pose + rng.normal(0, [0.004] * 3 + [0.15] * 3, size=(4, 5, 6))
+    twists = rng.normal(0, 0.05, size=(4, 5, 6))
+    batch = tissue_wrench(tissue, poses, twists)
+    assert batch.shape == (4, 5, 6)
+    for i, j in np.ndindex(4, 5):
+        np.testing.assert_allclose(batch[i, j], tissue_wrench(tissue, poses[i, j], twists[i, j]), atol=1e-12)
+        single = tissue_wrench_single(tissue, poses[i, j, :3].tolist(), rotation_from_rpy(poses[i, j, 3:]),
+                                      twists[i, j, :3].tolist(), twists[i, j, 3:].tolist())
+        np.testing.assert_allclose(single, batch[i, j], atol=1e-10)
+    # moving the moment to another point: the same wrench (force, moment about the new point)
+    arm = np.array([0.01, -0.02, 0.05])
+    moved = wrench_about_point(batch[0, 0], arm)
+    np.testing.assert_allclose(moved[3:] + np.cross(arm, moved[:3]), batch[0, 0, 3:], atol=1e-12)
+
+
+@pytest.mark.parametrize("name, duration", [("clinical", 0.06), ("paper", 0.06)])
+def test_newton_euler_with_the_tissue_matches_mujoco(robot, tissue, name, duration):
+    """MuJoCo applies the tissue (xfrc_applied at the centre of mass, evaluated every step); Newton-Euler gets the
+    same wrench as external_wrench: worst-leg RMS <= 1e-4 as validate-dynamics; without it, far off."""
+    result = run_scenario(robot, name, duration, tissue=tissue)
+    wrench = result.run.wrench
+    assert np.linalg.norm(wrench[:, :3], axis=1).min() > 100 and np.abs(wrench[:, 3:]).max() > 5
+    print(name, "worst-leg RMS", result.full.worst)
+    assert result.full.worst <= 1e-4
+    blind = leg_forces(robot, result.run.pose, result.run.twist, result.run.accel)
+    assert np.abs(blind - result.run.forces).max() > 10.0  # the tissue is a large part of the forces
+    if name == "clinical":  # the tissue's damping and stiffness vary at 35 Hz: the wrench is not a constant
+        assert np.ptp(wrench[:, 2]) > 1.0
+
+
+def test_path_check_predicts_the_strut_forces_under_the_tissue(robot, tissue):
+    home = robot.home_pose
+    poses = checked_path(robot, home, home + [0, 0, 0.008, 0, 0, 0], tissue=tissue)
+    assert len(poses) > 8
+    with pytest.raises(ActuatorLimitError) as info:
+        checked_path(robot, home, home + [0, 0, 0.020, 0, 0, 0], tissue=tissue)
+    text = str(info.value)
+    assert info.value.leg is not None and f"leg_{info.value.leg}" in text
+    assert "waypoint" in text and "strut_force_max_n" in text and "tissue" in text
+    # the refused waypoint is the first whose predicted force exceeds the limit
+    k = int(text.split("waypoint ")[1].split(" ")[0])
+    path = np.linspace(home, home + [0, 0, 0.020, 0, 0, 0], 21)
+    forces = leg_forces(robot, path, np.zeros(6), np.zeros(6), external_wrench=tissue_wrench(tissue, path))
+    assert np.abs(forces[k]).max() > robot.limits.strut_force_max >= np.abs(forces[k - 1]).max()
+    checked_path(robot, home, home + [0, 0, 0.020, 0, 0, 0])  # the robot alone could do it
+    check_path_forces(robot, path[:5], tissue)
+
+
+def run_vibration(robot, tissue):
+    """Distract 3 mm, vibrate 35 Hz / 0.3 g along the tibia axis; every state with the estimator's wrench."""
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), tissue=tissue)
+    est = ForceEstimator(robot)
+    pose = robot.home_pose + [0, 0, 0.003, 0, 0, 0]
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, pose)
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 20, duration, 20)
+    rows = []
+
+    def step():
+        emu.advance(0.002)
+        _, p, v, e = emu.joint_state()
+        rows.append((emu.time, p, v, e[:6], emu.tissue_wrench.copy(), emu.sim.platform_pose(),
+                     emu.sim.platform_twist()))
+
+    step()
+    est.estimate([rows[0][0]], [rows[0][1][:6]], [rows[0][1][6:]], [rows[0][2][:6]], [rows[0][2][6:]], [rows[0][3]])
+    move = minimum_jerk(start, goal, duration, times)
+    emu.command_struts(LEG_NAMES, 0.0, times, *move)
+    est.command_struts(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *move), now=rows[0][0])
+    while emu.time < duration + 0.3:
+        step()
+    plan = decompose_vibration(robot, pose, [0, 0, 1], acceleration_g=0.3, frequency=35.0, method="exact")
+    t0 = emu.time + 0.1
+    win = VibrationStream(robot, plan, StreamSettings(duration=1.0)).next_window(emu.time - t0)
+    args = (win.times, win.position, win.velocity, win.acceleration)
+    emu.command_vibration(VIB_NAMES, t0, *args)
+    est.command_vibration(build_trajectory(VIB_NAMES, VIB_NAMES, t0, *args), now=emu.time)
+    while emu.time < t0 + 1.0:
+        step()
+    t, p, v, e, w, x, tw = (np.array(c) for c in zip(*rows[1:]))
+    res = est.estimate(t, p[:, :6], p[:, 6:], v[:, :6], v[:, 6:], e)
+    return {"t": t, "applied": w, "estimate": res.wrench, "pose": x, "twist": tw, "t0": t0, "plan": plan,
+            "duration": duration}
+
+
+def test_emulated_struts_follow_their_commands_against_the_tissue(robot, tissue):
+    run = run_vibration(robot, tissue)
+    t, applied = run["t"], run["applied"]
+    # the published wrench is the tissue model's at the state it was applied from
+    np.testing.assert_allclose(applied, tissue_wrench(tissue, run["pose"], run["twist"]), atol=2e-6)
+    steady = (t > run["t0"] + 0.3) & (t < run["t0"] + 0.8)
+    z = run["pose"][steady, 2]
+    amplitude = (z.max() - z.min()) / 2
+    assert abs(amplitude / run["plan"].amplitude - 1) < 0.005  # tracked as without tissue (scenario bound 2 %)
+    assert np.ptp(applied[steady, 2]) > 3.0  # ... while the tissue pushes back at 35 Hz
+    err = run["estimate"] - applied
+    quiet = t < run["t0"]
+    peak = np.linalg.norm(applied[:, :3], axis=1).max()
+    assert np.sqrt((np.linalg.norm(err[quiet, :3], axis=1) ** 2).mean()) <= 0.02 * peak
+    assert np.sqrt((np.linalg.norm(err[steady, :3], axis=1) ** 2).mean()) <= 1.0
+    print("estimate RMS error, moves+holds / vibration (N):",
+          np.sqrt((np.linalg.norm(err[quiet, :3], axis=1) ** 2).mean()),
+          np.sqrt((np.linalg.norm(err[steady, :3], axis=1) ** 2).mean()))
+
+
+def test_stop_plan_stays_within_the_limits_for_any_arrival_in_the_window(robot):
+    """The emulator's own check accepts the stop whenever it arrives within the receipt window."""
+    guard = ForceGuard(robot, 150.0, 0.0)
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
+                                                                                 [0, 0, 0.01, 0, 0, 0])
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 40, duration, 40)
+    traj = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
+    t_start = 5.0
+    guard.begin_move(t_start, duration, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    for phase in (0.1, 0.3, 0.5, 0.7):
+        now = t_start + phase * duration
+        stop = guard.plan_stop(now)
+        assert stop is not None and 0 < stop.duration < 1.0
+        assert stop.peak_accel <= 0.8 * robot.limits.strut_acceleration_max + 1e-9
+        for arrival in now + np.linspace(0, RECEIPT_WINDOW_S, 7):
+            follower = TrajectoryFollower(start)
+            follower.replace(traj, t_start)
+            cmd = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)],
+                                   [np.zeros(6)])
+            checked_command(follower, cmd, arrival, robot.limits)  # raises if the emulator would refuse it
+        along = (stop.lengths - start) @ (goal - start) / ((goal - start) @ (goal - start))
+        assert along == pytest.approx(stop.progress) and np.allclose(start + (goal - start) * along, stop.lengths)
+    assert guard.plan_stop(t_start + duration) is None  # the move has ended: nothing to stop
+
+
+@pytest.mark.parametrize("limit, lag", [(120.0, 0.01), (200.0, 0.04), (200.0, 0.12)])
+def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, limit, lag):
+    """Emulator (tissue) -> estimator -> guard with the node's view ``lag`` s behind the emulator; the stop goes
+    to the emulator (which checks it) 5 ms after the trip. Peak estimated and applied force <= limit + 10 %."""
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), tissue=tissue)
+    est, guard = ForceEstimator(robot), ForceGuard(robot, limit, 0.0)
+    target = robot.home_pose + [0, 0, 0.010, 0, 0, 0]
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, target)
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 50, duration, 50)
+    move = minimum_jerk(start, goal, duration, times)
+    states = []
+
+    def step():
+        emu.advance(0.002)
+        _, p, v, e = emu.joint_state()
+        states.append((emu.time, p, v, e[:6], emu.tissue_wrench.copy()))
+
+    for _ in range(10):
+        step()
+    first = states[-1]
+    est.estimate([first[0]], [first[1][:6]], [first[1][6:]], [first[2][:6]], [first[2][6:]], [first[3]])
+    emu.command_struts(LEG_NAMES, 0.0, times, *move)
+    est.command_struts(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *move), now=emu.time)
+    guard.begin_move(emu.time - lag + 0.02, duration, start, goal, robot.home_pose, target)
+    seen, pending, trip = len(states), None, None
+    while emu.time < duration + 1.2:
+        for _ in range(10):
+            step()
+        if pending is not None and emu.time >= pending[0]:
+            stop = pending[1]
+            emu.command_struts(LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)], [np.zeros(6)])
+            pending = None
+        new = [s for s in states[seen:] if s[0] <= emu.time - lag]
+        if not new:
+            continue
+        seen += len(new)
+        t, p, v, e, _ = (np.array(c) for c in zip(*new))
+        res = est.estimate(t, p[:, :6], p[:, 6:], v[:, :6], v[:, 6:], e)
+        guard.observe_states(t, p[:, :6])
+        got = guard.observe(res.stamps, res.wrench, emu.time - lag, 0.02)
+        if got is not None:
+            trip = got
+            assert trip.stop is not None
+            pending = (emu.time + 0.005, trip.stop)
+    assert trip is not None and guard.tripped
+    applied = np.array([s[4] for s in states])
+    peak = np.linalg.norm(applied[:, :3], axis=1).max()
+    print(f"limit {limit} N, lag {lag} s: tripped at {trip.force:.1f} N, peak applied {peak:.1f} N, estimated "
+          f"{guard.peak[0]:.1f} N")
+    assert peak <= 1.1 * limit and guard.peak[0] <= 1.1 * limit and peak > 0.8 * limit
+    held = emu.platform_pose()
+    assert held[2] < target[2] - 1e-3
+    # latched: further along the stopped direction is refused, back is allowed; reset or a new limit clears it
+    with pytest.raises(ActuatorLimitError, match="reset_guard"):
+        guard.check_target(held, held + [0, 0, 0.001, 0, 0, 0])
+    guard.check_target(held, robot.home_pose)
+    guard.check_target(held, held + [0.001, 0, 0, 0, 0, 0])  # sideways
+    assert guard.set_limits(force_limit=limit + 1.0) and not guard.tripped
+    guard.check_target(held, held + [0, 0, 0.001, 0, 0, 0])
+
+
+def test_tissue_scenario_loads(robot):
+    scenario = load_scenario(robot, default_config_dir() / "scenario_tissue.yaml")
+    assert scenario.tissue and scenario.tissue.endswith("tissue.yaml")
+    guarded = [s for s in scenario.steps if getattr(s, "guarded", False)]
+    assert len(guarded) == 1 and guarded[0].pose[2] > robot.home_pose[2] + 0.01
+    assert scenario.bounds["guard_overshoot"] == 0.10 and scenario.bounds["wrench_error_vibration_n"] == 1.0
+    assert load_scenario(robot).tissue is None  # the main scenario: no tissue unless asked (--tissue)

@@ -1,0 +1,317 @@
+"""Soft tissue in the loop (issue 17) with the real nodes over DDS on sim time: hardware_emulator applying
+config/tissue.yaml, kinematics (tissue-aware checks, force guard), leg_force_estimator, vibration_planner.
+
+- the estimator's external wrench matches the wrench the emulator applies (platform/tissue_wrench) during
+  moves and holds (RMS error <= 2 % of the peak applied force and moment) and during a 35 Hz / 0.3 g
+  vibration (RMS force error <= 1 N);
+- the force guard stops a move that would exceed guard_force_n with the peak estimated force <= limit +
+  10 %, every strut within its velocity and acceleration limits, reports ERROR, refuses targets further
+  in that direction and accepts them again after kinematics/reset_guard;
+- a path that would overload a strut is refused by plan_path, naming the leg and the waypoint.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped, WrenchStamped
+from nav_msgs.srv import GetPlan
+from rcl_interfaces.msg import Parameter as ParameterMsg
+from rcl_interfaces.msg import ParameterType, ParameterValue
+from rcl_interfaces.srv import SetParameters
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from ros_client import RosTestClient
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
+from stewart_vibration.paper import paper_pose
+from stewart_vibration.processes import ros_environment, start_python_module
+
+pytestmark = pytest.mark.integration
+SIM = ["--ros-args", "-p", "use_sim_time:=true"]
+TISSUE = ["-p", "tissue_config:=tissue.yaml"]
+STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+@pytest.fixture(scope="module")
+def suite(tmp_path_factory):
+    from stewart_vibration.processes import claim_ros_domain
+
+    domain, lock = claim_ros_domain()
+    mp = pytest.MonkeyPatch()
+    mp.setenv("ROS_DOMAIN_ID", str(domain))
+    mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    log_dir = tmp_path_factory.mktemp("tissue_logs")
+    env = ros_environment(domain)
+    procs = []
+    client = None
+    try:
+        procs = [
+            start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
+                                ["--ros-args", "-p", "real_time_factor:=1"] + TISSUE, env, log_dir),
+            start_python_module("kinematics", "stewart_vibration.nodes.kinematics_node", SIM + TISSUE, env, log_dir),
+            start_python_module("estimator", "stewart_vibration.nodes.leg_force_estimator_node", SIM, env, log_dir),
+            start_python_module("planner", "stewart_vibration.nodes.vibration_planner_node", SIM, env, log_dir),
+        ]
+        client = RosTestClient()
+        rec = {
+            "clock": client.subscribe("/clock", Clock, depth=10),
+            "applied": client.subscribe("platform/tissue_wrench", WrenchStamped, depth=5000),
+            "estimate": client.subscribe("platform/external_wrench_estimate", WrenchStamped, depth=5000),
+            "states": client.subscribe("legs/joint_states", JointState, depth=5000),
+            "truth": client.subscribe("platform/pose", PoseStamped, depth=100),
+            "diagnostics": client.subscribe("/diagnostics", DiagnosticArray),
+            "guard": [],
+        }
+        client.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", rec["guard"].append, STATUS_QOS)
+        poses = []
+        ready = client.node.create_subscription(PoseStamped, "platform/pose_estimate", poses.append, 1)
+        assert client.spin_until(lambda: rec["estimate"] and rec["applied"] and rec["guard"] and poses and
+                                 client.node.count_subscribers("platform/target_pose") > 0, 90), logs(procs)
+        client.node.destroy_subscription(ready)
+        yield procs, client, rec
+    finally:
+        if client is not None:
+            client.close()
+        for proc in procs:
+            proc.stop()
+        mp.undo()
+        lock.close()
+
+
+def logs(procs):
+    return "\n".join(f"--- {p.name}\n{p.log_text()[-3000:]}" for p in procs)
+
+
+def stamp_of(msg) -> float:
+    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
+
+
+def sim_now(rec) -> float:
+    c = rec["clock"][-1].clock
+    return c.sec + c.nanosec * 1e-9
+
+
+def wrench_series(messages) -> dict:
+    return {(m.header.stamp.sec, m.header.stamp.nanosec): [m.wrench.force.x, m.wrench.force.y, m.wrench.force.z,
+                                                           m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z]
+            for m in messages}
+
+
+def paired(rec, t0: float, t1: float):
+    """(stamps [n], applied [n, 6], estimated [n, 6]) of the states stamped in [t0, t1]."""
+    applied, estimate = wrench_series(rec["applied"]), wrench_series(rec["estimate"])
+    keys = sorted(k for k in applied if k in estimate and t0 <= k[0] + k[1] * 1e-9 <= t1)
+    stamps = np.array([k[0] + k[1] * 1e-9 for k in keys])
+    return stamps, np.array([applied[k] for k in keys]), np.array([estimate[k] for k in keys])
+
+
+def move_to(client, rec, pose, timeout=60.0, tolerance=10e-6) -> float:
+    """Publish a target; wait until the ground truth has held it for 0.5 s of sim time (as the runner does: a
+    target sent while the last move still ends is refused); returns the sim time it settled."""
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(pose, Time()))
+    since = [None]
+
+    def settled():
+        if not rec["truth"]:
+            return False
+        err = pose_from_msg(rec["truth"][-1].pose) - pose
+        if np.abs(err[:3]).max() < tolerance and np.degrees(np.abs(err[3:]).max()) < 0.01:
+            since[0] = since[0] or stamp_of(rec["truth"][-1])
+            return stamp_of(rec["truth"][-1]) - since[0] >= 0.5
+        since[0] = None
+        return False
+
+    assert client.spin_until(settled, timeout), f"did not settle at {np.round(pose, 6).tolist()}"
+    return sim_now(rec)
+
+
+def set_params(client, node: str, **values):
+    request = SetParameters.Request()
+    for name, value in values.items():
+        if isinstance(value, list):
+            v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE_ARRAY, double_array_value=[float(x) for x in value])
+        elif isinstance(value, str):
+            v = ParameterValue(type=ParameterType.PARAMETER_STRING, string_value=value)
+        else:
+            v = ParameterValue(type=ParameterType.PARAMETER_DOUBLE, double_value=float(value))
+        request.parameters.append(ParameterMsg(name=name, value=v))
+    results = client.call(SetParameters, f"{node}/set_parameters", request).results
+    assert all(r.successful for r in results), [r.reason for r in results]
+
+
+def guard_values(msg) -> dict:
+    return {kv.key: kv.value for kv in msg.values}
+
+
+def test_estimate_matches_the_applied_tissue_wrench(robot, suite):
+    procs, client, rec = suite
+    begin = sim_now(rec)
+    # the main scenario against the tissue: reduce to the paper's pose, hold, vibrate 35 Hz / 0.3 g along the
+    # tibia axis, hold, return home
+    move_to(client, rec, paper_pose(robot))
+    client.spin_for(0.5)
+    set_params(client, "vibration_planner", direction=[0.0, 0.0, 1.0], frame="platform", acceleration_g=0.3,
+               frequency_hz=35.0, duration_s=2.0, ramp_s=0.2)
+    res = client.call(Trigger, "vibration_planner/start", Trigger.Request())
+    assert res.success, res.message
+    t0 = float(json.loads(res.message.rsplit("settings: ", 1)[1])["t0_s"])
+    assert client.spin_until(lambda: sim_now(rec) > t0 + 2.5, 60), logs(procs)
+    move_to(client, rec, robot.home_pose)
+    end = sim_now(rec) - 0.1
+    assert client.spin_until(lambda: len(rec["estimate"]) and stamp_of(rec["estimate"][-1]) >= end, 10)
+
+    stamps, applied, estimate = paired(rec, begin, end)
+    assert stamps.size > 0.9 * (end - begin) * 500, (stamps.size, end - begin)  # every state got both
+    vib = (stamps >= t0) & (stamps <= t0 + 2.0)
+    quiet = ~vib
+    err = estimate - applied
+    peak_f = np.linalg.norm(applied[:, :3], axis=1).max()
+    peak_m = np.linalg.norm(applied[:, 3:], axis=1).max()
+    rms_f = np.sqrt((np.linalg.norm(err[quiet, :3], axis=1) ** 2).mean())
+    rms_m = np.sqrt((np.linalg.norm(err[quiet, 3:], axis=1) ** 2).mean())
+    rms_vib_f = np.sqrt((np.linalg.norm(err[vib, :3], axis=1) ** 2).mean())
+    rms_vib_m = np.sqrt((np.linalg.norm(err[vib, 3:], axis=1) ** 2).mean())
+    print(f"peak applied {peak_f:.1f} N, {peak_m:.2f} N m; moves+holds RMS error {rms_f:.3f} N "
+          f"({rms_f / peak_f * 100:.3f} %), {rms_m:.4f} N m ({rms_m / peak_m * 100:.3f} %); vibration RMS error "
+          f"{rms_vib_f:.3f} N, {rms_vib_m:.4f} N m over {vib.sum()} states")
+    assert peak_f > 100 and peak_m > 5  # the tissue really loads the platform
+    assert rms_f <= 0.02 * peak_f and rms_m <= 0.02 * peak_m
+    assert vib.sum() > 800 and rms_vib_f <= 1.0
+    # the wrench changes during the vibration (tissue spring + damper at 35 Hz): the estimate follows it
+    assert np.ptp(applied[vib, 2]) > 2.0
+    assert all(p.alive() for p in procs), logs(procs)
+
+
+def test_guard_stops_a_move_that_would_exceed_the_limit(robot, suite):
+    procs, client, rec = suite
+    limit = 150.0
+    set_params(client, "kinematics", guard_force_n=limit)
+    move_to(client, rec, robot.home_pose)
+    guard_before = len(rec["guard"])
+    begin = sim_now(rec)
+    target = robot.home_pose + np.array([0.0, 0.0, 0.010, 0.0, 0.0, 0.0])  # 10 mm distraction: ~410 N
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
+    assert client.spin_until(lambda: any(m.level == DiagnosticStatus.ERROR for m in rec["guard"][guard_before:]),
+                             30), logs(procs)
+    trip = guard_values(rec["guard"][-1])
+    assert trip["state"] == "tripped" and trip["trip_limit"] == "force"
+    # the stop completes and the platform holds short of the target
+    assert client.spin_until(lambda: sim_now(rec) > float(trip["trip_time_s"]) + 1.5, 30)
+    end = sim_now(rec)
+    stamps, applied, estimate = paired(rec, begin, end - 0.1)
+    peak_est = np.linalg.norm(estimate[:, :3], axis=1).max()
+    peak_applied = np.linalg.norm(applied[:, :3], axis=1).max()
+    held = pose_from_msg(rec["truth"][-1].pose)
+    print(f"guard limit {limit} N: tripped at {float(trip['trip_force_n']):.1f} N (predicted "
+          f"{float(trip['predicted_force_n']):.1f} N); peak estimated {peak_est:.1f} N, applied {peak_applied:.1f} N; "
+          f"held at {(held[2] - robot.home_pose[2]) * 1e3:.3f} mm of 10 mm")
+    assert peak_est <= 1.1 * limit and peak_applied <= 1.1 * limit
+    assert peak_est > 0.8 * limit  # it stopped near the limit, not at the start
+    assert 1e-3 < held[2] - robot.home_pose[2] < 9e-3
+    # struts within their limits all along (measured: legs/joint_states, strut = leg_i)
+    times = np.array([stamp_of(m) for m in rec["states"]])
+    sel = (times >= begin) & (times <= end)
+    vel = np.array([rec["states"][i].velocity[:6] for i in np.flatnonzero(sel)])
+    t = times[sel]
+    lim = robot.limits
+    assert np.abs(vel).max() <= lim.strut_velocity_max * 1.01
+    step = np.diff(t)
+    acc = np.diff(vel, axis=0)[step < 3e-3] / step[step < 3e-3, None]
+    smooth = np.array([np.convolve(a, np.ones(5) / 5, mode="valid") for a in acc.T]).T  # 10 ms mean
+    print(f"peak strut speed {np.abs(vel).max() * 1e3:.2f} mm/s, peak acceleration {np.abs(smooth).max():.4f} m/s^2")
+    assert np.abs(smooth).max() <= lim.strut_acceleration_max * 1.05
+    emulator_rejections = [s.message for a in rec["diagnostics"] for s in a.status
+                           if s.name.startswith("hardware_emulator") and "rejected leg trajectory" in s.message]
+    assert not emulator_rejections, emulator_rejections
+    kin_levels = [s.level for a in rec["diagnostics"][-5:] for s in a.status if s.name.startswith("kinematics")]
+    assert client.spin_until(lambda: any(s.level == DiagnosticStatus.ERROR and "force guard" in s.message
+                                         for a in rec["diagnostics"] for s in a.status
+                                         if s.name.startswith("kinematics")), 5), kin_levels
+
+    # further in the same direction: refused with the reason; back: accepted
+    def kin_messages():
+        return [s.message for a in rec["diagnostics"] for s in a.status if s.name.startswith("kinematics")]
+
+    further = held + np.array([0.0, 0.0, 0.001, 0.0, 0.0, 0.0])
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(further, Time()))
+    assert client.spin_until(lambda: any("refused until kinematics/reset_guard" in m for m in kin_messages()), 10)
+    request = GetPlan.Request()
+    request.goal = pose_stamped(further, Time())
+    assert not client.call(GetPlan, "kinematics/plan_path", request).plan.poses
+    back = held - np.array([0.0, 0.0, 0.002, 0.0, 0.0, 0.0])
+    move_to(client, rec, back)
+    # reset: the same direction is accepted again (a small step, below the limit)
+    res = client.call(Trigger, "kinematics/reset_guard", Trigger.Request())
+    assert res.success and "reset" in res.message
+    assert client.spin_until(lambda: guard_values(rec["guard"][-1])["state"] == "armed", 5)
+    move_to(client, rec, back + np.array([0.0, 0.0, 0.001, 0.0, 0.0, 0.0]))
+    move_to(client, rec, robot.home_pose)
+    set_params(client, "kinematics", guard_force_n=200.0)
+    assert all(p.alive() for p in procs), logs(procs)
+
+
+def test_plan_path_refuses_a_path_that_would_overload_a_strut(robot, suite):
+    procs, client, rec = suite
+    diagnostics = rec["diagnostics"]
+    request = GetPlan.Request()
+    request.start = pose_stamped(robot.home_pose, Time())
+    request.goal = pose_stamped(robot.home_pose + np.array([0.0, 0.0, 0.020, 0.0, 0.0, 0.0]), Time())
+    assert len(client.call(GetPlan, "kinematics/plan_path", request).plan.poses) == 0
+
+    def reasons():
+        return [s.message for a in diagnostics for s in a.status if "plan_path" in s.message]
+
+    assert client.spin_until(lambda: any("strut_force_max_n" in r for r in reasons()), 10), reasons()
+    reason = next(r for r in reasons() if "strut_force_max_n" in r)
+    print(reason)
+    assert "leg_" in reason and "waypoint" in reason and "tissue" in reason
+    # a shorter distraction stays within the limit
+    request.goal = pose_stamped(robot.home_pose + np.array([0.0, 0.0, 0.008, 0.0, 0.0, 0.0]), Time())
+    assert len(client.call(GetPlan, "kinematics/plan_path", request).plan.poses) > 5
+    # a target there is refused too, with the leg and the waypoint
+    far = robot.home_pose + np.array([0.0, 0.0, 0.020, 0.0, 0.0, 0.0])
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(far, Time()))
+    assert client.spin_until(lambda: any("rejected target pose" in s.message and "strut_force_max_n" in s.message
+                                         for a in diagnostics for s in a.status), 10)
+    assert all(p.alive() for p in procs), logs(procs)
+
+
+@pytest.mark.slow
+def test_tissue_scenario_runs_within_its_bounds(tmp_path, ros_domain):
+    """./tools/main --scenario config/scenario_tissue.yaml as a user runs it: every step done (the guarded move
+    stopped by the guard), every figure within its bounds, the tissue figures and the report's plot there."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    out = tmp_path / "run"
+    scenario = Path(__file__).resolve().parents[1] / "config" / "scenario_tissue.yaml"
+    proc = subprocess.Popen([sys.executable, "-m", "stewart_vibration", "run", "--scenario", str(scenario),
+                             "--duration", "1.2", "--out", str(out), "--domain-id", str(ros_domain)],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    try:
+        stdout, _ = proc.communicate(timeout=400)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, stdout[-4000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert not summary["bound_failures"] and summary["failure"] is None
+    tissue = summary["tissue"]
+    assert tissue["moves_holds"]["relative_force"] <= 0.02 and tissue["vibration"]["rms_force_error_n"] <= 1.0
+    (trip,) = tissue["guard"]
+    assert trip["limit"] == "force" and trip["overshoot"] <= 0.10 and trip["peak_applied_force_n"] <= 1.1 * 200
+    (stop,) = summary["guard_stops"]
+    assert stop["short_of_target_m"] > 1e-3
+    assert "force guard tripped" in stdout and "soft tissue" in stdout
+    assert (Path(summary["report_dir"]) / "tissue_wrench.png").is_file()
