@@ -54,7 +54,11 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
-_TAU = np.linspace(0.0, 1.0, 41)[None, :]  # points per stop segment at which the limits are checked
+_TAU = np.linspace(0.0, 1.0, 41)  # points per stop segment at which the limits are checked
+# quintic Hermite bases on _TAU for a segment of unit duration ending at rest (v1 = a1 = 0): velocity and
+# acceleration per unit of (p0 - p1), v0 and a0; a segment of duration h scales them by 1/h, h^0, h
+_BASES = [quintic_hermite(_TAU, 1.0, *unit, 0.0, 0.0, 0.0)[1:] for unit in ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0),
+                                                                          (0.0, 0.0, 1.0))]
 DIRECTION_TOLERANCE_M = 1e-6  # a target further along a tripped direction than this (m, pose space) is refused
 WATCH_AFTER_S = 0.3  # the guard keeps watching (and recording peaks) this long after a move or stop ends
 
@@ -323,10 +327,14 @@ class ForceGuard:
         lim = self.robot.limits
         acc_max, vel_max = self.deceleration_scale * lim.strut_acceleration_max / scale, lim.strut_velocity_max / scale
 
-        def peaks(duration: float):
+        (vp, ap), (vv, av), (va, aa) = _BASES
+        p0, v1, a1 = (x[:, None] for x in receipt)
+
+        def peaks(duration: float):  # the quintics from every receipt to (final, rest) over ``duration``
             final = s0 + duration * (v0 / 2 + a0 * duration / 12)
-            _, vel, acc = quintic_hermite(_TAU, duration, receipt[0][:, None], receipt[1][:, None],
-                                          receipt[2][:, None], final, 0.0, 0.0)
+            gap = p0 - final
+            vel = gap * vp / duration + v1 * vv + a1 * va * duration
+            acc = gap * ap / duration**2 + v1 * av / duration + a1 * aa
             return final, float(np.abs(acc).max()), float(np.abs(vel).max())
 
         # the shortest duration (to STOP_RESOLUTION_S) whose worst case stays within the limits: grow, then bisect
