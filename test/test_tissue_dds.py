@@ -290,15 +290,12 @@ def test_tissue_scenario_runs_within_its_bounds(tmp_path, ros_domain):
     stopped by the guard), every figure within its bounds, the tissue figures and the report's plot there."""
     import os
     import signal
-    import subprocess
-    import sys
+
+    from test_main_job import main_job
 
     out = tmp_path / "run"
     scenario = Path(__file__).resolve().parents[1] / "config" / "scenario_tissue.yaml"
-    proc = subprocess.Popen([sys.executable, "-m", "stewart_vibration", "run", "--scenario", str(scenario),
-                             "--duration", "1.2", "--out", str(out), "--domain-id", str(ros_domain)],
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-                            env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    proc = main_job(out, ros_domain, "--scenario", str(scenario), "--duration", "1.2")
     try:
         stdout, _ = proc.communicate(timeout=400)
     finally:
