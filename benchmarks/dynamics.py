@@ -14,12 +14,12 @@ import mujoco
 import numpy as np
 
 from stewart_vibration import load_robot
-from stewart_vibration.dynamics import leg_forces, leg_forces_paper
-from stewart_vibration.dynamics_validation import clinical_scenario
-from stewart_vibration.leg_kinematics import leg_motion
-from stewart_vibration.mjcf import load_simulation_settings
-from stewart_vibration.mujoco_sim import StewartSim
+from stewart_vibration.dynamics.mujoco_validation import clinical_scenario
+from stewart_vibration.dynamics.newton_euler import leg_forces, leg_forces_paper
+from stewart_vibration.kinematics.legs import leg_motion
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.sim.mjcf import load_simulation_settings
+from stewart_vibration.sim.mujoco_sim import StewartSim
 
 
 def best_rate(func, count: int, repeats: int = 3, clock=time.perf_counter) -> float:

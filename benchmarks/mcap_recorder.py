@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 from test_mcap_nodes import wait_on_disk  # noqa: E402
 
 from stewart_vibration.mcap_log import RunReader  # noqa: E402
-from stewart_vibration.processes import (  # noqa: E402
+from stewart_vibration.runtime.processes import (  # noqa: E402
     claim_ros_domain,
     ros_environment,
     start_python_module,

@@ -28,7 +28,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "test"))
 from test_mcap_nodes import replay_into_recorder, write_source_run  # noqa: E402
 
 from stewart_vibration.mcap_log import RunReader  # noqa: E402
-from stewart_vibration.processes import claim_ros_domain, ros_environment  # noqa: E402
+from stewart_vibration.runtime.processes import claim_ros_domain, ros_environment  # noqa: E402
 
 EXPECTED = {"lateness_p99_ms": "< 1", "interval_error_median_ms": "< 0.3", "interval_error_p95_ms": "< 1",
             "speedup_rate10": "9 .. 11"}

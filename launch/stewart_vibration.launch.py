@@ -5,7 +5,7 @@ parameters as `stewart-vibration run` in the pip world).
         [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs] [foxglove:=true] [ui:=true]
 
 Parameters come from share/stewart_vibration/config/suite_params.yaml (one
-file for both worlds); the node list from stewart_vibration.suite. DDS: like
+file for both worlds); the node list from stewart_vibration.runtime.suite. DDS: like
 the pip-world bring-up, loopback only by default (share/stewart_vibration/config/
 fastdds_localhost.xml); STEWART_DDS_PROFILE=multihost (or a profile path) in the
 launching shell selects another (README, "Security"). The hardware emulator is a
@@ -32,8 +32,8 @@ from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
 from lifecycle_msgs.msg import Transition
 
-from stewart_vibration.processes import DDS_PROFILE_ENV, dds_environment
-from stewart_vibration.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
+from stewart_vibration.runtime.processes import DDS_PROFILE_ENV, dds_environment
+from stewart_vibration.runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 
 
 def generate_launch_description():

@@ -7,7 +7,8 @@ adapters over it. SI units, base/platform frames, pose = [x, y, z, roll,
 pitch, yaw] with R = Rz(yaw) Ry(pitch) Rx(roll).
 """
 
-from .dynamics import Friction, LegForceResult, leg_forces, leg_forces_paper
+from .dynamics.newton_euler import Friction, LegForceResult, leg_forces, leg_forces_paper
+from .dynamics.platform_trajectory import SinusoidalTrajectory, twist_from_euler_rates, vibration_trajectory
 from .errors import (
     ConfigError,
     ForwardKinematicsError,
@@ -29,9 +30,7 @@ from .kinematics import (
     joint_angles,
     leg_vectors,
 )
-from .mjcf import build_mjcf
-from .robot import Robot, load_robot
-from .rotations import (
+from .kinematics.rotations import (
     euler_rate_matrix,
     pose_from_position_quaternion,
     pose_to_position_quaternion,
@@ -40,7 +39,8 @@ from .rotations import (
     rpy_from_quaternion,
     rpy_from_rotation,
 )
-from .trajectory import SinusoidalTrajectory, twist_from_euler_rates, vibration_trajectory
+from .robot import Robot, load_robot
+from .sim.mjcf import build_mjcf
 from .vibration import (
     MotionClassification,
     SuperpositionResult,

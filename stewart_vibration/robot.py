@@ -7,8 +7,12 @@ platform) and ``platform`` (origin at the platform hinge-circle centre).
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, field
+import sys
+import weakref
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
 from pathlib import Path
+from typing import Any, TypeVar
 
 import numpy as np
 import yaml
@@ -16,6 +20,10 @@ import yaml
 from .errors import ConfigError
 
 STANDARD_GRAVITY = 9.80665  # m/s^2 per g
+LEG_NAMES = tuple(f"leg_{i}" for i in range(1, 7))  # joint (and TF frame) names of the struts, legs 1..6
+VIB_NAMES = tuple(f"vib_{i}" for i in range(1, 7))  # joint names of the vibration units on legs 1..6
+
+T = TypeVar("T")
 
 
 def default_config_dir() -> Path:
@@ -31,18 +39,33 @@ def default_config_dir() -> Path:
     source = here.parent / "config"
     if (source / "robot.yaml").is_file():
         return source
-    for prefix in _candidate_prefixes():
+    for prefix in install_prefixes():
         candidate = Path(prefix) / "share" / "stewart_vibration" / "config"
         if (candidate / "robot.yaml").is_file():
             return candidate
     raise ConfigError("cannot find config/robot.yaml; set STEWART_VIBRATION_CONFIG_DIR")
 
 
-def _candidate_prefixes() -> list[str]:
-    import sys
+def install_prefixes(environ=None) -> list[str]:
+    """Install prefixes to search for ``share/<package>``: $AMENT_PREFIX_PATH in order, then sys.prefix
+    (the pip world's venv, where ament_index finds the interface packages; DESIGN.md).
 
-    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    return prefixes + [sys.prefix]
+    Args:
+        environ: the environment to read (default: os.environ).
+
+    Returns:
+        The prefixes, without duplicates, in search order.
+    """
+    environ = os.environ if environ is None else environ
+    prefixes = [p for p in environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
+    return list(dict.fromkeys([*prefixes, sys.prefix]))
+
+
+def _read_only(value):
+    """A read-only float copy of an array field (frozen dataclasses must not be changed through their arrays)."""
+    arr = np.array(value, dtype=float)
+    arr.flags.writeable = False
+    return arr
 
 
 @dataclass(frozen=True)
@@ -52,6 +75,10 @@ class RigidBody:
     mass: float
     com: np.ndarray
     inertia: np.ndarray
+
+    def __post_init__(self):
+        for name in ("com", "inertia"):
+            object.__setattr__(self, name, _read_only(getattr(self, name)))
 
 
 @dataclass(frozen=True)
@@ -101,11 +128,33 @@ class VibrationUnitLimits:
 
 
 @dataclass(frozen=True)
+class LegBodies:
+    """The two moving bodies of a leg as both the Newton-Euler model and the MJCF use them (SI units).
+
+    The cylinder turns about the base hinge B_i; its centre of mass lies ``cylinder_com_offset`` from B_i
+    along the leg. The piston slides in it and ends in the platform hinge A_i; its centre of mass lies
+    ``piston_com_offset`` from A_i back along the leg, and the vibration unit's moving mass is lumped into
+    it (its stroke is <= 100 um). Inertias are about each body's centre of mass, transverse and axial.
+    """
+
+    cylinder_mass: float
+    cylinder_com_offset: float
+    cylinder_inertia_transverse: float
+    cylinder_inertia_axial: float
+    piston_mass: float
+    piston_com_offset: float
+    piston_inertia_transverse: float
+    piston_inertia_axial: float
+
+
+@dataclass(frozen=True, eq=False)
 class Robot:
-    """Geometry, inertia and limits of one 6-UPS robot (SI units).
+    """Geometry, inertia and limits of one 6-UPS robot (SI units), immutable.
 
     base_hinges: (6, 3) B_i in the base frame; platform_hinges: (6, 3) A_i in
-    the platform frame; home_pose: (6,) [x, y, z, roll, pitch, yaw].
+    the platform frame; home_pose: (6,) [x, y, z, roll, pitch, yaw]; gravity (3,) m/s^2 in the base
+    frame. The arrays are read-only. Two robots are equal only if they are the same object (constants
+    derived from a robot are cached per object, see ``derived``).
     """
 
     base_hinges: np.ndarray
@@ -120,10 +169,50 @@ class Robot:
     source: str = ""
     characteristic_length: float = field(default=0.0)
 
+    def __post_init__(self):
+        for f in fields(self):
+            if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity"):
+                object.__setattr__(self, f.name, _read_only(getattr(self, f.name)))
+
     @property
     def moving_body(self) -> RigidBody:
         """Platform and payload combined into one rigid body (platform frame)."""
-        return combine_bodies(self.platform, self.payload)
+        return derived(self, "moving_body", lambda: combine_bodies(self.platform, self.payload))
+
+    @property
+    def leg_bodies(self) -> LegBodies:
+        """The cylinder and piston of every leg, the vibration unit's mass lumped into the piston."""
+        leg = self.leg
+        return LegBodies(
+            cylinder_mass=leg.cylinder_mass,
+            cylinder_com_offset=leg.cylinder_com_offset,
+            cylinder_inertia_transverse=leg.cylinder_inertia_transverse,
+            cylinder_inertia_axial=leg.cylinder_inertia_axial,
+            piston_mass=leg.piston_mass + leg.vibration_unit_mass,
+            piston_com_offset=leg.piston_com_offset,
+            piston_inertia_transverse=leg.piston_inertia_transverse,
+            piston_inertia_axial=leg.piston_inertia_axial,
+        )
+
+
+_DERIVED: weakref.WeakKeyDictionary[Robot, dict[str, Any]] = weakref.WeakKeyDictionary()
+
+
+def derived(robot: Robot, key: str, build: Callable[[], T]) -> T:
+    """A constant computed from ``robot`` once and kept while the robot lives (the robot is immutable).
+
+    Args:
+        robot: the robot the constant belongs to.
+        key: the constant's name (one per kind of constant, e.g. "ik_matrix").
+        build: computes the constant; called on the first request only.
+
+    Returns:
+        The cached constant.
+    """
+    cache = _DERIVED.setdefault(robot, {})
+    if key not in cache:
+        cache[key] = build()
+    return cache[key]
 
 
 def combine_bodies(a: RigidBody, b: RigidBody) -> RigidBody:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from stewart_vibration import load_robot
-from stewart_vibration.processes import claim_ros_domain
+from stewart_vibration.runtime.processes import claim_ros_domain
 
 
 @pytest.fixture(scope="session")

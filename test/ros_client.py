@@ -1,6 +1,6 @@
 """A real rclpy client for integration tests: own Context on the test's ROS domain.
 
-Nodes under test run as separate processes (stewart_vibration.processes);
+Nodes under test run as separate processes (stewart_vibration.runtime.processes);
 this client publishes, subscribes and calls services over real DDS.
 """
 
@@ -17,7 +17,7 @@ from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
 from stewart_vibration.nodes.mcap_ros import make_executor
-from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 
 class RosTestClient:

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stewart_vibration.analysis import (
+from stewart_vibration.analysis.fits import (
     direction_error_deg,
     dominant_sinusoid,
     fit_sinusoid,

@@ -12,7 +12,7 @@ import pytest
 from test_mcap_report import _write_run
 
 from stewart_vibration import condition_number, inverse_kinematics
-from stewart_vibration.processes import ros_environment
+from stewart_vibration.runtime.processes import ros_environment
 
 REPLAY = "stewart_vibration.nodes.mcap_replay_node"
 

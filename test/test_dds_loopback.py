@@ -18,7 +18,7 @@ from geometry_msgs.msg import PoseStamped
 from ros_client import RosTestClient
 from sensor_msgs.msg import JointState
 
-from stewart_vibration.processes import (
+from stewart_vibration.runtime.processes import (
     DDS_PROFILE_ENV,
     dds_environment,
     loopback_profile_path,

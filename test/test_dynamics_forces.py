@@ -1,6 +1,6 @@
 """Newton-Euler leg forces: power balance, statics limit, symmetry, options (issue 4).
 
-References are computed here independently of stewart_vibration.dynamics.
+References are computed here independently of stewart_vibration.dynamics.newton_euler.
 """
 
 from __future__ import annotations
@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 from reference import config_hinges, rot_x, rot_y, rot_z
 
-from stewart_vibration.dynamics import Friction, leg_forces, leg_forces_paper
+from stewart_vibration.dynamics.newton_euler import Friction, leg_forces, leg_forces_paper
+from stewart_vibration.dynamics.platform_trajectory import SinusoidalTrajectory
 from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.kinematics import jacobian
+from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.rotations import rotation_from_rpy
-from stewart_vibration.trajectory import SinusoidalTrajectory
 
 
 def random_trajectory(robot, seed, k=3, scale=1.0):
@@ -232,7 +232,7 @@ def euler_twist_reference(pose, rate, acc):
 @pytest.mark.parametrize("seed", [9, 10])
 def test_euler_rate_input_agrees_with_twist(robot, seed):
     """twist_from_euler_rates against the nested-axes closed form; leg forces from either input agree."""
-    from stewart_vibration.trajectory import twist_from_euler_rates
+    from stewart_vibration.dynamics.platform_trajectory import twist_from_euler_rates
 
     traj = random_trajectory(robot, seed, scale=10.0)  # angles up to 0.5 rad, rates ~ 10 rad/s
     pose, rate, acc = traj.pose_derivatives(np.linspace(0, 0.2, 9))
@@ -246,7 +246,7 @@ def test_euler_rate_input_agrees_with_twist(robot, seed):
 
 
 def test_solver_falls_back_to_lapack_when_elimination_fails(robot, monkeypatch):
-    import stewart_vibration.dynamics as dyn
+    import stewart_vibration.dynamics.newton_euler as dyn
 
     samp = random_trajectory(robot, 13).sample(np.linspace(0, 0.2, 7))
     good = leg_forces(robot, samp.pose, samp.twist, samp.accel)
@@ -257,7 +257,7 @@ def test_solver_falls_back_to_lapack_when_elimination_fails(robot, monkeypatch):
 def test_workspace_samples_are_solved_by_the_fast_elimination(robot, monkeypatch):
     """The preconditioner is H^-1 at home (H built here from the YAML hinges), and with it the unpivoted
     elimination solves workspace samples by itself: the LAPACK fallback is never needed there."""
-    import stewart_vibration.dynamics as dyn
+    import stewart_vibration.dynamics.newton_euler as dyn
 
     base, platform = config_hinges(robot.source)
     home = robot.home_pose

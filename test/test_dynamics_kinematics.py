@@ -5,11 +5,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from stewart_vibration.dynamics.platform_trajectory import (
+    SinusoidalTrajectory,
+    twist_from_euler_rates,
+    vibration_trajectory,
+)
 from stewart_vibration.kinematics import inverse_kinematics, leg_vectors
-from stewart_vibration.leg_kinematics import leg_motion
+from stewart_vibration.kinematics.legs import leg_motion
+from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.rotations import rotation_from_rpy
-from stewart_vibration.trajectory import SinusoidalTrajectory, twist_from_euler_rates, vibration_trajectory
 
 H = 1e-3  # s, step of the 4th-order central differences
 

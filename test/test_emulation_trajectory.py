@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from stewart_vibration import InvalidInputError
-from stewart_vibration.emulation.trajectory import TrajectoryFollower, build_trajectory
+from stewart_vibration.emulation.strut_trajectory import TrajectoryFollower, build_trajectory
 
 NAMES = [f"leg_{i}" for i in range(1, 7)]
 

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from stewart_vibration import VibrationLimitError
-from stewart_vibration.emulation.trajectory import build_trajectory
+from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
 
 VIB = [f"vib_{i}" for i in range(1, 7)]

@@ -7,16 +7,16 @@ import pytest
 from reference import config_hinges, reference_lengths
 
 from stewart_vibration import decompose_vibration, inverse_kinematics, jacobian, platform_vibration_motion
-from stewart_vibration.dynamics import leg_forces
+from stewart_vibration.dynamics.newton_euler import leg_forces
+from stewart_vibration.dynamics.platform_trajectory import SinusoidalTrajectory
 from stewart_vibration.estimation import (
     RunningForceError,
     external_wrench,
     platform_accel,
     platform_twist,
 )
-from stewart_vibration.leg_kinematics import leg_motion
+from stewart_vibration.kinematics.legs import leg_motion
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.trajectory import SinusoidalTrajectory
 
 
 def random_motion(robot, seed=3):

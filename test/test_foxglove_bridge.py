@@ -21,7 +21,7 @@ from sensor_msgs.msg import JointState
 
 from stewart_vibration.mcap_log.msg_definitions import full_message_definition
 from stewart_vibration.messages import cdr
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 pytestmark = pytest.mark.integration
 NS = "/stewart"

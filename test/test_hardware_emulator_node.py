@@ -22,7 +22,7 @@ from stewart_vibration.emulation.vibration_status import report_from_values
 from stewart_vibration.messages import cdr
 from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]

@@ -22,24 +22,25 @@ from nav_msgs.srv import GetPlan
 
 from stewart_vibration import load_robot
 from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
-from stewart_vibration.emulation.trajectory import build_trajectory
+from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
 from stewart_vibration.errors import InvalidInputError, StewartError, VibrationLimitError
-from stewart_vibration.hermite import spline_segments
 from stewart_vibration.kinematics import check_pose, condition_number, joint_angles, leg_vectors
-from stewart_vibration.messages import cdr
-from stewart_vibration.mjcf import load_simulation_settings
-from stewart_vibration.motion_profiles import checked_path, minimum_jerk
-from stewart_vibration.nodes.common import check_frame, pose_from_msg
-from stewart_vibration.nodes.kinematics_node import unset_pose
-from stewart_vibration.nodes.vibration_planner_node import SETTINGS, check_settings
-from stewart_vibration.paper import paper_pose
-from stewart_vibration.rotations import (
+from stewart_vibration.kinematics.rotations import (
     pose_from_position_quaternion,
     quaternion_from_rpy,
     rotation_from_quaternion,
     rotation_from_rpy,
 )
+from stewart_vibration.messages import cdr
+from stewart_vibration.motion.paths import checked_path
+from stewart_vibration.motion.profiles import minimum_jerk
+from stewart_vibration.nodes.common import check_frame, pose_from_msg
+from stewart_vibration.nodes.kinematics_node import unset_pose
+from stewart_vibration.nodes.vibration_planner_node import SETTINGS, check_settings
+from stewart_vibration.paper import paper_pose
+from stewart_vibration.sim.mjcf import load_simulation_settings
+from stewart_vibration.splines import spline_segments
 from stewart_vibration.vibration import decompose_vibration
 from stewart_vibration.vibration.feasibility import check_command_limits
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream

@@ -16,7 +16,7 @@ from stewart_vibration import (
     jacobian,
     load_robot,
 )
-from stewart_vibration.kinematics_scalar import solve_linear_6
+from stewart_vibration.kinematics.fk_scalar import solve_linear_6
 from stewart_vibration.robot import default_config_dir, robot_from_dict
 
 

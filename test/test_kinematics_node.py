@@ -14,7 +14,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import inverse_kinematics, pose_to_position_quaternion
-from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 

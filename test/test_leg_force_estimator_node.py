@@ -18,7 +18,7 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration import decompose_vibration, inverse_kinematics, platform_vibration_motion, sample_leg_vibration
-from stewart_vibration.dynamics import leg_forces
+from stewart_vibration.dynamics.newton_euler import leg_forces
 from stewart_vibration.paper import paper_pose
 
 pytestmark = pytest.mark.integration

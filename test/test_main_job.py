@@ -14,8 +14,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from stewart_vibration.analysis.run_summary import load_signals
 from stewart_vibration.mcap_log import RunReader
-from stewart_vibration.run_summary import load_signals
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

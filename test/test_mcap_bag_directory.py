@@ -17,7 +17,7 @@ from test_mcap_recover import _cdr, _store
 
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, RunReader, dump_qos_profiles
 from stewart_vibration.mcap_log.bag_metadata import bag_metadata, write_metadata_yaml
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 PUBLISHER = "stewart_vibration.nodes.synthetic_run_publisher"

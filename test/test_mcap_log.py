@@ -18,8 +18,8 @@ from stewart_vibration.mcap_log import (
     has_header_first,
     parse_qos_profiles,
 )
-from stewart_vibration.mcap_log.cdr import header_stamp_ns
 from stewart_vibration.mcap_log.replay_schedule import ReplayOptions, schedule
+from stewart_vibration.messages.cdr import header_stamp_ns
 
 SEP = "=" * 80
 

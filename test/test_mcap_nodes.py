@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, RunReader, dump_qos_profiles
-from stewart_vibration.processes import start_python_module, wait_for
+from stewart_vibration.runtime.processes import start_python_module, wait_for
 
 pytestmark = pytest.mark.integration
 
@@ -28,7 +28,7 @@ SUITE = ["/legs/joint_states", "/platform/pose", "/legs/force_estimate", "/diagn
 
 
 def _env(ros_domain):
-    from stewart_vibration.processes import ros_environment
+    from stewart_vibration.runtime.processes import ros_environment
 
     return ros_environment(ros_domain)
 

@@ -23,7 +23,7 @@ from mcap.reader import make_reader
 from mcap.stream_reader import StreamReader, breakup_chunk
 
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, dump_qos_profiles
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 JS = "/legs/joint_states"

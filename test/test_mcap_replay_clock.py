@@ -15,7 +15,7 @@ import pytest
 from test_mcap_recover import _cdr, _store
 
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, dump_qos_profiles
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 pytestmark = pytest.mark.integration
 

@@ -44,7 +44,7 @@ import numpy as np
 import pytest
 
 from stewart_vibration.mcap_log import RunReader
-from stewart_vibration.processes import ros_environment, start_python_module, wait_for
+from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

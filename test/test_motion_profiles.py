@@ -6,14 +6,9 @@ import numpy as np
 import pytest
 
 from stewart_vibration import StrokeLimitError
-from stewart_vibration.motion_profiles import (
-    MIN_JERK_PEAK_SPEED,
-    checked_path,
-    interpolate_poses,
-    minimum_jerk,
-    minimum_jerk_duration,
-)
-from stewart_vibration.rotations import rotation_from_rpy
+from stewart_vibration.kinematics.rotations import rotation_from_rpy
+from stewart_vibration.motion.paths import checked_path, interpolate_poses
+from stewart_vibration.motion.profiles import MIN_JERK_PEAK_SPEED, minimum_jerk, minimum_jerk_duration
 
 
 def test_minimum_jerk_boundary_conditions_and_derivatives():

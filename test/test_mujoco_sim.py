@@ -5,10 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stewart_vibration.dynamics_validation import compare_forces, run_scenario
+from stewart_vibration.dynamics.mujoco_validation import compare_forces, run_scenario
 from stewart_vibration.kinematics import inverse_kinematics
-from stewart_vibration.mujoco_sim import StewartSim
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.sim.mujoco_sim import StewartSim
 
 
 @pytest.fixture(scope="module")

@@ -60,7 +60,7 @@ def test_threaded_ik_equals_single_thread(monkeypatch):
 
 
 def test_threaded_leg_forces_equal_single_thread(monkeypatch):
-    from stewart_vibration.dynamics import leg_forces
+    from stewart_vibration.dynamics.newton_euler import leg_forces
 
     robot = load_robot()
     rng = np.random.default_rng(1)

@@ -20,10 +20,10 @@ from websockets.sync.client import connect
 
 from stewart_vibration import decompose_vibration
 from stewart_vibration.errors import InvalidInputError
-from stewart_vibration.motion_profiles import checked_path
+from stewart_vibration.motion.paths import checked_path
 from stewart_vibration.nodes.vibration_planner_node import check_settings
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.processes import ros_environment
+from stewart_vibration.runtime.processes import ros_environment
 from stewart_vibration.ui import STATIC_DIR, model
 from stewart_vibration.ui.server import PortInUseError, UiServer, bind
 

@@ -32,7 +32,7 @@ from stewart_vibration import load_robot
 from stewart_vibration.nodes.common import pose_from_msg
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.suite import DEFAULT_NAMESPACE
+from stewart_vibration.runtime.suite import DEFAULT_NAMESPACE
 
 # CI installs chromium and sets STEWART_REQUIRE_BROWSER=1: there a missing browser fails instead of skipping
 pytestmark = [pytest.mark.integration, pytest.mark.slow,

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import pytest
 
-from stewart_vibration.processes import claim_ros_domain
+from stewart_vibration.runtime.processes import claim_ros_domain
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 

@@ -7,7 +7,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from reference import reference_rotation, rodrigues
 
-from stewart_vibration.rotations import (
+from stewart_vibration.kinematics.rotations import (
     euler_rate_matrix,
     pose_from_position_quaternion,
     pose_to_position_quaternion,

@@ -9,7 +9,7 @@ from rcl_interfaces.srv import GetParameters
 
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.robot import default_config_dir
-from stewart_vibration.suite import SUITE_PARAMS_FILE
+from stewart_vibration.runtime.suite import SUITE_PARAMS_FILE
 
 pytestmark = pytest.mark.integration
 

@@ -32,7 +32,7 @@ from std_srvs.srv import Trigger
 
 from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -42,7 +42,7 @@ STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durabi
 
 @pytest.fixture(scope="module")
 def suite(tmp_path_factory):
-    from stewart_vibration.processes import claim_ros_domain
+    from stewart_vibration.runtime.processes import claim_ros_domain
 
     domain, lock = claim_ros_domain()
     mp = pytest.MonkeyPatch()

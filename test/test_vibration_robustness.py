@@ -22,7 +22,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration.emulation.vibration_status import report_from_values
-from stewart_vibration.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]

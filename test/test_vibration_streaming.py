@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from stewart_vibration import decompose_vibration, inverse_kinematics
-from stewart_vibration.emulation.trajectory import build_trajectory
+from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
+from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.rotations import rotation_from_rpy
 from stewart_vibration.vibration.feasibility import check_command_limits
 from stewart_vibration.vibration.streaming import StreamInterrupted, StreamSettings, VibrationStream
 

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 import yaml
 
+from stewart_vibration.kinematics.rotations import pose_to_position_quaternion
 from stewart_vibration.paper import paper_pose
-from stewart_vibration.rotations import pose_to_position_quaternion
 from stewart_vibration.vibration.decompose import decompose_vibration
 from stewart_vibration.visualization.scene import (
     LEG_FRAMES,

@@ -7,7 +7,7 @@ non-MCAP or truncated file is refused with one line and exit 2
 
 from __future__ import annotations
 
-from ..mcap_log.run_report import write_report
+from ..analysis.run_report import write_report
 
 
 def register(subparsers) -> None:

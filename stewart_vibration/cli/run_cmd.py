@@ -19,11 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
-from ..processes import claim_ros_domain
+from ..dynamics.tissue import load_tissue
 from ..robot import load_robot
-from ..scenario import load_scenario, resolve_tissue_path
-from ..suite import OPTIONAL_NODES, SUITE_NODES
-from ..tissue import load_tissue
+from ..runtime.processes import claim_ros_domain
+from ..runtime.scenario import load_scenario, resolve_tissue_path
+from ..runtime.suite import OPTIONAL_NODES, SUITE_NODES
 from .arguments import nonnegative_float, positive_float
 from .output import to_jsonable
 
@@ -154,7 +154,7 @@ def run(args) -> int:
 def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
     """Analyse what ran (also after a failure or an interruption): every vibration that started, the
     streams, the bounds; write the report. Problems change the verdict."""
-    from ..run_summary import check_bounds, load_signals, stream_summary, summarize_tissue, summarize_vibration
+    from ..analysis.run_summary import check_bounds, load_signals, stream_summary, summarize_tissue, summarize_vibration
 
     try:
         signals = load_signals(record.mcap_path)
@@ -256,7 +256,7 @@ def _print_summary(summary: dict, bounds: dict) -> None:
               f"{vib['planned_active_duration_s']:.3f} s")
         if vib.get("failure"):
             print(f"  this vibration failed: {vib['failure']}")
-    from ..run_summary import tissue_lines
+    from ..analysis.run_summary import tissue_lines
 
     for line in tissue_lines(summary):
         print(line)

@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dynamics_validation import run_scenario
+from ..dynamics.mujoco_validation import run_scenario
 from ..errors import InvalidInputError
-from ..mjcf import load_simulation_settings
-from ..mujoco_sim import StewartSim
 from ..paper import PAPER_OMEGA_RAD_S
 from ..robot import load_robot
+from ..sim.mjcf import load_simulation_settings
+from ..sim.mujoco_sim import StewartSim
 from .arguments import positive_float
 from .output import format_table, print_json, to_jsonable
 

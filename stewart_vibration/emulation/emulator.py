@@ -10,7 +10,7 @@ steps at 2 kHz) with controls planned for the whole block (``servo_drive``); the
 strut trajectory and the vibration buffer are sampled for ``reference_horizon_s`` at a time in one
 vectorised call and reused until a command changes them.
 
-Soft tissue (optional ``tissue``, a ``stewart_vibration.tissue.TissueModel``): its wrench is evaluated
+Soft tissue (optional ``tissue``, a ``stewart_vibration.dynamics.tissue.TissueModel``): its wrench is evaluated
 from the platform's state at the start of every block and applied over the block as MuJoCo's
 ``xfrc_applied`` on the platform body (force at the body's centre of mass and the moment about it,
 world frame: the tissue's moment about the platform origin minus (R c_m) x F). ``tissue_wrench``
@@ -26,15 +26,15 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
+from ..dynamics.tissue import TissueModel, tissue_wrench_single
 from ..errors import ActuatorLimitError
 from ..kinematics import inverse_kinematics
-from ..mjcf import SimulationSettings
-from ..motion_profiles import minimum_jerk, minimum_jerk_duration
-from ..mujoco_sim import StewartSim
+from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import Robot
-from ..tissue import TissueModel, tissue_wrench_single
+from ..sim.mjcf import SimulationSettings
+from ..sim.mujoco_sim import StewartSim
 from .servo_drive import ServoDrive
-from .trajectory import (
+from .strut_trajectory import (
     MAX_START_DELAY_S,
     STEP_SPEED,
     JointTrajectory,

@@ -32,7 +32,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ..mujoco_sim import StewartSim
+from ..sim.mujoco_sim import StewartSim
 
 
 class ServoDrive:

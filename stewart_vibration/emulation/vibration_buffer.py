@@ -38,11 +38,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import VibrationLimitError
-from ..hermite import spline_segments
 from ..robot import VibrationUnitLimits
+from ..splines import spline_segments
 from ..vibration.feasibility import check_command_limits
 from ..vibration.waveform import fade_out, product_rule
-from .trajectory import JointTrajectory
+from .strut_trajectory import JointTrajectory
 
 HISTORY_S = 1.0  # buffered samples kept behind the newest window's first sample
 STATUS_SPAN_S = 0.1  # span behind/ahead of "now" over which the status measures the amplitude envelope

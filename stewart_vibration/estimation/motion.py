@@ -24,9 +24,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import SingularPoseError
+from ..input_checks import as_batch
 from ..kinematics import jacobian
-from ..leg_kinematics import leg_motion
-from ..validation import as_batch
+from ..kinematics.legs import leg_motion
 
 
 def _solve(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:

@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..dynamics import leg_forces
-from ..emulation.trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
+from ..dynamics.newton_euler import leg_forces
+from ..emulation.strut_trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
 from ..emulation.vibration_buffer import VibrationBuffer
 from ..errors import InvalidInputError
 from ..kinematics import forward_kinematics, jacobian

@@ -31,8 +31,8 @@ from pathlib import Path
 
 from mcap.writer import CompressionType, IndexType, Writer
 
+from ..messages.cdr import header_stamp_ns
 from .bag_metadata import BagFile, TopicCount, bag_metadata, dump_bag_metadata
-from .cdr import header_stamp_ns
 from .msg_definitions import full_message_definition, has_header_first
 
 LIBRARY = "stewart_vibration mcap_recorder (python mcap writer)"

@@ -22,6 +22,7 @@ from ..errors import InvalidInputError
 ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR little endian
 _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
+_STAMP_BE = struct.Struct(">iI")  # header stamps of big-endian CDR (header_stamp_ns reads any encoding)
 _F8 = np.dtype("<f8")
 
 
@@ -136,6 +137,21 @@ class _Reader:
         values = np.frombuffer(self.data, dtype=_F8, count=n, offset=self.pos).copy()
         self.pos += 8 * n
         return values
+
+
+def header_stamp_ns(data: bytes) -> int | None:
+    """``header.stamp`` in ns of a CDR message whose first field is std_msgs/Header.
+
+    The 4-byte encapsulation header comes first (byte 1: 0x01 little endian,
+    0x00 big endian); the stamp (int32 sec, uint32 nanosec) follows at offset 4.
+    Returns None for short data or a zero or negative stamp (unset).
+    """
+    if len(data) < 12:
+        return None
+    sec, nsec = (_STAMP if data[1] & 1 else _STAMP_BE).unpack_from(data, 4)
+    if sec < 0 or (sec == 0 and nsec == 0):
+        return None
+    return sec * 1_000_000_000 + nsec
 
 
 def stamp_parts(seconds: float) -> tuple[int, int]:

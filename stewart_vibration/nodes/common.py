@@ -19,7 +19,11 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 
 from ..errors import InvalidInputError
-from ..rotations import MESSAGE_QUATERNION_TOLERANCE, pose_from_position_quaternion, pose_to_position_quaternion
+from ..kinematics.rotations import (
+    MESSAGE_QUATERNION_TOLERANCE,
+    pose_from_position_quaternion,
+    pose_to_position_quaternion,
+)
 from .mcap_ros import make_executor, spin_until_stopped
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a

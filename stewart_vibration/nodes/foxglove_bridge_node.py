@@ -63,10 +63,10 @@ from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
 from ..errors import StewartError
-from ..mcap_log.cdr import header_stamp_ns
 from ..mcap_log.msg_definitions import MessageDefinitionError, full_message_definition, has_header_first
 from ..mcap_log.qos_yaml import request_for_offers
 from ..messages import cdr
+from ..messages.cdr import header_stamp_ns
 from ..robot import load_robot
 from ..visualization import scene as scene_model
 from .common import VIB_NAMES, declare_float, float_param, int_param, run_node, text_param

@@ -16,7 +16,7 @@ warm-started from the previous pose); wrench estimates likewise.
 Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
 forces it needs under that tissue model (motion_profiles.check_path_forces: quasi-static Newton-Euler +
 the tissue's elastic wrench), refused with the leg and the waypoint above strut_force_max_n.
-Force guard (stewart_vibration.force_guard): during a move the external-wrench estimate is watched
+Force guard (stewart_vibration.motion.force_guard): during a move the external-wrench estimate is watched
 (subscribed only while a move runs: no 500 Hz input while the robot holds still); when the force
 (moment) at the end of a stop commanded now would exceed ``guard_force_n`` (``guard_moment_nm``) the
 struts are stopped smoothly along the planned path (a one-point trajectory within
@@ -41,21 +41,16 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from ..dynamics.tissue import load_tissue_option
 from ..errors import InvalidInputError, StewartError
-from ..force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..kinematics import check_pose, forward_kinematics
+from ..kinematics.rotations import pose_to_position_quaternion
 from ..messages import cdr
 from ..messages.stream_health import StreamHealth
-from ..motion_profiles import (
-    check_path_forces,
-    checked_path,
-    interpolate_poses,
-    minimum_jerk,
-    minimum_jerk_duration,
-)
+from ..motion.force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.paths import check_path_forces, checked_path, interpolate_poses
+from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import load_robot
-from ..rotations import pose_to_position_quaternion
-from ..tissue import load_tissue_option
 from .common import (
     BASE_FRAME,
     ERROR,

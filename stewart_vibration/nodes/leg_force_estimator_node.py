@@ -29,7 +29,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from ..emulation.trajectory import build_trajectory
+from ..emulation.strut_trajectory import build_trajectory
 from ..emulation.vibration_status import report_from_values
 from ..errors import StewartError
 from ..estimation import ForceEstimator

@@ -50,10 +50,10 @@ from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
 from ..errors import StewartError
+from ..kinematics.rotations import pose_from_position_quaternion
 from ..messages import cdr
 from ..paper import paper_pose
 from ..robot import STANDARD_GRAVITY, load_robot
-from ..rotations import pose_from_position_quaternion
 from ..ui import model
 from ..ui.server import UiServer, bind
 from .common import (

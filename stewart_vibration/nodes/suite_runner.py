@@ -31,7 +31,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
-from ..processes import (
+from ..robot import default_config_dir
+from ..runtime.processes import (
     DDS_PROFILE_ENV,
     NodeProcess,
     apply_environment,
@@ -39,9 +40,8 @@ from ..processes import (
     ros_environment,
     start_python_module,
 )
-from ..robot import default_config_dir
-from ..scenario import MoveStep, Scenario, VibrateStep
-from ..suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
+from ..runtime.scenario import MoveStep, Scenario, VibrateStep
+from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 from . import ensure_ament_prefix_path
 from .common import pose_from_msg, pose_stamped
 from .mcap_ros import make_executor

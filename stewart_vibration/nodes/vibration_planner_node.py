@@ -42,9 +42,9 @@ from trajectory_msgs.msg import JointTrajectory
 
 from ..emulation.vibration_status import report_from_values
 from ..errors import StewartError, VibrationLimitError
+from ..kinematics.rotations import pose_from_position_quaternion
 from ..messages import cdr
 from ..robot import STANDARD_GRAVITY, load_robot
-from ..rotations import pose_from_position_quaternion
 from ..vibration import decompose_vibration
 from ..vibration.decompose import FRAMES
 from ..vibration.feasibility import check_command_limits

@@ -27,8 +27,8 @@ import numpy as np
 
 from ..errors import InvalidInputError, StewartError, VibrationLimitError
 from ..kinematics import check_pose, condition_number, inverse_kinematics, joint_angles
+from ..kinematics.rotations import rotation_from_rpy
 from ..robot import STANDARD_GRAVITY, Robot
-from ..rotations import rotation_from_rpy
 from ..vibration import decompose_vibration
 from ..vibration.feasibility import check_command_limits
 from ..vibration.streaming import StreamSettings, VibrationStream
@@ -337,7 +337,7 @@ def run_summary(robot: Robot, joints: StreamBuffer, pose: StreamBuffer, forces: 
     MCAP): platform amplitude and direction error (ground truth), leg amplitudes, phases and frequency, the
     leg-force model error. ``parameters``: the settings that ran (the start answer's JSON); ``ended``: the
     sim time the units came to rest (a vibration until stop is summarised over what ran)."""
-    from ..run_summary import summarize_vibration
+    from ..analysis.run_summary import summarize_vibration
 
     jt, jrows = joints.arrays(24)
     pt, prows = pose.arrays(6)

@@ -19,11 +19,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..input_checks import as_batch
 from ..kinematics import inverse_kinematics
+from ..kinematics.rotations import rotation_from_rpy
 from ..paper import CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ
 from ..robot import STANDARD_GRAVITY, Robot
-from ..rotations import rotation_from_rpy
-from ..validation import as_batch
 from .feasibility import check_frequency, check_leg_peaks, check_stroke
 from .screw import (
     VibrationScrew,

@@ -11,9 +11,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import StrokeLimitError, VibrationLimitError
-from ..hermite import spline_extremes
 from ..kinematics import inverse_kinematics
 from ..robot import STANDARD_GRAVITY, Robot, VibrationUnitLimits
+from ..splines import spline_extremes
 
 
 def check_frequency(robot: Robot, frequency: float) -> None:

@@ -22,10 +22,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..input_checks import as_batch
 from ..kinematics import jacobian_from_vectors, leg_vectors_from_rotation
+from ..kinematics.rotations import rotation_from_rpy, rpy_from_rotation, skew
 from ..robot import Robot
-from ..rotations import rotation_from_rpy, rpy_from_rotation, skew
-from ..validation import as_batch
 
 
 @dataclass(frozen=True)

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
-from ..validation import as_batch
+from ..input_checks import as_batch
 from .decompose import VibrationDecomposition
 from .screw import displaced_poses, leg_length_change
 from .waveform import sinusoid

@@ -16,10 +16,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..input_checks import as_batch
 from ..kinematics import forward_kinematics
+from ..kinematics.rotations import rotation_from_rpy, rpy_from_rotation, so3_exp, so3_log
 from ..robot import Robot
-from ..rotations import rotation_from_rpy, rpy_from_rotation, so3_exp, so3_log
-from ..validation import as_batch
 from .classify import MotionClassification, classify_motion, common_period, distinct_frequencies
 from .decompose import VibrationDecomposition
 from .feasibility import check_frequency, check_leg_peaks

@@ -12,15 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
-
-
-def _smoothstep(x: np.ndarray):
-    """Quintic smoothstep s(x) and ds/dx, d2s/dx2 on x clipped to [0, 1]."""
-    x = np.clip(x, 0.0, 1.0)
-    value = x**3 * (10.0 + x * (-15.0 + 6.0 * x))
-    first = 30.0 * x**2 * (1.0 - x) ** 2
-    second = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
-    return value, first, second
+from ..splines import smoothstep
 
 
 def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
@@ -41,12 +33,12 @@ def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
     first = np.zeros_like(t)
     second = np.zeros_like(t)
     if ramp_time > 0:
-        s, ds, dds = _smoothstep(t / ramp_time)
+        s, ds, dds = smoothstep(t / ramp_time)
         value = np.where(inside, s, 0.0)
         first = np.where(inside, ds / ramp_time, 0.0)
         second = np.where(inside, dds / ramp_time**2, 0.0)
         if duration is not None:
-            s2, ds2, dds2 = _smoothstep((duration - t) / ramp_time)
+            s2, ds2, dds2 = smoothstep((duration - t) / ramp_time)
             # product rule e = s(t) s2(t); ramps do not overlap, but the product is exact anyway
             value, first, second = (
                 value * s2,

@@ -28,8 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics import jacobian_from_vectors
+from ..kinematics.rotations import rotation_from_quaternion
 from ..robot import Robot
-from ..rotations import rotation_from_quaternion
 
 Color = tuple[float, float, float, float]
 

@@ -8,7 +8,7 @@ Each leg is a cylinder turning about the base hinge B_i and a piston sliding
 in it, ending in the platform hinge A_i. The leg's spin about its own axis is
 ignored (w_i is perpendicular to s_i), the standard UPS assumption; with a
 universal joint at B_i the real cylinder spins slightly (see
-``stewart_vibration.mujoco_sim.leg_spin_force_bound``).
+``stewart_vibration.dynamics.mujoco_validation.leg_spin_force_correction``).
 
 Internally vectors are stored component-first ([3, 6, n], "SoA") so that the
 batched arithmetic runs on contiguous arrays; ``leg_motion`` returns the
@@ -21,12 +21,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .robot import Robot
+from ..input_checks import as_batch
+from ..robot import Robot
 from .rotations import rotation_from_rpy
-from .validation import as_batch
 
 
-def cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def cross_first_axis(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a x b for component-first arrays [3, ...]."""
     out = np.empty(np.broadcast_shapes(a.shape, b.shape))
     out[0] = a[1] * b[2] - a[2] * b[1]
@@ -35,7 +35,7 @@ def cross0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def dot0(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def dot_first_axis(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a . b for component-first arrays [3, ...] -> [...]."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -79,7 +79,7 @@ def leg_axes(robot: Robot, pose: np.ndarray):
     rot_t = np.ascontiguousarray(rotation_from_rpy(pose[3:].T).transpose(1, 2, 0))
     r = hinge_arms(robot, rot_t)
     d = r + (pose[:3, None, :] - robot.base_hinges.T[:, :, None])
-    length = np.sqrt(dot0(d, d))
+    length = np.sqrt(dot_first_axis(d, d))
     inv_l = 1.0 / length
     return rot_t, r, length, inv_l, d * inv_l
 
@@ -87,8 +87,8 @@ def leg_axes(robot: Robot, pose: np.ndarray):
 def hinge_motion(arm: np.ndarray, twist: np.ndarray, accel: np.ndarray):
     """Step 2: velocity and acceleration of A_i [3, 6, n] from arms r_i and the platform twist/accel [6, n]."""
     w, alpha = twist[3:, None, :], accel[3:, None, :]
-    w_x_r = cross0(w, arm)
-    return twist[:3, None, :] + w_x_r, accel[:3, None, :] + cross0(alpha, arm) + cross0(w, w_x_r)
+    w_x_r = cross_first_axis(w, arm)
+    return twist[:3, None, :] + w_x_r, accel[:3, None, :] + cross_first_axis(alpha, arm) + cross_first_axis(w, w_x_r)
 
 
 def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.ndarray) -> LegMotion:
@@ -98,12 +98,12 @@ def leg_motion_soa(robot: Robot, pose: np.ndarray, twist: np.ndarray, accel: np.
     """
     rot_t, r, length, inv_l, s = leg_axes(robot, pose)
     v_a, a_a = hinge_motion(r, twist, accel)
-    l_dot = dot0(s, v_a)
-    omega = cross0(s, v_a) * inv_l
-    l_ddot = dot0(s, a_a) + length * dot0(omega, omega)
-    leg_alpha = (cross0(s, a_a) - 2.0 * l_dot * omega) * inv_l
-    s_dot = cross0(omega, s)
-    s_ddot = cross0(leg_alpha, s) + cross0(omega, s_dot)
+    l_dot = dot_first_axis(s, v_a)
+    omega = cross_first_axis(s, v_a) * inv_l
+    l_ddot = dot_first_axis(s, a_a) + length * dot_first_axis(omega, omega)
+    leg_alpha = (cross_first_axis(s, a_a) - 2.0 * l_dot * omega) * inv_l
+    s_dot = cross_first_axis(omega, s)
+    s_ddot = cross_first_axis(leg_alpha, s) + cross_first_axis(omega, s_dot)
     return LegMotion(rot_t, r, s, length, l_dot, l_ddot, omega, leg_alpha, s_dot, s_ddot, v_a, a_a)
 
 

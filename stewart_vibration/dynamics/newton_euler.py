@@ -10,7 +10,7 @@ Conventions (base frame, SI units): pose [..., 6] = [x, y, z, roll, pitch,
 yaw]; twist [..., 6] = [v, w] (velocity of the platform-frame origin, angular
 velocity); accel [..., 6] = [a, alpha] (acceleration of the same origin,
 angular acceleration). Euler-angle rates convert with
-``stewart_vibration.trajectory.twist_from_euler_rates``. An external wrench
+``stewart_vibration.dynamics.platform_trajectory.twist_from_euler_rates``. An external wrench
 [..., 6] = [F_E, M_E] acts on the platform: force (N) and moment (N m) about
 the platform-frame origin. A positive axial force F_i pushes the platform
 away from the base (extends the strut).
@@ -20,7 +20,7 @@ piston's centre of mass). The unit's stroke is <= 100 um, so the relative
 motion of its 30 g changes the leg inertia negligibly; what moves the
 platform is the leg length change it produces. The unit and the strut act in
 series along the leg, so the axial force computed here is the force of both.
-The generated MuJoCo model makes the same choice (``leg_parts``).
+The generated MuJoCo model makes the same choice (``Robot.leg_bodies``).
 """
 
 from __future__ import annotations
@@ -29,48 +29,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .leg_kinematics import cross0, dot0, flat_inputs, hinge_motion, leg_axes, leg_motion_soa
-from .parallel import map_row_ranges
-from .robot import Robot
-from .rotations import rotation_from_rpy
-from .validation import as_batch
+from ..input_checks import as_batch
+from ..kinematics.legs import cross_first_axis, dot_first_axis, flat_inputs, hinge_motion, leg_axes, leg_motion_soa
+from ..kinematics.rotations import rotation_from_rpy
+from ..parallel import map_row_ranges
+from ..robot import LegBodies, Robot, derived
 
 CHUNK = 8192  # samples per block: fastest measured here (2048: 0.9 M/s, 8192: 1.6 M/s, 16384: 0.7 M/s)
-
-
-@dataclass(frozen=True)
-class LegParts:
-    """Effective leg bodies used by both the Newton-Euler model and the MJCF.
-
-    Cylinder: mass m1 (kg), centre of mass e1 (m) from B_i along the leg.
-    Piston (with the vibration unit lumped in): mass m2, centre of mass e2 (m)
-    from A_i back along the leg. Inertias (kg m^2) about each centre of mass,
-    transverse (t) and axial (a).
-    """
-
-    m1: float
-    e1: float
-    it1: float
-    ia1: float
-    m2: float
-    e2: float
-    it2: float
-    ia2: float
-
-
-def leg_parts(robot: Robot) -> LegParts:
-    """The leg bodies of ``robot`` with the vibration unit mass lumped into the piston."""
-    leg = robot.leg
-    return LegParts(
-        m1=leg.cylinder_mass,
-        e1=leg.cylinder_com_offset,
-        it1=leg.cylinder_inertia_transverse,
-        ia1=leg.cylinder_inertia_axial,
-        m2=leg.piston_mass + leg.vibration_unit_mass,
-        e2=leg.piston_com_offset,
-        it2=leg.piston_inertia_transverse,
-        ia2=leg.piston_inertia_axial,
-    )
 
 
 @dataclass(frozen=True)
@@ -107,7 +72,7 @@ def _platform_terms(robot: Robot, rot_t, arm, twist, accel, wrench):
     body = robot.moving_body
     c = (rot_t * body.com[None, :, None]).sum(axis=1)  # COM offset from the platform origin
     w, alpha, a = twist[3:], accel[3:], accel[:3]
-    a_c = a + cross0(alpha, c) + cross0(w, cross0(w, c))
+    a_c = a + cross_first_axis(alpha, c) + cross_first_axis(w, cross_first_axis(w, c))
 
     def world_inertia_times(x):  # R I R^T x, component-wise
         local = body.inertia @ (rot_t * x[:, None, :]).sum(axis=0)
@@ -115,24 +80,25 @@ def _platform_terms(robot: Robot, rot_t, arm, twist, accel, wrench):
 
     f_ext, m_ext = wrench[:3], wrench[3:]
     force = body.mass * (a_c - robot.gravity[:, None]) - f_ext
-    moment = world_inertia_times(alpha) + cross0(w, world_inertia_times(w)) - (m_ext - cross0(c, f_ext))
+    moment = (world_inertia_times(alpha) + cross_first_axis(w, world_inertia_times(w))
+              - (m_ext - cross_first_axis(c, f_ext)))
     rho = arm - c[:, None, :]
     return rho, force, moment
 
 
 def _preconditioner(robot: Robot) -> np.ndarray:
-    """H0^-1 (6, 6): inverse of H at the home pose at rest (cached on the robot)."""
-    cached = getattr(robot, "_dynamics_preconditioner", None)
-    if cached is None:
+    """H0^-1 (6, 6): inverse of H at the home pose at rest (cached per robot)."""
+
+    def build() -> np.ndarray:
         home = robot.home_pose
         rot = rotation_from_rpy(home[3:])
         arm = robot.platform_hinges @ rot.T
         d = home[:3] + arm - robot.base_hinges
         s = d / np.linalg.norm(d, axis=1, keepdims=True)
         rho = arm - rot @ robot.moving_body.com
-        cached = np.linalg.inv(np.concatenate([s, np.cross(rho, s)], axis=1).T)
-        object.__setattr__(robot, "_dynamics_preconditioner", cached)
-    return cached
+        return np.linalg.inv(np.concatenate([s, np.cross(rho, s)], axis=1).T)
+
+    return derived(robot, "dynamics_preconditioner", build)
 
 
 def _eliminate(g: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -160,10 +126,10 @@ def _solve(robot: Robot, axis, rho, h, force, moment):
     n = axis.shape[-1]
     hmat = np.empty((6, 6, n))  # [row, leg, sample]
     hmat[:3] = axis
-    hmat[3:] = cross0(rho, axis)
+    hmat[3:] = cross_first_axis(rho, axis)
     rhs = np.empty((6, n))
     rhs[:3] = force - h.sum(axis=1)
-    rhs[3:] = moment - cross0(rho, h).sum(axis=1)
+    rhs[3:] = moment - cross_first_axis(rho, h).sum(axis=1)
     pre = _preconditioner(robot)
     g = (pre @ hmat.reshape(6, -1)).reshape(6, 6, n)
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -178,7 +144,7 @@ def _solve(robot: Robot, axis, rho, h, force, moment):
     return x
 
 
-def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions: bool):
+def _full_block(robot: Robot, p: LegBodies, pose, twist, accel, wrench, reactions: bool):
     """Steps 1-8 for one block (inputs [6, n], vectors [3, 6, n]); leg terms in closed form.
 
     With w_i = s x v_A / l and alpha_i = (s x a_A - 2 l_dot w_i) / l (steps 3-4),
@@ -190,19 +156,22 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
     and s.a2 = s.a_A + e2 |v_A_perp|^2 / l^2 (x_perp = x - (s.x) s).
     """
     n = pose.shape[-1]
+    # the notation of REVIEW.md: cylinder m1, e1, I_t1; piston (with the vibration unit) m2, e2, I_t2
+    m1, e1, it1 = p.cylinder_mass, p.cylinder_com_offset, p.cylinder_inertia_transverse
+    m2, e2, it2 = p.piston_mass, p.piston_com_offset, p.piston_inertia_transverse
     rot_t, r, length, inv_l, s = leg_axes(robot, pose)
     v_a, a_a = hinge_motion(r, twist, accel)
     g = robot.gravity
-    l_dot, s_a, s_g = dot0(s, v_a), dot0(s, a_a), s[0] * g[0] + s[1] * g[1] + s[2] * g[2]
-    v_perp2 = (dot0(v_a, v_a) - l_dot * l_dot) * inv_l * inv_l
-    arm2 = length - p.e2
+    l_dot, s_a, s_g = dot_first_axis(s, v_a), dot_first_axis(s, a_a), s[0] * g[0] + s[1] * g[1] + s[2] * g[2]
+    v_perp2 = (dot_first_axis(v_a, v_a) - l_dot * l_dot) * inv_l * inv_l
+    arm2 = length - e2
     inv_l2 = inv_l * inv_l
-    i_eff = (p.it1 + p.it2 + p.m1 * p.e1 * p.e1) + p.m2 * arm2 * arm2
+    i_eff = (it1 + it2 + m1 * e1 * e1) + m2 * arm2 * arm2
     k_a = i_eff * inv_l2
-    k_v = 2.0 * l_dot * (i_eff * inv_l - p.m2 * arm2) * inv_l2
-    k_g = (p.m1 * p.e1 + p.m2 * arm2) * inv_l
+    k_v = 2.0 * l_dot * (i_eff * inv_l - m2 * arm2) * inv_l2
+    k_g = (m1 * e1 + m2 * arm2) * inv_l
     # Step 7: h_i = m2 s.(g - a2) s + f_perp (leg-on-platform force minus F_i s).
-    coef = k_a * s_a - k_v * l_dot - k_g * s_g + p.m2 * (s_g - s_a - p.e2 * v_perp2)
+    coef = k_a * s_a - k_v * l_dot - k_g * s_g + m2 * (s_g - s_a - e2 * v_perp2)
     h = np.empty((3, 6, n))
     for k in range(3):
         h[k] = k_v * v_a[k] - k_a * a_a[k] + coef * s[k] + k_g * g[k]
@@ -213,19 +182,19 @@ def _full_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions
         return axial, l_dot, None
     l_ddot = s_a + length * v_perp2
     s_ddot = (a_a - l_ddot * s - 2.0 * l_dot * inv_l * (v_a - l_dot * s)) * inv_l
-    a1 = p.e1 * s_ddot
-    a2 = a_a - p.e2 * s_ddot  # piston COM = A_i - e2 s
-    transverse = h - (p.m2 * (s_g - dot0(s, a2))) * s
+    a1 = e1 * s_ddot
+    a2 = a_a - e2 * s_ddot  # piston COM = A_i - e2 s
+    transverse = h - (m2 * (s_g - dot_first_axis(s, a2))) * s
     platform_joint = axial * s + h
     gg = g[:, None, None]  # [3, 1, 1]
-    base_joint = p.m1 * (a1 - gg) + p.m2 * (a2 - gg) + platform_joint
+    base_joint = m1 * (a1 - gg) + m2 * (a2 - gg) + platform_joint
     return axial, l_dot, (platform_joint, base_joint, transverse)
 
 
-def _paper_block(robot: Robot, p: LegParts, pose, twist, accel, wrench, reactions: bool):
+def _paper_block(robot: Robot, p: LegBodies, pose, twist, accel, wrench, reactions: bool):
     m = leg_motion_soa(robot, pose, twist, accel)
     s = m.axis
-    h = -(p.m2 * dot0(s, m.hinge_accel - robot.gravity[:, None, None])) * s
+    h = -(p.piston_mass * dot_first_axis(s, m.hinge_accel - robot.gravity[:, None, None])) * s
     rho, force, mom = _platform_terms(robot, m.rotation, m.arm, twist, accel, wrench)
     return _solve(robot, s, rho, h, force, mom), m.length_rate, None
 
@@ -238,7 +207,7 @@ def _run_blocks(block, robot: Robot, pose, twist, accel, external_wrench, reacti
     else:
         wrench = as_batch(external_wrench, 6, "external_wrench")
         wrench = np.ascontiguousarray(np.broadcast_to(wrench, batch + (6,)).reshape(-1, 6).T)
-    p = leg_parts(robot)
+    p = robot.leg_bodies
     force, rate = np.empty((6, n)), np.empty((6, n))
     extra = [np.empty((3, 6, n)) for _ in range(3)] if reactions else None
 

@@ -16,7 +16,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from .analysis import (
+from ..dynamics.newton_euler import leg_forces
+from ..mcap_log.reader import RunReader
+from ..messages.arrays import joint_arrays, pose_array, stamp_s
+from ..robot import Robot
+from ..vibration import decompose_vibration
+from .fits import (
     direction_error_deg,
     fit_sinusoid,
     force_error,
@@ -24,11 +29,6 @@ from .analysis import (
     line_vibration,
     phase_error_to_0_or_pi_deg,
 )
-from .dynamics import leg_forces
-from .mcap_log.reader import RunReader
-from .message_arrays import joint_arrays, pose_array, stamp_s
-from .robot import Robot
-from .vibration import decompose_vibration
 
 STEADY_MARGIN_S = 0.2  # skip this much after the ramp-in and before the ramp-out
 

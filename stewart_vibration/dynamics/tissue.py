@@ -39,11 +39,11 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .errors import ConfigError
-from .paper import paper_pose
-from .robot import Robot, default_config_dir
-from .rotations import rotation_from_rpy, so3_log
-from .validation import as_batch
+from ..errors import ConfigError
+from ..input_checks import as_batch
+from ..kinematics.rotations import rotation_from_rpy, so3_log
+from ..paper import paper_pose
+from ..robot import Robot, default_config_dir
 
 STIFFENING_TYPES = ("none", "exponential", "piecewise_linear")
 _KEYS = {"name", "note", "rest_pose", "center_m", "axial", "lateral", "torsional", "bending", "preload_n",

@@ -13,7 +13,7 @@ total hinge-to-hinge length leg_i + vib_i, and both carry the same axial
 force. The model therefore has one slide per leg whose position is the total
 length; ``step_tracking(..., vib=...)`` adds the vibration displacement (and
 its rates) to the strut target. The vibration unit's moving mass is lumped
-into the piston (see ``dynamics.leg_parts``).
+into the piston (see ``Robot.leg_bodies``).
 
 ``closed_chain_forces`` is the exact static check: at a consistent state it
 solves MuJoCo's own equations [B J_c^T] [F; lambda] = M qacc + c.
@@ -24,13 +24,12 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from .dynamics import leg_parts
-from .kinematics import leg_vectors
-from .leg_kinematics import leg_motion
+from ..input_checks import as_batch
+from ..kinematics import leg_vectors
+from ..kinematics.legs import leg_motion
+from ..kinematics.rotations import quaternion_from_rpy, rotation_from_rpy, rpy_from_rotation
+from ..robot import Robot
 from .mjcf import SimulationSettings, build_model, leg_frame
-from .robot import Robot
-from .rotations import quaternion_from_rpy, rotation_from_rpy, rpy_from_rotation
-from .validation import as_batch
 
 
 class StewartSim:
@@ -104,7 +103,7 @@ class StewartSim:
             s, sd, sdd = f0.T @ lm.axis[i], f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i]
             qa, da = self.base_qpos[i], self.base_dof[i]
             if self.base_joint == "universal":
-                q, qd, qdd = _universal_angles(s, sd, sdd)
+                q, qd, qdd = universal_angles(s, sd, sdd)
                 qpos[qa:qa + 2], qvel[da:da + 2], qacc[da:da + 2] = q, qd, qdd
             else:
                 quat, rel = _ball_quat(s)
@@ -180,10 +179,6 @@ class StewartSim:
         """Axial actuator forces (6,) (N) from the force sensors (valid after a step or mj_forward)."""
         return (self.data if data is None else data).sensordata[:6].copy()
 
-    def platform_rotation(self, data=None) -> np.ndarray:
-        data = self.data if data is None else data
-        return data.xmat[self.model.body("platform").id].reshape(3, 3).copy()
-
     def platform_pose(self, data=None) -> np.ndarray:
         """Platform pose (6,) [x, y, z, roll, pitch, yaw] from the free joint."""
         data = self.data if data is None else data
@@ -231,7 +226,7 @@ class StewartSim:
         return self.platform_pose(d), self.platform_twist(d), self.platform_accel(d), self.constraint_violation(d)
 
 
-def _universal_angles(s, sd, sdd):
+def universal_angles(s, sd, sdd):
     """Hinge angles (q1 about x, then q2 about the rotated y) and their rates for the leg axis
     s = Rx(q1) Ry(q2) z = [sin q2, -sin q1 cos q2, cos q1 cos q2] in the cylinder's home frame."""
     q2 = np.arcsin(s[0])
@@ -257,79 +252,3 @@ def _ball_quat(s):
     rot = np.zeros(9)
     mujoco.mju_quat2Mat(rot, quat)
     return quat, rot.reshape(3, 3)
-
-
-def closed_chain_forces(sim: StewartSim, qacc: np.ndarray, data=None):
-    """Solve MuJoCo's equations of motion for the actuator forces at the current state.
-
-    [B  J_c^T] [F; lambda] = M qacc + c, with M from mj_fullM, c = qfrc_bias
-    (Coriolis, centrifugal, gravity), J_c the connect-constraint Jacobian rows
-    and B the actuator map. Requires mj_forward at the state (set_state does
-    it). Returns (F (6,), lambda, relative residual of the least-squares solve).
-    """
-    m, d = sim.model, (sim.data if data is None else data)
-    mass = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, mass)
-    rows = np.flatnonzero(d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
-    jac = d.efc_J.reshape(-1, m.nv)[rows] if d.efc_J.size else np.zeros((0, m.nv))
-    rhs = mass @ qacc + d.qfrc_bias - d.qfrc_passive
-    lhs = np.hstack([sim.actuator_map, jac.T])
-    sol, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-    residual = np.linalg.norm(lhs @ sol - rhs) / max(np.linalg.norm(rhs), 1e-300)
-    return sol[:m.nu], sol[m.nu:], residual
-
-
-def universal_spin(sim: StewartSim, pose, twist, accel):
-    """Leg spin rate and spin acceleration (6,) each (rad/s, rad/s^2) a universal joint imposes.
-
-    The Newton-Euler model assumes zero spin about the leg axis; the U-joint
-    forces spin = w_cyl . s with w_cyl = x q1' + (Rx(q1) y) q2' (home leg frame).
-    """
-    lm = leg_motion(sim.robot, pose, twist, accel)
-    spin, spin_acc = np.zeros(6), np.zeros(6)
-    for i in range(6):
-        f0 = sim.leg_frames[i]
-        s, sd, sdd = f0.T @ lm.axis[i], f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i]
-        q, qd, qdd = _universal_angles(s, sd, sdd)
-        u1 = np.array([1.0, 0.0, 0.0])
-        u2 = np.array([0.0, np.cos(q[0]), np.sin(q[0])])
-        u2_dot = np.cross(u1 * qd[0], u2)
-        w = u1 * qd[0] + u2 * qd[1]
-        w_dot = u1 * qdd[0] + u2 * qdd[1] + u2_dot * qd[1]
-        spin[i] = w @ s
-        spin_acc[i] = w_dot @ s + w @ sd
-    return spin, spin_acc, lm
-
-
-def leg_spin_force_correction(sim: StewartSim, pose, twist, accel) -> np.ndarray:
-    """Axial-force change (6,) (N) caused by the U-joint leg spin the Newton-Euler model ignores.
-
-    The spin adds d/dt(I_a w_s s) = I_a (w_s' s + w_s s') to each leg's moment
-    about B_i (I_a = cylinder + piston axial inertia). Its component along the
-    leg is taken by the U-joint torque tau n (n = u1 x u2, so
-    tau = dM.s / n.s); the rest, dM - tau n, is balanced by an extra transverse
-    force at A_i, dh = s x (dM - tau n) / l, which the six struts carry:
-    H dF = -sum [dh; rho x dh]. This is the documented bound of the exact
-    static check with universal joints (first order in I_a, exact at a
-    consistent state).
-    """
-    spin, spin_acc, lm = universal_spin(sim, pose, twist, accel)
-    p = leg_parts(sim.robot)
-    ia = p.ia1 + p.ia2
-    rot = lm.rotation
-    c = rot @ sim.robot.moving_body.com
-    wrench = np.zeros(6)
-    cols = np.zeros((6, 6))
-    for i in range(6):
-        s = lm.axis[i]
-        d_m = ia * (spin_acc[i] * s + spin[i] * lm.axis_rate[i])
-        f0 = sim.leg_frames[i]
-        q, _, _ = _universal_angles(f0.T @ s, f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i])
-        n = f0 @ np.cross([1.0, 0.0, 0.0], [0.0, np.cos(q[0]), np.sin(q[0])])
-        tau = (d_m @ s) / (n @ s)
-        dh = np.cross(s, d_m - tau * n) / lm.length[i]
-        rho = lm.arm[i] - c
-        wrench -= np.r_[dh, np.cross(rho, dh)]
-        cols[:, i] = np.r_[s, np.cross(rho, s)]
-    return np.linalg.solve(cols, wrench)
-

@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import ActuatorLimitError, InvalidInputError, StrokeLimitError
-from ..hermite import cubic_hermite, quintic_hermite, spline_extremes
+from ..splines import cubic_hermite, quintic_hermite, spline_extremes
 
 
 @dataclass(frozen=True)

@@ -17,13 +17,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import mujoco
 import numpy as np
 
-from .dynamics import leg_forces, leg_forces_paper
-from .leg_kinematics import leg_motion
-from .mjcf import SimulationSettings
-from .mujoco_sim import StewartSim
-from .paper import (
+from ..kinematics.legs import leg_motion
+from ..kinematics.rotations import rotation_from_rpy
+from ..paper import (
     CLINICAL_ACCELERATION_G,
     CLINICAL_FREQUENCY_HZ,
     PAPER_AMPLITUDE_M,
@@ -31,10 +30,17 @@ from .paper import (
     PAPER_PHASE_RAD,
     paper_pose,
 )
-from .robot import STANDARD_GRAVITY, Robot
-from .rotations import rotation_from_rpy
+from ..robot import STANDARD_GRAVITY, Robot
+from ..sim.mjcf import SimulationSettings
+from ..sim.mujoco_sim import StewartSim, universal_angles
+from .newton_euler import leg_forces, leg_forces_paper
+from .platform_trajectory import (
+    SinusoidalTrajectory,
+    amplitude_for_acceleration,
+    force_line_direction,
+    vibration_trajectory,
+)
 from .tissue import TissueModel, tissue_wrench, wrench_about_point
-from .trajectory import SinusoidalTrajectory, amplitude_for_acceleration, force_line_direction, vibration_trajectory
 
 
 @dataclass(frozen=True)
@@ -167,3 +173,82 @@ def run_scenario(robot: Robot, name: str, duration: float, settings: SimulationS
                            run.forces)
     tracking = float(np.abs(run.pose[:, :3] - run.reference_pose[:, :3]).max())
     return ScenarioResult(name, description, run, full, paper, tracking)
+
+
+# -- exact checks of the Newton-Euler model against MuJoCo's equations (docs/dynamics.md) -----------------
+
+
+def closed_chain_forces(sim: StewartSim, qacc: np.ndarray, data=None):
+    """Solve MuJoCo's equations of motion for the actuator forces at the current state.
+
+    [B  J_c^T] [F; lambda] = M qacc + c, with M from mj_fullM, c = qfrc_bias
+    (Coriolis, centrifugal, gravity), J_c the connect-constraint Jacobian rows
+    and B the actuator map. Requires mj_forward at the state (set_state does
+    it). Returns (F (6,), lambda, relative residual of the least-squares solve).
+    """
+    m, d = sim.model, (sim.data if data is None else data)
+    mass = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, mass)
+    rows = np.flatnonzero(d.efc_type == mujoco.mjtConstraint.mjCNSTR_EQUALITY)
+    jac = d.efc_J.reshape(-1, m.nv)[rows] if d.efc_J.size else np.zeros((0, m.nv))
+    rhs = mass @ qacc + d.qfrc_bias - d.qfrc_passive
+    lhs = np.hstack([sim.actuator_map, jac.T])
+    sol, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
+    residual = np.linalg.norm(lhs @ sol - rhs) / max(np.linalg.norm(rhs), 1e-300)
+    return sol[:m.nu], sol[m.nu:], residual
+
+
+def universal_spin(sim: StewartSim, pose, twist, accel):
+    """Leg spin rate and spin acceleration (6,) each (rad/s, rad/s^2) a universal joint imposes.
+
+    The Newton-Euler model assumes zero spin about the leg axis; the U-joint
+    forces spin = w_cyl . s with w_cyl = x q1' + (Rx(q1) y) q2' (home leg frame).
+    """
+    lm = leg_motion(sim.robot, pose, twist, accel)
+    spin, spin_acc = np.zeros(6), np.zeros(6)
+    for i in range(6):
+        f0 = sim.leg_frames[i]
+        s, sd, sdd = f0.T @ lm.axis[i], f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i]
+        q, qd, qdd = universal_angles(s, sd, sdd)
+        u1 = np.array([1.0, 0.0, 0.0])
+        u2 = np.array([0.0, np.cos(q[0]), np.sin(q[0])])
+        u2_dot = np.cross(u1 * qd[0], u2)
+        w = u1 * qd[0] + u2 * qd[1]
+        w_dot = u1 * qdd[0] + u2 * qdd[1] + u2_dot * qd[1]
+        spin[i] = w @ s
+        spin_acc[i] = w_dot @ s + w @ sd
+    return spin, spin_acc, lm
+
+
+def leg_spin_force_correction(sim: StewartSim, pose, twist, accel) -> np.ndarray:
+    """Axial-force change (6,) (N) caused by the U-joint leg spin the Newton-Euler model ignores.
+
+    The spin adds d/dt(I_a w_s s) = I_a (w_s' s + w_s s') to each leg's moment
+    about B_i (I_a = cylinder + piston axial inertia). Its component along the
+    leg is taken by the U-joint torque tau n (n = u1 x u2, so
+    tau = dM.s / n.s); the rest, dM - tau n, is balanced by an extra transverse
+    force at A_i, dh = s x (dM - tau n) / l, which the six struts carry:
+    H dF = -sum [dh; rho x dh]. This is the documented bound of the exact
+    static check with universal joints (first order in I_a, exact at a
+    consistent state).
+    """
+    spin, spin_acc, lm = universal_spin(sim, pose, twist, accel)
+    p = sim.robot.leg_bodies
+    ia = p.cylinder_inertia_axial + p.piston_inertia_axial
+    rot = lm.rotation
+    c = rot @ sim.robot.moving_body.com
+    wrench = np.zeros(6)
+    cols = np.zeros((6, 6))
+    for i in range(6):
+        s = lm.axis[i]
+        d_m = ia * (spin_acc[i] * s + spin[i] * lm.axis_rate[i])
+        f0 = sim.leg_frames[i]
+        q, _, _ = universal_angles(f0.T @ s, f0.T @ lm.axis_rate[i], f0.T @ lm.axis_accel[i])
+        n = f0 @ np.cross([1.0, 0.0, 0.0], [0.0, np.cos(q[0]), np.sin(q[0])])
+        tau = (d_m @ s) / (n @ s)
+        dh = np.cross(s, d_m - tau * n) / lm.length[i]
+        rho = lm.arm[i] - c
+        wrench -= np.r_[dh, np.cross(rho, dh)]
+        cols[:, i] = np.r_[s, np.cross(rho, s)]
+    return np.linalg.solve(cols, wrench)
+

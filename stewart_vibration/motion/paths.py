@@ -1,11 +1,6 @@
-"""Smooth point-to-point motion: minimum-jerk leg trajectories and SE(3) paths.
+"""Straight SE(3) paths of the platform, every waypoint checked (what kinematics/plan_path answers).
 
-Minimum jerk (Flash and Hogan 1985): with s = t / T in [0, 1],
-x(t) = x0 + (x1 - x0) (10 s^3 - 15 s^4 + 6 s^5); zero velocity and
-acceleration at both ends; peak speed 1.875 |x1 - x0| / T at s = 1/2,
-peak acceleration 5.7735 |x1 - x0| / T^2 at s = 0.5 -+ sqrt(3)/6.
-
-Under a soft-tissue load (``stewart_vibration.tissue``) a path is also checked for the strut forces it
+Under a soft-tissue load (``stewart_vibration.dynamics.tissue``) a path is also checked for the strut forces it
 needs: ``check_path_forces`` predicts them quasi-statically (Newton-Euler at rest + the tissue's elastic
 wrench at each waypoint) and refuses the path if any strut would exceed strut_force_max_n.
 """
@@ -14,37 +9,13 @@ from __future__ import annotations
 
 import numpy as np
 
-from .dynamics import leg_forces
-from .errors import ActuatorLimitError, InvalidInputError
-from .kinematics import check_pose
-from .robot import Robot
-from .rotations import rotation_from_rpy, rpy_from_rotation, so3_exp, so3_log
-from .tissue import TissueModel, tissue_wrench
-from .validation import as_batch
-
-MIN_JERK_PEAK_SPEED = 1.875  # max of d/ds (10 s^3 - 15 s^4 + 6 s^5)
-
-
-def minimum_jerk(start, goal, duration: float, times):
-    """(positions, velocities, accelerations) [n, dim] of a minimum-jerk move.
-
-    start, goal: [dim]; duration T (s) > 0; times [n] (s), clamped to [0, T].
-    """
-    if not (np.isfinite(duration) and duration > 0):
-        raise InvalidInputError(f"duration must be > 0 s, got {duration}")
-    start, goal = np.asarray(start, dtype=float), np.asarray(goal, dtype=float)
-    s = np.clip(np.asarray(times, dtype=float) / duration, 0.0, 1.0)[:, None]
-    delta = goal - start
-    position = start + delta * (10 * s**3 - 15 * s**4 + 6 * s**5)
-    velocity = delta * (30 * s**2 - 60 * s**3 + 30 * s**4) / duration
-    acceleration = delta * (60 * s - 180 * s**2 + 120 * s**3) / duration**2
-    return position, velocity, acceleration
-
-
-def minimum_jerk_duration(start, goal, max_speed: float, min_duration: float) -> float:
-    """Shortest T >= min_duration (s) whose peak speed stays within max_speed (units/s)."""
-    distance = float(np.abs(np.asarray(goal, dtype=float) - np.asarray(start, dtype=float)).max())
-    return max(min_duration, MIN_JERK_PEAK_SPEED * distance / max_speed)
+from ..dynamics.newton_euler import leg_forces
+from ..dynamics.tissue import TissueModel, tissue_wrench
+from ..errors import ActuatorLimitError
+from ..input_checks import as_batch
+from ..kinematics import check_pose
+from ..kinematics.rotations import rotation_from_rpy, rpy_from_rotation, so3_exp, so3_log
+from ..robot import Robot
 
 
 def interpolate_poses(start, goal, count: int) -> np.ndarray:

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rotations import euler_rate_matrix, rotation_from_rpy
-from .validation import as_batch
+from ..input_checks import as_batch
+from ..kinematics.rotations import euler_rate_matrix, rotation_from_rpy
 
 
 def euler_rate_matrix_derivative(rpy, rpy_rate) -> np.ndarray:

@@ -1,6 +1,6 @@
 """One warm-started forward-kinematics solve in plain Python floats (low latency).
 
-The batched Newton in kinematics.py pays about a microsecond of numpy call
+The batched Newton in fk.py pays about a microsecond of numpy call
 overhead per operation, which dominates a single 6x6 problem (the pose
 estimate at the joint-state rate). This module runs the same iteration on
 Python floats: residual g_i = |p + R a_i - b_i| - l_i, Jacobian rows
@@ -17,54 +17,10 @@ import math
 
 import numpy as np
 
+from .rotations import rotation_from_rpy_scalar, rpy_from_rotation_scalar, so3_exp_scalar
+
 Vector = tuple[float, float, float]
 Matrix = tuple[Vector, Vector, Vector]
-
-
-def rotation_from_rpy_scalar(roll: float, pitch: float, yaw: float) -> Matrix:
-    """R = Rz(yaw) Ry(pitch) Rx(roll) (rad) as nested tuples, rows first."""
-    cr, sr = math.cos(roll), math.sin(roll)
-    cp, sp = math.cos(pitch), math.sin(pitch)
-    cy, sy = math.cos(yaw), math.sin(yaw)
-    return (
-        (cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr),
-        (sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr),
-        (-sp, cp * sr, cp * cr),
-    )
-
-
-def rpy_from_rotation_scalar(rot: Matrix) -> Vector:
-    """(roll, pitch, yaw) (rad) of R = Rz Ry Rx, pitch in [-pi/2, pi/2]."""
-    return (
-        math.atan2(rot[2][1], rot[2][2]),
-        math.atan2(-rot[2][0], math.hypot(rot[0][0], rot[1][0])),
-        math.atan2(rot[1][0], rot[0][0]),
-    )
-
-
-def rotate_scalar(phi: Vector, rot: Matrix) -> Matrix:
-    """exp([phi]x) R for a rotation vector phi (rad, base frame): Rodrigues' formula."""
-    x, y, z = phi
-    t2 = x * x + y * y + z * z
-    if t2 < 1e-12:
-        a, b = 1.0 - t2 / 6.0, 0.5 - t2 / 24.0
-    else:
-        t = math.sqrt(t2)
-        a, b = math.sin(t) / t, (1.0 - math.cos(t)) / t2
-    e = (
-        (1.0 - b * (y * y + z * z), -a * z + b * x * y, a * y + b * x * z),
-        (a * z + b * x * y, 1.0 - b * (x * x + z * z), -a * x + b * y * z),
-        (-a * y + b * x * z, a * x + b * y * z, 1.0 - b * (x * x + y * y)),
-    )
-    m0, m1, m2 = rot
-    return tuple(
-        (
-            ei[0] * m0[0] + ei[1] * m1[0] + ei[2] * m2[0],
-            ei[0] * m0[1] + ei[1] * m1[1] + ei[2] * m2[1],
-            ei[0] * m0[2] + ei[1] * m1[2] + ei[2] * m2[2],
-        )
-        for ei in e
-    )
 
 
 def solve_linear_6(matrix: list[list[float]], rhs: list[float]) -> tuple[list[float], float] | None:
@@ -166,7 +122,7 @@ def forward_kinematics_scalar(hinges, base, target, start, tol: float, max_iter:
         alpha = 1.0
         for halving in range(11):
             p_try = (position[0] + alpha * step[0], position[1] + alpha * step[1], position[2] + alpha * step[2])
-            rot_try = rotate_scalar((alpha * step[3], alpha * step[4], alpha * step[5]), rotation)
+            rot_try = so3_exp_scalar((alpha * step[3], alpha * step[4], alpha * step[5]), rotation)
             legs_try, res_try = leg_residuals(hinges, base, p_try, rot_try, target)
             if res_try < res or res_try < tol or halving == 10:
                 break

@@ -18,7 +18,7 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from .errors import ConfigError
+from ..errors import ConfigError
 
 # Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
 # (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"

@@ -19,7 +19,7 @@ hardware emulator):
   site ``a_i`` (on the platform): the spherical joint at A_i.
 Every body's frame has its z axis along the home leg axis (legs) or is the
 platform frame; the model is assembled at the home pose by IK, so all
-constraints hold at qpos0. Leg masses follow ``dynamics.leg_parts`` (vibration
+constraints hold at qpos0. Leg masses follow ``Robot.leg_bodies`` (vibration
 unit lumped into the piston), the same as the Newton-Euler model.
 """
 
@@ -31,11 +31,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .dynamics import leg_parts
-from .errors import ConfigError
-from .kinematics import leg_vectors
-from .robot import Robot, default_config_dir
-from .rotations import quaternion_from_rpy
+from ..errors import ConfigError
+from ..kinematics import leg_vectors
+from ..kinematics.rotations import quaternion_from_rpy
+from ..robot import Robot, default_config_dir
 
 BASE_JOINTS = ("universal", "ball")
 
@@ -119,7 +118,10 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
     if base_joint not in BASE_JOINTS:
         raise ConfigError(f"base_joint must be one of {BASE_JOINTS}, got {base_joint!r}")
     s = settings or SimulationSettings()
-    p = leg_parts(robot)
+    p = robot.leg_bodies
+    cyl_com, pis_com = p.cylinder_com_offset, p.piston_com_offset
+    cyl_inertia = _f([p.cylinder_inertia_transverse, p.cylinder_inertia_transverse, p.cylinder_inertia_axial])
+    pis_inertia = _f([p.piston_inertia_transverse, p.piston_inertia_transverse, p.piston_inertia_axial])
     home = robot.home_pose
     d = leg_vectors(robot, home)
     lengths = np.linalg.norm(d, axis=1)
@@ -155,12 +157,12 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
         else:
             lines.append(f'      <joint name="ball_{n}" type="ball"/>')
         lines += [
-            f'      <inertial pos="0 0 {p.e1:.17g}" mass="{p.m1:.17g}" diaginertia="{_f([p.it1, p.it1, p.ia1])}"/>',
-            f'      <geom type="capsule" fromto="0 0 0 0 0 {2 * p.e1:.17g}" size="0.010" rgba="0.3 0.4 0.8 1"/>',
+            f'      <inertial pos="0 0 {cyl_com:.17g}" mass="{p.cylinder_mass:.17g}" diaginertia="{cyl_inertia}"/>',
+            f'      <geom type="capsule" fromto="0 0 0 0 0 {2 * cyl_com:.17g}" size="0.010" rgba="0.3 0.4 0.8 1"/>',
             f'      <body name="piston_{n}" pos="0 0 {lengths[i]:.17g}">',
             f'        <joint name="leg_{n}" type="slide" axis="0 0 1" ref="{lengths[i]:.17g}"/>',
-            f'        <inertial pos="0 0 {-p.e2:.17g}" mass="{p.m2:.17g}" diaginertia="{_f([p.it2, p.it2, p.ia2])}"/>',
-            f'        <geom type="capsule" fromto="0 0 {-2 * p.e2:.17g} 0 0 0" size="0.006" rgba="0.8 0.8 0.8 1"/>',
+            f'        <inertial pos="0 0 {-pis_com:.17g}" mass="{p.piston_mass:.17g}" diaginertia="{pis_inertia}"/>',
+            f'        <geom type="capsule" fromto="0 0 {-2 * pis_com:.17g} 0 0 0" size="0.006" rgba="0.8 0.8 0.8 1"/>',
             f'        <site name="tip_{n}" pos="0 0 0" size="0.004"/>',
             '      </body>',
             '    </body>',

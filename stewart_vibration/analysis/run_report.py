@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..analysis import dominant_sinusoid
-from .reader import RunReader, open_run
+from ..mcap_log.reader import RunReader, open_run
+from .fits import dominant_sinusoid
 
 LEGS = [f"leg_{i}" for i in range(1, 7)]
 VIBS = [f"vib_{i}" for i in range(1, 7)]

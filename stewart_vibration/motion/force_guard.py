@@ -40,10 +40,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .errors import ActuatorLimitError
-from .hermite import quintic_hermite
-from .robot import Robot
-from .rotations import rotation_from_rpy, so3_log
+from ..errors import ActuatorLimitError
+from ..kinematics.rotations import rotation_from_rpy, so3_log
+from ..robot import Robot
+from ..splines import quintic_hermite, smoothstep
 
 RECEIPT_DELAY_S = 0.02  # expected emulator time between the node's estimate of "now" and its command arriving
 RECEIPT_WINDOW_S = 0.15  # the stop stays within the limits for any arrival within this (at least) after "now"
@@ -63,14 +63,8 @@ DIRECTION_TOLERANCE_M = 1e-6  # a target further along a tripped direction than 
 WATCH_AFTER_S = 0.3  # the guard keeps watching (and recording peaks) this long after a move or stop ends
 
 
-def min_jerk_progress(s):
-    """(phi, dphi/ds, d2phi/ds2) of the minimum-jerk profile at s (clamped to [0, 1])."""
-    s = np.clip(np.asarray(s, dtype=float), 0.0, 1.0)
-    return (10 * s**3 - 15 * s**4 + 6 * s**5, 30 * s**2 - 60 * s**3 + 30 * s**4, 60 * s - 180 * s**2 + 120 * s**3)
-
-
 _S_TABLE = np.linspace(0.0, 1.0, 2001)
-_PHI_TABLE = min_jerk_progress(_S_TABLE)[0]
+_PHI_TABLE = smoothstep(_S_TABLE)[0]
 
 
 def pose_direction(robot: Robot, start, goal) -> np.ndarray:
@@ -106,7 +100,7 @@ class GuardedMove:
     def progress(self, times):
         """(sigma, sigma_dot, sigma_ddot) at emulator times [n] (s)."""
         s = (np.asarray(times, float) - self.start_time) / self.duration
-        phi, d1, d2 = min_jerk_progress(s)
+        phi, d1, d2 = smoothstep(s)
         inside = (s > 0) & (s < 1)
         return phi, np.where(inside, d1 / self.duration, 0.0), np.where(inside, d2 / self.duration**2, 0.0)
 
@@ -427,6 +421,5 @@ __all__ = [
     "GuardTrip",
     "GuardedMove",
     "StopPlan",
-    "min_jerk_progress",
     "pose_direction",
 ]

@@ -1,4 +1,5 @@
-"""Hermite splines (pure numpy): the interpolation of joint trajectories and vibration windows.
+"""Splines (pure numpy): the Hermite interpolation of joint trajectories and vibration windows, and the
+quintic smoothstep behind every ramp and minimum-jerk move.
 
 As ros2_control's joint_trajectory_controller: between two knots a cubic segment when they carry
 positions and velocities, a quintic one when they also carry accelerations. s in [0, 1] is the
@@ -8,6 +9,25 @@ normalised time within a segment of duration h (s); values broadcast over joints
 from __future__ import annotations
 
 import numpy as np
+
+
+def smoothstep(x):
+    """The quintic smoothstep s(x) = 10 x^3 - 15 x^4 + 6 x^5 and its first two derivatives.
+
+    Zero velocity and acceleration at both ends: the minimum-jerk profile (Flash and Hogan 1985), the
+    vibration's ramp envelope and the force guard's progress model all use it.
+
+    Args:
+        x: normalised time, any shape (clipped to [0, 1]).
+
+    Returns:
+        (s, ds/dx, d2s/dx2), each of the shape of ``x``.
+    """
+    x = np.clip(np.asarray(x, dtype=float), 0.0, 1.0)
+    value = x**3 * (10.0 + x * (-15.0 + 6.0 * x))
+    first = 30.0 * x**2 * (1.0 - x) ** 2
+    second = 60.0 * x * (1.0 - x) * (1.0 - 2.0 * x)
+    return value, first, second
 
 
 def quintic_hermite(s, h, p0, v0, a0, p1, v1, a1):

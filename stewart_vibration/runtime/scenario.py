@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .errors import ConfigError
-from .paper import paper_pose
-from .robot import Robot, default_config_dir
-from .tissue import load_tissue
+from ..dynamics.tissue import load_tissue
+from ..errors import ConfigError
+from ..paper import paper_pose
+from ..robot import Robot, default_config_dir
 
 VIBRATE_KEYS = {"direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s",
                 "ramp_s"}

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .rotations import rpy_from_quaternion
+from ..kinematics.rotations import rpy_from_quaternion
 
 
 def stamp_s(header) -> float:
