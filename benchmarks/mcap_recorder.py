@@ -44,6 +44,9 @@ def main() -> int:
     if args.domain is None:
         args.domain, _lock = claim_ros_domain()
     env = ros_environment(args.domain)
+    # the synthetic publisher is test scaffolding (test/synthetic_run_publisher.py)
+    test_dir = str(Path(__file__).resolve().parents[1] / "test")
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [test_dir, env.get("PYTHONPATH")]))
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         rec = start_python_module(
@@ -52,7 +55,7 @@ def main() -> int:
         )
         count = int(args.rate * args.seconds)
         pub = start_python_module(
-            "publisher", "stewart_vibration.nodes.synthetic_run_publisher",
+            "publisher", "synthetic_run_publisher",
             ["--count", str(count), "--rate", str(args.rate), "--topics", "joint_states", "--fast"], env, tmp,
         )
         waits = {}

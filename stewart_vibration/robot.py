@@ -7,7 +7,6 @@ platform) and ``platform`` (origin at the platform hinge-circle centre).
 from __future__ import annotations
 
 import os
-import sys
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -18,47 +17,13 @@ import numpy as np
 import yaml
 
 from .errors import ConfigError
+from .install import default_config_dir
 
 STANDARD_GRAVITY = 9.80665  # m/s^2 per g
 LEG_NAMES = tuple(f"leg_{i}" for i in range(1, 7))  # joint (and TF frame) names of the struts, legs 1..6
 VIB_NAMES = tuple(f"vib_{i}" for i in range(1, 7))  # joint names of the vibration units on legs 1..6
 
 T = TypeVar("T")
-
-
-def default_config_dir() -> Path:
-    """Directory holding robot.yaml and the scenario files.
-
-    Order: $STEWART_VIBRATION_CONFIG_DIR, the source tree's config/ (when
-    running from a checkout), then the installed share/stewart_vibration/config.
-    """
-    env = os.environ.get("STEWART_VIBRATION_CONFIG_DIR")
-    if env:
-        return Path(env)
-    here = Path(__file__).resolve().parent
-    source = here.parent / "config"
-    if (source / "robot.yaml").is_file():
-        return source
-    for prefix in install_prefixes():
-        candidate = Path(prefix) / "share" / "stewart_vibration" / "config"
-        if (candidate / "robot.yaml").is_file():
-            return candidate
-    raise ConfigError("cannot find config/robot.yaml; set STEWART_VIBRATION_CONFIG_DIR")
-
-
-def install_prefixes(environ=None) -> list[str]:
-    """Install prefixes to search for ``share/<package>``: $AMENT_PREFIX_PATH in order, then sys.prefix
-    (the pip world's venv, where ament_index finds the interface packages; DESIGN.md).
-
-    Args:
-        environ: the environment to read (default: os.environ).
-
-    Returns:
-        The prefixes, without duplicates, in search order.
-    """
-    environ = os.environ if environ is None else environ
-    prefixes = [p for p in environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    return list(dict.fromkeys([*prefixes, sys.prefix]))
 
 
 def _read_only(value):

@@ -16,7 +16,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
-from stewart_vibration.nodes.mcap_ros import make_executor
+from stewart_vibration.nodes.common import make_executor
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 

@@ -10,10 +10,11 @@ import pytest
 from stewart_vibration import inverse_kinematics
 from stewart_vibration.analysis.fits import direction_error_deg, fit_sinusoid, line_vibration
 from stewart_vibration.dynamics.newton_euler import leg_forces
-from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.errors import ActuatorLimitError, StrokeLimitError
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration import decompose_vibration
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream

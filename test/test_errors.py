@@ -20,7 +20,8 @@ from stewart_vibration import (
     load_robot,
     pose_from_position_quaternion,
 )
-from stewart_vibration.robot import default_config_dir, robot_from_dict
+from stewart_vibration.install import default_config_dir
+from stewart_vibration.robot import robot_from_dict
 
 
 def config_tree():

@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stewart_vibration.emulation.emulator import VIB_NAMES, HardwareEmulator
+from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.estimation import ForceEstimator
+from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration import decompose_vibration
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream

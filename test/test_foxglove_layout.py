@@ -8,15 +8,15 @@ import json
 import re
 from pathlib import Path
 
-from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES
 from stewart_vibration.nodes.mcap_recorder_node import SUITE_TOPICS
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
 LAYOUT = Path(__file__).resolve().parents[1] / "config" / "foxglove_layout.json"
 NS = "/stewart"
 TOPICS = {t if t.startswith("/") else f"{NS}/{t}" for t in SUITE_TOPICS} | {f"{NS}/scene/entities",
                                                                            f"{NS}/scene/transforms"}
-STATES = LEG_NAMES + VIB_NAMES  # legs/joint_states, in the emulator's order
-ESTIMATES = LEG_NAMES  # legs/force_estimate
+STATES = [*LEG_NAMES, *VIB_NAMES]  # legs/joint_states, in the emulator's order
+ESTIMATES = list(LEG_NAMES)  # legs/force_estimate
 
 
 def panels_in(tree) -> list[str]:
@@ -57,6 +57,6 @@ def test_layout_topics_exist_and_plots_pick_the_right_joints():
                 assert s["label"].split()[0] == found[-1], s  # the label names the joint plotted
         return found
 
-    assert joints("Plot!vib", "legs/joint_states", "position", STATES) == VIB_NAMES
-    assert joints("Plot!forces", "legs/joint_states", "effort", STATES) == LEG_NAMES  # measured
-    assert joints("Plot!forces", "legs/force_estimate", "effort", ESTIMATES) == LEG_NAMES  # estimated
+    assert joints("Plot!vib", "legs/joint_states", "position", STATES) == list(VIB_NAMES)
+    assert joints("Plot!forces", "legs/joint_states", "effort", STATES) == list(LEG_NAMES)  # measured
+    assert joints("Plot!forces", "legs/force_estimate", "effort", ESTIMATES) == list(LEG_NAMES)  # estimated

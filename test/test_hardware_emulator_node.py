@@ -17,11 +17,11 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from stewart_vibration.emulation.emulator import VIB_NAMES
 from stewart_vibration.emulation.vibration_status import report_from_values
 from stewart_vibration.messages import cdr
 from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = pytest.mark.integration

@@ -29,12 +29,12 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration import inverse_kinematics, load_robot
-from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES
 from stewart_vibration.kinematics import check_pose
 from stewart_vibration.kinematics.rotations import quaternion_from_rpy
 from stewart_vibration.messages import cdr
 from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 from stewart_vibration.vibration.waveform import sinusoid
 

@@ -21,7 +21,7 @@ from hypothesis import strategies as st
 from nav_msgs.srv import GetPlan
 
 from stewart_vibration import load_robot
-from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
 from stewart_vibration.errors import InvalidInputError, StewartError, VibrationLimitError
@@ -39,6 +39,7 @@ from stewart_vibration.nodes.common import check_frame, pose_from_msg
 from stewart_vibration.nodes.kinematics_node import unset_pose
 from stewart_vibration.nodes.vibration_planner_node import SETTINGS, check_settings
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.splines import spline_segments
 from stewart_vibration.vibration import decompose_vibration

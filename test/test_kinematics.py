@@ -16,8 +16,9 @@ from stewart_vibration import (
     jacobian,
     load_robot,
 )
+from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.fk_scalar import solve_linear_6
-from stewart_vibration.robot import default_config_dir, robot_from_dict
+from stewart_vibration.robot import robot_from_dict
 
 
 def random_workspace_poses(robot, count, seed=0):

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import yaml
 
-from stewart_vibration.robot import default_config_dir
+from stewart_vibration.install import default_config_dir
 from stewart_vibration.runtime.suite import SUITE_NODES, SUITE_PARAMS_FILE
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -20,7 +20,13 @@ from stewart_vibration.mcap_log.bag_metadata import bag_metadata, write_metadata
 from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
-PUBLISHER = "stewart_vibration.nodes.synthetic_run_publisher"
+PUBLISHER = "synthetic_run_publisher"  # test scaffolding beside this file (on the children's PYTHONPATH)
+
+
+def _env(ros_domain):
+    env = ros_environment(ros_domain)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(Path(__file__).parent), env.get("PYTHONPATH")]))
+    return env
 JS, POSE = "/legs/joint_states", "/platform/pose"
 
 
@@ -126,7 +132,7 @@ def _rosbags_counts(folder: Path) -> tuple[Counter, int]:
 
 @pytest.mark.integration
 def test_recorder_folder_is_a_bag_directory_among_other_files(ros_domain, tmp_path):
-    env = ros_environment(ros_domain)
+    env = _env(ros_domain)
     folder = tmp_path / "latest"
     # what a main-job folder holds besides the recording, and an earlier run's bag
     (folder / "logs").mkdir(parents=True)
@@ -167,7 +173,7 @@ def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path
     from ros_client import RosTestClient
     from std_srvs.srv import Trigger
 
-    env = ros_environment(ros_domain)
+    env = _env(ros_domain)
     folder = tmp_path / "bag"
     args = ["--ros-args", "-p", f"output_dir:={folder}", "-p", "file_pattern:=part_{stamp}.mcap",
             "-p", "topics:=[/legs/joint_states]"]

@@ -12,6 +12,7 @@ import os
 import signal
 import time
 from collections import Counter
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -23,14 +24,16 @@ pytestmark = pytest.mark.integration
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 REPLAY = "stewart_vibration.nodes.mcap_replay_node"
-PUBLISHER = "stewart_vibration.nodes.synthetic_run_publisher"
+PUBLISHER = "synthetic_run_publisher"  # test scaffolding beside this file (on the children's PYTHONPATH)
 SUITE = ["/legs/joint_states", "/platform/pose", "/legs/force_estimate", "/diagnostics"]
 
 
 def _env(ros_domain):
     from stewart_vibration.runtime.processes import ros_environment
 
-    return ros_environment(ros_domain)
+    env = ros_environment(ros_domain)
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(Path(__file__).parent), env.get("PYTHONPATH")]))
+    return env
 
 
 def _tagged_json(proc, tag):

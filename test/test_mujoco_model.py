@@ -6,10 +6,10 @@ import mujoco
 import numpy as np
 import pytest
 
+from stewart_vibration.dynamics.mujoco_validation import closed_chain_forces, leg_spin_force_correction
 from stewart_vibration.dynamics.newton_euler import leg_forces, leg_forces_paper
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.sim.mjcf import build_mjcf, load_simulation_settings
-from stewart_vibration.dynamics.mujoco_validation import closed_chain_forces, leg_spin_force_correction
 from stewart_vibration.sim.mujoco_sim import StewartSim
 
 

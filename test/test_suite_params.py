@@ -7,8 +7,8 @@ import pytest
 import yaml
 from rcl_interfaces.srv import GetParameters
 
+from stewart_vibration.install import default_config_dir
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
-from stewart_vibration.robot import default_config_dir
 from stewart_vibration.runtime.suite import SUITE_PARAMS_FILE
 
 pytestmark = pytest.mark.integration

@@ -18,15 +18,16 @@ from stewart_vibration.dynamics.tissue import (
     tissue_wrench_single,
     wrench_about_point,
 )
-from stewart_vibration.emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import TrajectoryFollower, build_trajectory, checked_command
 from stewart_vibration.errors import ActuatorLimitError, ConfigError
 from stewart_vibration.estimation import ForceEstimator
+from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.motion.force_guard import RECEIPT_WINDOW_S, ForceGuard
 from stewart_vibration.motion.paths import check_path_forces, checked_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
-from stewart_vibration.robot import default_config_dir
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.runtime.scenario import load_scenario
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration import decompose_vibration

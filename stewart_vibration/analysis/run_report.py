@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ..mcap_log.reader import RunReader, open_run
+from ..robot import LEG_NAMES, VIB_NAMES
 from .fits import dominant_sinusoid
 
-LEGS = [f"leg_{i}" for i in range(1, 7)]
-VIBS = [f"vib_{i}" for i in range(1, 7)]
 EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
 
 
@@ -77,17 +76,17 @@ def extract(reader: RunReader) -> dict:
     starts = [m.log_time for m in reader.messages()][:1]
     t0 = starts[0] if starts else 0
     if js := _find(reader, "legs/joint_states"):
-        t, lengths = _joint_series(reader, js, LEGS, "position")
+        t, lengths = _joint_series(reader, js, LEG_NAMES, "position")
         if len(t):
             data["leg_t"], data["leg_lengths"] = (t - t0) / 1e9, lengths
-        t, vib = _joint_series(reader, js, VIBS, "position")
+        t, vib = _joint_series(reader, js, VIB_NAMES, "position")
         if len(t):
             data["vib_t"], data["vib"] = (t - t0) / 1e9, vib
-        t, force = _joint_series(reader, js, LEGS, "effort")
+        t, force = _joint_series(reader, js, LEG_NAMES, "effort")
         if len(t):
             data["force_t"], data["force"] = (t - t0) / 1e9, force
     if est := _find(reader, "legs/force_estimate"):
-        t, force = _joint_series(reader, est, LEGS, "effort")
+        t, force = _joint_series(reader, est, LEG_NAMES, "effort")
         if len(t):
             data["est_t"], data["est"] = (t - t0) / 1e9, force
     if pose := _find(reader, "platform/pose"):
@@ -137,14 +136,14 @@ def summarize(reader: RunReader, data: dict) -> dict:
         "topics": {t.topic: {"type": t.type_name, "count": t.message_count} for t in topics},
     }
     if "leg_lengths" in data:
-        out["leg_length_mean_m"] = dict(zip(LEGS, np.mean(data["leg_lengths"], axis=0).tolist()))
+        out["leg_length_mean_m"] = dict(zip(LEG_NAMES, np.mean(data["leg_lengths"], axis=0).tolist()))
     window = data.get("vibration_window")
     out["vibration_window_s"] = list(window) if window else None
     if "vib" in data and window:
         sel = _within(data["vib_t"], window)
         out["vibration"] = {
             n: dict(zip(("amplitude_m", "frequency_hz"), dominant_sinusoid(data["vib_t"][sel], data["vib"][sel, i])))
-            for i, n in enumerate(VIBS)
+            for i, n in enumerate(VIB_NAMES)
         }
     if "pose_xyz" in data and window:
         sel = _within(data["pose_t"], window)
@@ -160,10 +159,10 @@ def summarize(reader: RunReader, data: dict) -> dict:
     if "est" in data and "force" in data:
         measured = np.column_stack([np.interp(data["est_t"], data["force_t"], data["force"][:, i]) for i in range(6)])
         err = data["est"] - measured
-        out["force_error_rms_n"] = dict(zip(LEGS, np.sqrt(np.mean(err**2, axis=0)).tolist()))
+        out["force_error_rms_n"] = dict(zip(LEG_NAMES, np.sqrt(np.mean(err**2, axis=0)).tolist()))
         if window:
             sel = _within(data["est_t"], window)
-            out["force_error_rms_n_vibration"] = dict(zip(LEGS, np.sqrt(np.mean(err[sel] ** 2, axis=0)).tolist()))
+            out["force_error_rms_n_vibration"] = dict(zip(LEG_NAMES, np.sqrt(np.mean(err[sel] ** 2, axis=0)).tolist()))
     if "wrench_applied" in data and "wrench_estimated" in data:
         ta, te = np.round(data["wrench_applied_t"], 6), np.round(data["wrench_estimated_t"], 6)
         _, ia, ie = np.intersect1d(ta, te, return_indices=True)
@@ -195,7 +194,7 @@ def markdown(summary: dict, plots: list[str]) -> str:
     if "vibration" in summary:
         lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
         for i, (_n, v) in enumerate(summary["vibration"].items()):
-            mean = summary.get("leg_length_mean_m", {}).get(LEGS[i], float("nan"))
+            mean = summary.get("leg_length_mean_m", {}).get(LEG_NAMES[i], float("nan"))
             lines.append(f"| {i + 1} | {mean:.6f} | {v['amplitude_m']:.3e} | {v['frequency_hz']:.4f} |")
     if "platform" in summary:
         p = summary["platform"]

@@ -19,7 +19,7 @@ import numpy as np
 from ..dynamics.newton_euler import leg_forces
 from ..mcap_log.reader import RunReader
 from ..messages.arrays import joint_arrays, pose_array, stamp_s
-from ..robot import Robot
+from ..robot import LEG_NAMES, Robot
 from ..vibration import decompose_vibration
 from .fits import (
     direction_error_deg,
@@ -53,7 +53,7 @@ def load_signals(mcap_path) -> dict:
     return {
         "pose": pose_array(wanted["platform/pose"]),
         "joints": joint_arrays(wanted["legs/joint_states"]),
-        "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=[f"leg_{i}" for i in range(1, 7)]),
+        "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=LEG_NAMES),
         "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
         "stream_counts": counts,
         "vibration_status": [{kv.key: kv.value for kv in m.values} for m in wanted["vibration/status"]],

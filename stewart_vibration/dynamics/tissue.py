@@ -41,9 +41,10 @@ import yaml
 
 from ..errors import ConfigError
 from ..input_checks import as_batch
+from ..install import default_config_dir
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..paper import paper_pose
-from ..robot import Robot, default_config_dir
+from ..robot import Robot
 
 STIFFENING_TYPES = ("none", "exponential", "piecewise_linear")
 _KEYS = {"name", "note", "rest_pose", "center_m", "axial", "lateral", "torsional", "bending", "preload_n",

@@ -30,7 +30,7 @@ from ..dynamics.tissue import TissueModel, tissue_wrench_single
 from ..errors import ActuatorLimitError
 from ..kinematics import inverse_kinematics
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
-from ..robot import Robot
+from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..sim.mjcf import SimulationSettings
 from ..sim.mujoco_sim import StewartSim
 from .servo_drive import ServoDrive
@@ -44,9 +44,6 @@ from .strut_trajectory import (
 )
 from .vibration_buffer import VibrationBuffer
 from .vibration_status import VibrationReport, VibrationStatusTracker
-
-LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
-VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
 
 
 class HardwareEmulator:

@@ -32,7 +32,13 @@ class JointTrajectory:
 
     @property
     def end(self) -> float:
+        """Absolute time of the last point (s); meaningful once ``start`` is absolute."""
         return self.start + float(self.times[-1])
+
+    def start_at(self, now: float) -> float:
+        """The absolute start (s) of a trajectory received at ``now``: its stamp, or ``now`` for a stamp <= 0
+        (joint_trajectory_controller: stamp 0 means "start now"; the one place this rule is written)."""
+        return now if self.start <= 0 else self.start
 
 
 def build_trajectory(
@@ -117,7 +123,7 @@ class TrajectoryFollower:
         At most the running command and one waiting for its start are kept (what ran before a
         started one is past): a trajectory stamped in the future that replaces one still waiting
         for its start can cut it short (the emulator refuses that case)."""
-        start = now if traj.start <= 0 else traj.start
+        start = traj.start_at(now)
         p, v, a = self.sample(np.array([start]))
         before = None
         if self._active is not None:  # a held state needs no record: it is the departure state
@@ -196,7 +202,7 @@ def checked_command(follower: TrajectoryFollower, traj: JointTrajectory, now: fl
     within the stroke, strut_velocity_max and strut_acceleration_max and end at rest; ``step_speed`` (m/s)
     is the velocity step allowed at a first point at the start time and at the held end. A start more than
     ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused."""
-    begin = now if traj.start <= 0 else traj.start
+    begin = traj.start_at(now)
     if begin > now + max_start_delay_s:
         raise ActuatorLimitError(
             f"the trajectory starts {begin - now:.3f} s in the future; at most max_start_delay_s "

@@ -69,7 +69,7 @@ def window_arrays(traj: JointTrajectory, now: float):
     """(absolute times [n], positions, velocities, accelerations [n, 6]) of a vib_* trajectory; start
     0 = now. Without velocities the knots get finite-difference velocities (zero for a single point);
     accelerations are NaN rows where the trajectory has none (cubic segments)."""
-    start = now if traj.start <= 0 else traj.start
+    start = traj.start_at(now)
     times = start + traj.times
     pos = traj.positions
     if traj.velocities is not None:

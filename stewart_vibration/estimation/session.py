@@ -68,7 +68,7 @@ class ForceEstimator:
         (s) defaults to the emulator's time as the newest joint state gives it (before any state: the
         window's own start, i.e. on time)."""
         if now is None:
-            now = self.state_time if self.state_time is not None else (traj.start if traj.start > 0 else 0.0)
+            now = self.state_time if self.state_time is not None else traj.start_at(0.0)
         self.vibration.add(traj, now)
 
     def command_struts(self, traj: JointTrajectory, now: float | None = None) -> None:

@@ -11,13 +11,13 @@ This module reproduces that byte for byte.
 
 from __future__ import annotations
 
-import os
 import re
 import sys
 from functools import lru_cache
 from pathlib import Path
 
 from ..errors import StewartError
+from ..install import install_prefixes
 
 SEPARATOR = "=" * 80
 
@@ -37,10 +37,7 @@ class MessageDefinitionError(StewartError):
 
 
 def _prefixes() -> list[Path]:
-    paths = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    if sys.prefix not in paths:
-        paths.append(sys.prefix)
-    return [Path(p) for p in paths]
+    return [Path(p) for p in install_prefixes()]
 
 
 def split_type(type_name: str) -> tuple[str, str, str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics.rotations import rpy_from_quaternion
+from ..robot import LEG_NAMES, VIB_NAMES
 
 
 def stamp_s(header) -> float:
@@ -26,7 +27,7 @@ def pose_array(messages) -> tuple[np.ndarray, np.ndarray]:
 def joint_arrays(messages, names=None) -> tuple[np.ndarray, dict]:
     """JointState messages -> (times [n], {position, velocity, effort: [n, k]}) in ``names`` order
     (default leg_1..6, vib_1..6); messages missing a name are skipped."""
-    names = names or [f"leg_{i}" for i in range(1, 7)] + [f"vib_{i}" for i in range(1, 7)]
+    names = list(names or LEG_NAMES + VIB_NAMES)
     times, cols = [], {"position": [], "velocity": [], "effort": []}
     for m in messages:
         index = {n: i for i, n in enumerate(m.name)}

@@ -7,15 +7,13 @@ installed by pip into the running interpreter's prefix (see DESIGN.md).
 from __future__ import annotations
 
 import os
-import sys
-from pathlib import Path
+
+from ..install import prepend_interpreter_prefix
 
 
 def ensure_ament_prefix_path() -> None:
     """Prepend sys.prefix to AMENT_PREFIX_PATH when it holds an ament index (pip world)."""
-    prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    if sys.prefix not in prefixes and (Path(sys.prefix) / "share" / "ament_index").is_dir():
-        os.environ["AMENT_PREFIX_PATH"] = os.pathsep.join([sys.prefix, *prefixes])
+    prepend_interpreter_prefix(os.environ, require_ament_index=True)
 
 
 ensure_ament_prefix_path()

@@ -69,9 +69,9 @@ from ..messages import cdr
 from ..messages.cdr import header_stamp_ns
 from ..robot import load_robot
 from ..visualization import scene as scene_model
-from .common import VIB_NAMES, declare_float, float_param, int_param, run_node, text_param
+from .common import VIB_NAMES, declare_float, declare_read_only, float_param, int_param, run_node, text_param
 from .mcap_recorder_node import SUITE_TOPICS
-from .mcap_ros import declare_read_only, message_class, offered_profile, rclpy_profile
+from .ros_graph import message_class, offered_profile, rclpy_profile
 
 # vibration/status states in which a vibration is planned or under way (emulation.vibration_status)
 VIBRATING_STATES = frozenset({"pending", "ramping_in", "running", "ramping_out"})

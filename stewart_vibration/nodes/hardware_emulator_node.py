@@ -40,13 +40,13 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..dynamics.tissue import load_tissue_option
-from ..emulation.emulator import LEG_NAMES, VIB_NAMES, HardwareEmulator
+from ..emulation.emulator import HardwareEmulator
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
 from ..errors import StewartError
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
-from ..robot import load_robot
+from ..robot import LEG_NAMES, VIB_NAMES, load_robot
 from ..sim.mjcf import load_simulation_settings
 from .common import (
     BASE_FRAME,

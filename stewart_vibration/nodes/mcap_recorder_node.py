@@ -46,15 +46,8 @@ from std_srvs.srv import Trigger
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
-from .common import declare_float, float_param
-from .mcap_ros import (
-    declare_read_only,
-    make_executor,
-    message_class,
-    offered_profile,
-    rclpy_profile,
-    spin_until_stopped,
-)
+from .common import declare_float, declare_read_only, float_param, make_executor, spin_until_stopped
+from .ros_graph import message_class, offered_profile, rclpy_profile
 
 SUITE_TOPICS = [
     "platform/target_pose",

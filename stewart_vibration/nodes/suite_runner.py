@@ -31,7 +31,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
-from ..robot import default_config_dir
+from ..install import default_config_dir
 from ..runtime.processes import (
     DDS_PROFILE_ENV,
     NodeProcess,
@@ -43,8 +43,7 @@ from ..runtime.processes import (
 from ..runtime.scenario import MoveStep, Scenario, VibrateStep
 from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 from . import ensure_ament_prefix_path
-from .common import pose_from_msg, pose_stamped
-from .mcap_ros import make_executor
+from .common import make_executor, pose_from_msg, pose_stamped
 
 
 class StepFailed(RuntimeError):

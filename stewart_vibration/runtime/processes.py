@@ -19,6 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import ConfigError
+from ..install import find_config_file, prepend_interpreter_prefix
 
 # Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
 # (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
@@ -31,20 +32,11 @@ _PROFILE_FILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILE
 
 
 def loopback_profile_path(config_dir: str | os.PathLike | None = None) -> Path:
-    """config/fastdds_localhost.xml: in ``config_dir`` if given, else the source tree's config/
-    (checkout, editable install), else share/stewart_vibration/config of an install prefix
-    ($AMENT_PREFIX_PATH, then sys.prefix). Raises FileNotFoundError naming the places searched."""
-    if config_dir is not None:
-        candidates = [Path(config_dir)]
-    else:
-        candidates = [Path(__file__).resolve().parent.parent / "config"]
-        prefixes = [p for p in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-        candidates += [Path(p) / "share" / "stewart_vibration" / "config" for p in [*prefixes, sys.prefix]]
-    for directory in candidates:
-        if (directory / LOOPBACK_PROFILE_FILE).is_file():
-            return (directory / LOOPBACK_PROFILE_FILE).resolve()
-    raise FileNotFoundError(f"cannot find the DDS profile {LOOPBACK_PROFILE_FILE} in "
-                            + ", ".join(str(d) for d in candidates))
+    """config/fastdds_localhost.xml: in ``config_dir`` if given, else the first of the package's config
+    directories that has it (``install.config_dirs``: the source tree's config/, then
+    share/stewart_vibration/config of an install prefix). Raises FileNotFoundError naming the places
+    searched."""
+    return find_config_file(LOOPBACK_PROFILE_FILE, None if config_dir is None else [config_dir])
 
 
 def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | None = None) -> dict:
@@ -96,9 +88,7 @@ def ros_environment(domain_id: int, base: dict | None = None) -> dict:
     env["ROS_DOMAIN_ID"] = str(int(domain_id))
     apply_environment(env, dds_environment(env.get(DDS_PROFILE_ENV)))
     env["PYTHONUNBUFFERED"] = "1"
-    prefixes = [p for p in env.get("AMENT_PREFIX_PATH", "").split(os.pathsep) if p]
-    if sys.prefix not in prefixes:
-        env["AMENT_PREFIX_PATH"] = os.pathsep.join([sys.prefix, *prefixes])
+    prepend_interpreter_prefix(env)
     return env
 
 

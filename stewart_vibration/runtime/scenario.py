@@ -18,8 +18,9 @@ import yaml
 
 from ..dynamics.tissue import load_tissue
 from ..errors import ConfigError
+from ..install import default_config_dir
 from ..paper import paper_pose
-from ..robot import Robot, default_config_dir
+from ..robot import Robot
 
 VIBRATE_KEYS = {"direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s",
                 "ramp_s"}

@@ -32,9 +32,10 @@ import numpy as np
 import yaml
 
 from ..errors import ConfigError
+from ..install import default_config_dir
 from ..kinematics import leg_vectors
 from ..kinematics.rotations import quaternion_from_rpy
-from ..robot import Robot, default_config_dir
+from ..robot import Robot
 
 BASE_JOINTS = ("universal", "ball")
 

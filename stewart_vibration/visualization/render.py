@@ -22,13 +22,13 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402 - matplotlib's own dependency
 
-from ..analysis.run_report import VIBS, extract  # noqa: E402
+from ..analysis.run_report import extract  # noqa: E402
 from ..errors import StewartError  # noqa: E402
 from ..kinematics.rotations import rotation_from_quaternion  # noqa: E402
 from ..mcap_log.files import McapFileError  # noqa: E402
 from ..mcap_log.reader import open_run  # noqa: E402
 from ..messages import cdr  # noqa: E402
-from ..robot import load_robot  # noqa: E402
+from ..robot import VIB_NAMES, load_robot  # noqa: E402
 from .scene import Scene, SceneBuilder, vibration_direction_from_window  # noqa: E402
 
 COLORS = plt.get_cmap("tab10").colors
@@ -94,9 +94,9 @@ def _direction_at(reader, topic: str | None, robot, position, quaternion, t_abs_
         return None
     w = cdr.decode_joint_trajectory(windows[-1].data)
     index = {n: i for i, n in enumerate(w.names)}
-    if w.positions is None or any(n not in index for n in VIBS):
+    if w.positions is None or any(n not in index for n in VIB_NAMES):
         return None
-    return vibration_direction_from_window(robot, position, quaternion, w.positions[:, [index[n] for n in VIBS]])
+    return vibration_direction_from_window(robot, position, quaternion, w.positions[:, [index[n] for n in VIB_NAMES]])
 
 
 def render_run(path, out, at_s: float | None = None, robot_config=None) -> dict:

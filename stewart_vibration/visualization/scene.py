@@ -29,13 +29,13 @@ import numpy as np
 
 from ..kinematics import jacobian_from_vectors
 from ..kinematics.rotations import rotation_from_quaternion
-from ..robot import Robot
+from ..robot import LEG_NAMES, Robot
 
 Color = tuple[float, float, float, float]
 
 BASE_FRAME = "base"
 PLATFORM_FRAME = "platform"
-LEG_FRAMES = tuple(f"leg_{i}" for i in range(1, 7))
+LEG_FRAMES = LEG_NAMES  # a TF frame per leg, named as its strut joint
 VIBRATION_ENTITY = "vibration_direction"
 STATIC_ENTITIES = ("base", "platform")  # never change in their frames
 

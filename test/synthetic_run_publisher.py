@@ -1,11 +1,11 @@
-"""Publish a short synthetic run on the suite's topics (for recorder tests, demos, benchmarks).
+"""Test scaffolding: publish a short synthetic run on the suite's topics (recorder tests, benchmarks).
 
-Not part of the product graph: it stands in for the emulator / estimator while
-those nodes are built. Messages are real ROS types with plausible values:
+Not part of the product graph: it stands in for the emulator / estimator where a
+test wants exact, known messages. Messages are real ROS types with plausible values:
 legs/joint_states (leg_1..6 lengths, vib_1..6 displacements, efforts in N),
 platform/pose, legs/force_estimate, /diagnostics events, optional /clock.
 
-    python -m stewart_vibration.nodes.synthetic_run_publisher --count 200 --rate 100
+    PYTHONPATH=test python -m synthetic_run_publisher --count 200 --rate 100
 
 Waits until every publisher has a subscriber (the recorder), publishes
 ``count`` samples per topic at ``rate`` Hz, then prints one line
@@ -28,8 +28,7 @@ from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-LEGS = [f"leg_{i}" for i in range(1, 7)]
-VIBS = [f"vib_{i}" for i in range(1, 7)]
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
 
 def _stamp(t_ns: int) -> Time:
@@ -39,7 +38,7 @@ def _stamp(t_ns: int) -> Time:
 def _joint_states(t: float, stamp: Time) -> JointState:
     msg = JointState()
     msg.header.stamp = stamp
-    msg.name = LEGS + VIBS
+    msg.name = [*LEG_NAMES, *VIB_NAMES]
     w = 2 * math.pi * 20.0
     lengths = [0.30 + 0.002 * i + 1e-4 * math.sin(w * t + 0.3 * i) for i in range(6)]
     vib = [5e-4 * (1 - 0.1 * i) * math.sin(w * t + 0.2 * i) for i in range(6)]
@@ -66,7 +65,7 @@ def _pose(t: float, stamp: Time) -> PoseStamped:
 def _forces(t: float, stamp: Time) -> JointState:
     msg = JointState()
     msg.header.stamp = stamp
-    msg.name = list(LEGS)
+    msg.name = list(LEG_NAMES)
     msg.effort = [40.0 + 5 * i + 3 * math.sin(2 * math.pi * 20.0 * t + 0.5 * i) + 0.2 for i in range(6)]
     return msg
 
