@@ -37,13 +37,13 @@ from stewart_vibration.motion.paths import checked_path
 from stewart_vibration.motion.profiles import minimum_jerk
 from stewart_vibration.nodes.common import check_frame, pose_from_msg
 from stewart_vibration.nodes.kinematics_node import unset_pose
-from stewart_vibration.nodes.vibration_planner_node import SETTINGS, check_settings
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.splines import spline_segments
 from stewart_vibration.vibration import decompose_vibration
 from stewart_vibration.vibration.feasibility import check_command_limits
+from stewart_vibration.vibration.settings import SETTINGS, default_settings, settings_reason
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream
 from stewart_vibration.vibration.waveform import sinusoid
 
@@ -650,7 +650,7 @@ DEFAULT_SETTINGS = dict(direction=[0.0, 0.0, 1.0], frame="platform", amplitude_m
                         frequency_hz=35.0, phase_rad=0.0, duration_s=0.0, ramp_s=0.2, lookahead_s=2.0,
                         window_period_s=0.5, sample_period_s=0.001, lead_s=0.3, start_lead_s=1.0,
                         max_lookahead_s=5.0, pose_timeout_s=1.0)
-assert set(DEFAULT_SETTINGS) == set(SETTINGS)
+assert DEFAULT_SETTINGS == default_settings(ROBOT)  # the planner's declared defaults (an independent copy)
 NUMBERS = st.one_of(ANY_FLOAT, st.sampled_from(SPECIAL + [-1.0, 1e-4, 0.05, 600.0, 86400.0]), st.floats(-10.0, 100.0))
 DIRECTIONS = st.one_of(st.lists(ANY_FLOAT | st.floats(-2.0, 2.0), max_size=5),
                        st.sampled_from([[0.0, 0.0, 0.0], [1e308, 1e308, 0.0], [5e-324, 0.0, 0.0], [1e-10, 0.0, 0.0],
@@ -671,7 +671,7 @@ def wild_settings(draw):
 @examples("settings")
 @given(s=wild_settings())
 def test_planner_settings_check_returns_a_reason_or_none_and_never_raises(s):
-    reason = check_settings(ROBOT, s)  # any exception fails the test
+    reason = settings_reason(ROBOT, s)  # any exception fails the test
     event("settings: refused" if reason else "settings: accepted")
     assert reason is None or (isinstance(reason, str) and reason.strip())
     if reason is None:
@@ -753,7 +753,7 @@ def start_stream(s, pose):
 @given(case=ranged_settings())
 def test_accepted_planner_settings_give_windows_within_the_unit_limits_or_a_typed_refusal(case):
     s, pose, stop_fraction = case
-    if check_settings(ROBOT, s) is not None:
+    if settings_reason(ROBOT, s) is not None:
         event("settings: refused")
         return
     started, refusal = attempt(start_stream, s, pose, label="plan")

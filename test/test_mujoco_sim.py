@@ -77,7 +77,28 @@ def test_validate_dynamics_cli_json(tmp_path, capsys):
         scen = report["scenarios"][name]
         assert scen["full_model"]["worst_leg_rms_relative"] <= 1e-4
         assert scen["paper_model"]["worst_leg_rms_relative"] > 1e-2
+        assert scen["passed"] and all(scen["checks"].values()) and len(scen["checks"]) == 3
+        assert scen["constraint_violation_max_m"] <= 1e-8 and scen["tracking_error_relative"] <= 0.01
         assert len(scen["full_model"]["rms_relative_per_leg"]) == 6
         assert (tmp_path / f"{name}_forces.png").stat().st_size > 10_000
         assert (tmp_path / f"{name}_legs.png").stat().st_size > 10_000
     assert (tmp_path / "validate_dynamics.json").is_file()
+
+
+def test_validate_dynamics_fails_on_tracking_error_or_constraint_violation(monkeypatch, capsys):
+    """The verdict counts every figure it prints: a tracking error or hinge gap beyond its limit fails it."""
+    import json
+
+    import stewart_vibration.cli.validate_dynamics_cmd as cmd
+    from stewart_vibration.cli.main import main
+
+    args = ["validate-dynamics", "--json", "--paper-duration", "0.02", "--clinical-duration", "0.02"]
+    for name, limit in (("TRACKING_LIMIT_RELATIVE", 1e-12), ("CONSTRAINT_VIOLATION_LIMIT_M", 1e-15)):
+        with monkeypatch.context() as patch:
+            patch.setattr(cmd, name, limit)
+            code = main(args)
+        report = json.loads(capsys.readouterr().out)
+        assert code == 1, name
+        failed = {check for scen in report["scenarios"].values() for check, ok in scen["checks"].items() if not ok}
+        assert failed == {"tracking_error" if name.startswith("TRACKING") else "constraint_violation"}
+        assert not any(scen["passed"] for scen in report["scenarios"].values())

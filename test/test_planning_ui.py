@@ -21,7 +21,6 @@ from websockets.sync.client import connect
 from stewart_vibration import decompose_vibration
 from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.motion.paths import checked_path
-from stewart_vibration.nodes.vibration_planner_node import check_settings
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.processes import ros_environment
 from stewart_vibration.ui import STATIC_DIR, model
@@ -73,22 +72,22 @@ def test_path_margins_name_the_worst_limit(robot):
 
 def test_vibration_preview_matches_the_core_and_says_why_it_is_infeasible(robot):
     pose = paper_pose(robot)
-    settings = {**model.STREAM_DEFAULTS, **model.vibration_from_fields(VIBRATION)}
-    preview = model.vibration_preview(robot, pose, settings, check_settings)
+    settings = {**model.stream_defaults(robot), **model.vibration_from_fields(VIBRATION)}
+    preview = model.vibration_preview(robot, pose, settings)
     plan = decompose_vibration(robot, pose, acceleration_g=0.3, frequency=35.0)
     assert preview["feasible"] and preview["reason"] is None
     np.testing.assert_allclose(preview["leg_amplitudes_um"], plan.leg_amplitudes * 1e6)
     np.testing.assert_allclose(preview["gains"], plan.gains)
     assert max(preview["peak_leg_acceleration_g"]) < preview["limits"]["acceleration_max_g"]
-    too_much = model.vibration_preview(robot, pose, {**settings, "acceleration_g": 3.0}, check_settings)
+    too_much = model.vibration_preview(robot, pose, {**settings, "acceleration_g": 3.0})
     assert not too_much["feasible"] and "VibrationLimitError" in too_much["reason"]
     assert len(too_much["leg_amplitudes_um"]) == 6  # the decomposition is shown anyway
-    band = model.vibration_preview(robot, pose, {**settings, "frequency_hz": 150.0}, check_settings)
+    band = model.vibration_preview(robot, pose, {**settings, "frequency_hz": 150.0})
     assert "outside the vibration unit's band" in band["reason"]
-    ranged = model.vibration_preview(robot, pose, {**settings, "acceleration_g": 11.0}, None,
+    ranged = model.vibration_preview(robot, pose, {**settings, "acceleration_g": 11.0},
                                      {"acceleration_g": (0.0, 10.0)})
     assert "outside the planner's range" in ranged["reason"]
-    zero = model.vibration_preview(robot, pose, {**settings, "direction": [0.0, 0.0, 0.0]}, check_settings)
+    zero = model.vibration_preview(robot, pose, {**settings, "direction": [0.0, 0.0, 0.0]})
     assert not zero["feasible"] and "direction" in zero["reason"]
 
 

@@ -17,8 +17,9 @@ from pathlib import Path
 import numpy as np
 
 from ..mcap_log.reader import RunReader, open_run
-from ..robot import LEG_NAMES, VIB_NAMES
+from ..robot import LEG_NAMES, VIB_NAMES, Robot, load_robot
 from .fits import dominant_sinusoid
+from .run_summary import leg_force_error, load_signals, platform_vibration
 
 EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
 
@@ -75,6 +76,7 @@ def extract(reader: RunReader) -> dict:
     data: dict = {}
     starts = [m.log_time for m in reader.messages()][:1]
     t0 = starts[0] if starts else 0
+    data["time_origin_s"] = t0 / 1e9
     if js := _find(reader, "legs/joint_states"):
         t, lengths = _joint_series(reader, js, LEG_NAMES, "position")
         if len(t):
@@ -126,8 +128,14 @@ def extract(reader: RunReader) -> dict:
     return data
 
 
-def summarize(reader: RunReader, data: dict) -> dict:
-    """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events."""
+def summarize(reader: RunReader, data: dict, signals: dict, robot: Robot) -> dict:
+    """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events.
+
+    ``signals``: ``run_summary.load_signals`` of the same run; the platform's vibration and the force error
+    come from the run summary's own functions over the steady window found here (``vibration_window``),
+    at the legs' median fitted frequency. ``robot``: removes an applied tissue's leg forces from the
+    measured efforts, as the run summary does.
+    """
     topics = reader.topics()
     out: dict = {
         "file": str(reader.path),
@@ -145,24 +153,32 @@ def summarize(reader: RunReader, data: dict) -> dict:
             n: dict(zip(("amplitude_m", "frequency_hz"), dominant_sinusoid(data["vib_t"][sel], data["vib"][sel, i])))
             for i, n in enumerate(VIB_NAMES)
         }
-    if "pose_xyz" in data and window:
+    frequency = float(np.median([v["frequency_hz"] for v in out["vibration"].values()])) \
+        if out.get("vibration") else None
+    origin = data.get("time_origin_s", 0.0)  # the plots' time 0, as header-stamp time (s)
+    if "pose_xyz" in data and window and frequency:
+        # the run summary's computation (analysis.run_summary.platform_vibration) over this window
+        line = platform_vibration(signals, window[0] + origin, window[1] + origin, frequency)
+        direction = line["direction"] * (1 if line["direction"][np.argmax(np.abs(line["direction"]))] > 0 else -1)
         sel = _within(data["pose_t"], window)
-        dev = data["pose_xyz"][sel] - data["pose_xyz"][sel].mean(axis=0)
-        _u, s, vt = np.linalg.svd(dev, full_matrices=False) if len(dev) > 1 else (None, [0.0], np.eye(3))
-        direction = vt[0] * (1 if vt[0][np.argmax(np.abs(vt[0]))] > 0 else -1)
         out["platform"] = {
             "mean_position_m": data["pose_xyz"][sel].mean(axis=0).tolist(),
+            "frequency_hz": frequency,
             "vibration_direction": direction.tolist(),
-            "vibration_amplitude_m": float(np.sqrt(2.0) * s[0] / np.sqrt(max(len(dev), 1))),
-            "linearity": float(s[0] ** 2 / max(np.sum(np.square(s)), 1e-300)),
+            "vibration_amplitude_m": line["amplitude_m"],
+            "off_axis_ratio": line["off_axis_ratio"],
         }
     if "est" in data and "force" in data:
-        measured = np.column_stack([np.interp(data["est_t"], data["force_t"], data["force"][:, i]) for i in range(6)])
-        err = data["est"] - measured
-        out["force_error_rms_n"] = dict(zip(LEG_NAMES, np.sqrt(np.mean(err**2, axis=0)).tolist()))
-        if window:
-            sel = _within(data["est_t"], window)
-            out["force_error_rms_n_vibration"] = dict(zip(LEG_NAMES, np.sqrt(np.mean(err[sel] ** 2, axis=0)).tolist()))
+        # the run summary's computation (analysis.run_summary.leg_force_error): over the whole run, and over
+        # the steady vibration relative to the fitted force amplitude
+        whole = leg_force_error(robot, signals, -np.inf, np.inf, None)
+        if whole is not None:
+            out["force_error_rms_n"] = dict(zip(LEG_NAMES, whole["rms_error_n"].tolist()))
+        steady = leg_force_error(robot, signals, window[0] + origin, window[1] + origin, frequency) \
+            if window and frequency else None
+        if steady is not None:
+            out["force_error_rms_n_vibration"] = dict(zip(LEG_NAMES, steady["rms_error_n"].tolist()))
+            out["force_error_worst_leg_relative_vibration"] = steady["worst_leg_relative"]
     if "wrench_applied" in data and "wrench_estimated" in data:
         ta, te = np.round(data["wrench_applied_t"], 6), np.round(data["wrench_estimated_t"], 6)
         _, ia, ie = np.intersect1d(ta, te, return_indices=True)
@@ -199,8 +215,8 @@ def markdown(summary: dict, plots: list[str]) -> str:
     if "platform" in summary:
         p = summary["platform"]
         d = ", ".join(f"{x:.4f}" for x in p["vibration_direction"])
-        lines += ["", f"Platform vibration direction [{d}], amplitude {p['vibration_amplitude_m']:.3e} m, "
-                  f"linearity {p['linearity']:.4f}"]
+        lines += ["", f"Platform vibration at {p['frequency_hz']:.4f} Hz: direction [{d}], amplitude "
+                  f"{p['vibration_amplitude_m']:.3e} m, off-axis ratio {p['off_axis_ratio']:.2e}"]
     if "force_error_rms_n" in summary:
         lines += ["", "Leg force estimate vs measured, RMS error (N): "
                   + ", ".join(f"{k} {v:.3f}" for k, v in summary["force_error_rms_n"].items())]
@@ -222,7 +238,8 @@ def markdown(summary: dict, plots: list[str]) -> str:
     return "\n".join(lines)
 
 
-def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bool = False) -> dict:
+def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bool = False,
+                 robot: Robot | None = None) -> dict:
     """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary.
 
     ``mcap_path``: a .mcap or a bag directory. McapFileError (before anything is written)
@@ -234,7 +251,7 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     data = extract(reader)
-    summary = summarize(reader, data)
+    summary = summarize(reader, data, load_signals(reader), robot or load_robot())
     plots = run_plots.plot_all(data, summary, out)
     summary["plots"] = plots
     (out / "summary.json").write_text(json.dumps(summary, indent=2))

@@ -20,7 +20,7 @@ from ..dynamics.newton_euler import leg_forces
 from ..mcap_log.reader import RunReader
 from ..messages.arrays import joint_arrays, pose_array, stamp_s
 from ..robot import LEG_NAMES, Robot
-from ..vibration import decompose_vibration
+from ..vibration.settings import VIBRATION_KEYS, plan_vibration
 from .fits import (
     direction_error_deg,
     fit_sinusoid,
@@ -38,12 +38,12 @@ STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate",
 
 
 def load_signals(mcap_path) -> dict:
-    """Time series from the run: ground-truth poses, joint states, force estimates (times in s), the stream
-    counts and the nodes' last diagnostics."""
+    """Time series of a run (an MCAP path, a run folder or an open RunReader): ground-truth poses, joint
+    states, force estimates (header-stamp times in s), the stream counts and the nodes' last diagnostics."""
     wanted = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
               "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
               "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": []}
-    reader = RunReader(mcap_path)
+    reader = mcap_path if isinstance(mcap_path, RunReader) else RunReader(mcap_path)
     counts = stream_counts(reader)
     topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
     for raw, msg in reader.decoded(topics):
@@ -149,32 +149,77 @@ def vibration_start(signals: dict, after: float) -> float:
     return float(later[0])
 
 
-def summarize_vibration(robot: Robot, signals: dict, nominal_pose, parameters: dict, start_time: float) -> dict:
-    """Measured vs planned for one vibration step; ``start_time`` (sim s) is a lower bound of its t0
-    (the planner stamps every window with t0, which the MCAP holds)."""
-    params = dict(parameters)
-    frequency = float(params.get("frequency_hz", 35.0))
-    ramp, duration = float(params.get("ramp_s", 0.2)), float(params["duration_s"])
-    plan = decompose_vibration(
-        robot, nominal_pose, direction=params.get("direction"), frame=params.get("frame", "platform"),
-        amplitude=params.get("amplitude_m") or None,
-        acceleration_g=None if params.get("amplitude_m") else params.get("acceleration_g", 0.3),
-        frequency=frequency, phase=float(params.get("phase_rad", 0.0)), method="linear")
-    start = vibration_start(signals, start_time)
-    t0 = start + ramp + STEADY_MARGIN_S
-    t1 = start + duration - ramp - STEADY_MARGIN_S
-    out = {"frequency_hz": frequency, "planned_amplitude_m": plan.amplitude, "planned_direction": plan.direction,
-           "start_time_s": start, "window_s": [t0, t1], "gains": plan.gains}
+def steady_window(start: float, duration: float, ramp: float) -> tuple[float, float]:
+    """(t0, t1) (s) of a vibration's steady part: after the ramp-in and before the ramp-out, with
+    STEADY_MARGIN_S more on both sides."""
+    return start + ramp + STEADY_MARGIN_S, start + duration - ramp - STEADY_MARGIN_S
+
+
+def platform_vibration(signals: dict, t0: float, t1: float, frequency: float) -> dict:
+    """The platform's vibration over [t0, t1] (s) from the ground-truth poses: the fundamental at
+    ``frequency`` (Hz) fitted to the positions (``fits.line_vibration``). The one computation of "platform
+    amplitude" (run summary and run report).
+
+    Returns:
+        {direction (3,) unit, base frame; amplitude_m; off_axis_ratio; samples}.
+    """
     pt, poses = signals["pose"]
     sel = (pt >= t0) & (pt <= t1)
     line = line_vibration(pt[sel], poses[sel, :3], frequency)
+    return {"direction": line.direction, "amplitude_m": line.amplitude, "off_axis_ratio": line.off_axis_ratio,
+            "samples": int(sel.sum())}
+
+
+def leg_force_error(robot: Robot, signals: dict, t0: float, t1: float, frequency: float | None) -> dict | None:
+    """The leg-force model (legs/force_estimate) against the emulator's measured efforts over [t0, t1] (s),
+    minus the forces of the applied tissue wrench (the environment, not part of the model:
+    ``tissue_leg_forces``). The one computation of "force error" (``fits.force_error``: RMS on the measured
+    stamps, relative to the fitted force amplitude at ``frequency``, or half the peak-to-peak without one).
+
+    Returns:
+        force_error's dict, or None with fewer than four estimates in the window.
+    """
+    jt, joints = signals["joints"]
+    ft, forces = signals["force_estimate"]
+    sel, fsel = (jt >= t0) & (jt <= t1), (ft >= t0) & (ft <= t1)
+    if fsel.sum() < 4:
+        return None
+    measured = joints["effort"][sel, :6] - tissue_leg_forces(robot, signals, jt[sel])
+    return force_error(ft[fsel], forces["effort"][fsel], jt[sel], measured, frequency)
+
+
+def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dict, start_time: float) -> dict:
+    """Measured vs planned for one vibration step.
+
+    Args:
+        robot: the robot.
+        signals: from ``load_signals`` (or the planning UI's live buffers in the same form).
+        nominal_pose: the platform pose [6] the vibration was planned at (m, rad).
+        settings: the settings the planner reports it ran (its start answer: every key of
+            ``vibration.settings.VIBRATION_KEYS``; no defaults are filled in here).
+        start_time: a lower bound of the vibration's t0 (sim s; every window is stamped with t0).
+
+    Returns:
+        The figures of the vibration (see ``check_bounds`` for the ones judged).
+
+    Raises:
+        KeyError: a setting is missing; ValueError: no window of the vibration was recorded.
+    """
+    s = {key: settings[key] for key in VIBRATION_KEYS}
+    frequency, ramp, duration = float(s["frequency_hz"]), float(s["ramp_s"]), float(s["duration_s"])
+    plan = plan_vibration(robot, nominal_pose, s, check_limits=False, method="linear")
+    start = vibration_start(signals, start_time)
+    t0, t1 = steady_window(start, duration, ramp)
+    out = {"frequency_hz": frequency, "planned_amplitude_m": plan.amplitude, "planned_direction": plan.direction,
+           "start_time_s": start, "window_s": [t0, t1], "gains": plan.gains}
+    line = platform_vibration(signals, t0, t1, frequency)
     out.update({
-        "measured_direction": line.direction,
-        "direction_error_deg": direction_error_deg(line.direction, plan.direction),
-        "measured_amplitude_m": line.amplitude,
-        "amplitude_error": abs(line.amplitude / plan.amplitude - 1.0),
-        "off_axis_ratio": line.off_axis_ratio,
-        "window_samples": int(sel.sum()),
+        "measured_direction": line["direction"],
+        "direction_error_deg": direction_error_deg(line["direction"], plan.direction),
+        "measured_amplitude_m": line["amplitude_m"],
+        "amplitude_error": abs(line["amplitude_m"] / plan.amplitude - 1.0),
+        "off_axis_ratio": line["off_axis_ratio"],
+        "window_samples": line["samples"],
     })
     jt, joints = signals["joints"]
     sel = (jt >= t0) & (jt <= t1)
@@ -198,19 +243,14 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, parameters: d
                                          < np.radians(90))),
         "leg_frequency_hz": leg_freq,
         "leg_frequency_spread_hz": float(np.ptp(leg_freq)),
+        "leg_frequency_error_hz": float(np.abs(leg_freq - frequency).max()),
     })
     planned_active = duration - ramp
     measured_active = active_duration(jt, joints["position"][:, 6:12], plan.leg_amplitudes, frequency, start,
                                       start + duration + 1.0)
     out.update({"active_duration_s": measured_active, "planned_active_duration_s": planned_active,
                 "active_duration_error_s": abs(measured_active - planned_active)})
-    ft, forces = signals["force_estimate"]
-    fsel = (ft >= t0) & (ft <= t1)
-    if fsel.sum() >= 4:
-        measured = joints["effort"][sel, :6] - tissue_leg_forces(robot, signals, jt[sel])
-        out["force"] = force_error(ft[fsel], forces["effort"][fsel], jt[sel], measured, frequency)
-    else:
-        out["force"] = None
+    out["force"] = leg_force_error(robot, signals, t0, t1, frequency)
     return out
 
 
@@ -299,10 +339,17 @@ def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) 
 
 
 def check_bounds(summary: dict, bounds: dict) -> list[str]:
-    """Human-readable list of every figure that missed its bound (empty = all passed)."""
+    """Human-readable list of every figure that missed its bound (empty = all passed).
+
+    Every figure the run summary prints is judged here: pose errors after moves; per vibration the
+    platform's direction, amplitude and off-axis ratio, every leg's amplitude, phase (and its sign) and
+    frequency, the active duration and every leg's force error (the worst); with a tissue the wrench
+    estimate and the guard trips; the sample ratio of every derived stream and, per node, its lost input
+    states and its lag.
+    """
     failures = []
     for move in summary["moves"]:
-        if move["pose_error_m"] > bounds["pose_error_m"] or move["pose_error_deg"] > bounds["pose_error_deg"]:
+        if not (move["pose_error_m"] <= bounds["pose_error_m"] and move["pose_error_deg"] <= bounds["pose_error_deg"]):
             failures.append(f"move to {move['name']}: pose error {move['pose_error_m'] * 1e6:.2f} um / "
                             f"{move['pose_error_deg']:.4f} deg")
     for i, vib in enumerate(summary["vibrations"], start=1):
@@ -314,6 +361,7 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
              bounds["leg_amplitude_error"], ""),
             ("leg phase error", float(np.max(vib["leg_phase_error_deg"])), bounds["leg_phase_error_deg"], "deg"),
             ("leg frequency spread", vib["leg_frequency_spread_hz"], bounds["leg_frequency_spread_hz"], "Hz"),
+            ("leg frequency error (worst leg)", vib["leg_frequency_error_hz"], bounds["leg_frequency_error_hz"], "Hz"),
             ("active duration error", vib["active_duration_error_s"], bounds["active_duration_error_s"], "s"),
         ]
         if vib["force"] is not None:
@@ -350,6 +398,9 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
         for node, row in streams["nodes"].items():
             if row["lost"]:
                 failures.append(f"{node} lost {row['lost']} of its input states")
+            if not row["lag_p99_ms"] <= bounds["stream_lag_p99_ms"]:
+                failures.append(f"{node}: lag p99 {row['lag_p99_ms']:.1f} ms exceeds "
+                                f"{bounds['stream_lag_p99_ms']:g} ms")
     return failures
 
 

@@ -140,6 +140,7 @@ class ScenarioResult:
     full: ForceComparison
     paper: ForceComparison
     tracking_error: float  # max |pose - reference pose| over the position part, m
+    amplitude: float  # the prescribed vibration's translation amplitude, m
 
 
 def paper_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
@@ -172,7 +173,8 @@ def run_scenario(robot: Robot, name: str, duration: float, settings: SimulationS
     paper = compare_forces(leg_forces_paper(robot, run.pose, run.twist, run.accel, external_wrench=run.wrench),
                            run.forces)
     tracking = float(np.abs(run.pose[:, :3] - run.reference_pose[:, :3]).max())
-    return ScenarioResult(name, description, run, full, paper, tracking)
+    amplitude = float(np.linalg.norm(traj.amplitude[:, :3], axis=1).sum())
+    return ScenarioResult(name, description, run, full, paper, tracking, amplitude)
 
 
 # -- exact checks of the Newton-Euler model against MuJoCo's equations (docs/dynamics.md) -----------------

@@ -56,6 +56,7 @@ from ..paper import paper_pose
 from ..robot import STANDARD_GRAVITY, load_robot
 from ..ui import model
 from ..ui.server import UiServer, bind
+from ..vibration.settings import SETTINGS
 from .common import (
     BASE_FRAME,
     OK,
@@ -69,7 +70,6 @@ from .common import (
     run_node,
     text_param,
 )
-from .vibration_planner_node import SETTINGS, check_settings
 
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -149,7 +149,7 @@ class PlanningUiNode(Node):
         self.run = None  # vibration being followed: t0, settings, nominal pose, source
         self.summary = None
         self.report_files: list[str] = []
-        self.planner_settings = dict(model.STREAM_DEFAULTS)
+        self.planner_settings = model.stream_defaults(self.robot)
         self.planner_known = False
         self.planner_ranges: dict = {}
         self.last_start = None
@@ -533,7 +533,7 @@ class PlanningUiNode(Node):
 
     def _cmd_preview_vibration(self, args, reply) -> None:
         _, settings = self._vibration_settings(args)
-        preview = model.vibration_preview(self.robot, self._estimate(), settings, check_settings, self.planner_ranges)
+        preview = model.vibration_preview(self.robot, self._estimate(), settings, self.planner_ranges)
         reply({"ok": True, "message": "feasible" if preview["feasible"] else preview["reason"],
                "preview": preview, "planner_settings_known": self.planner_known})
 
@@ -554,7 +554,7 @@ class PlanningUiNode(Node):
                        "message": f"parameters refused: {response.result.reason}"})
                 return
             self.planner_settings.update(params)
-            preview = model.vibration_preview(self.robot, pose, settings, check_settings, self.planner_ranges)
+            preview = model.vibration_preview(self.robot, pose, settings, self.planner_ranges)
             if not preview["feasible"]:
                 reply({"ok": False, "refused_by": "planning_ui (core checks)", "message": f"not started: "
                        f"{preview['reason']}", "preview": preview})

@@ -27,7 +27,6 @@ ramp-out). The start answer carries the settings that run as JSON after
 from __future__ import annotations
 
 import json
-import math
 import time
 
 import numpy as np
@@ -41,14 +40,21 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from ..emulation.vibration_status import report_from_values
-from ..errors import StewartError, VibrationLimitError
+from ..errors import StewartError
 from ..kinematics.rotations import pose_from_position_quaternion
 from ..messages import cdr
-from ..robot import STANDARD_GRAVITY, load_robot
-from ..vibration import decompose_vibration
-from ..vibration.decompose import FRAMES
-from ..vibration.feasibility import check_command_limits
-from ..vibration.streaming import StreamInterrupted, StreamSettings, VibrationStream
+from ..robot import load_robot
+from ..vibration.settings import (
+    DEFAULT_DIRECTION,
+    DEFAULT_FRAME,
+    SETTINGS,
+    parameters,
+    peak_acceleration_g,
+    settings_reason,
+    start_check,
+    start_refusal,
+)
+from ..vibration.streaming import StreamInterrupted, VibrationStream
 from .common import (
     ERROR,
     OK,
@@ -62,59 +68,10 @@ from .common import (
     text_param,
 )
 
-MAX_WINDOW_SAMPLES = 100_000  # one message; the emulator refuses windows reaching > 30 s ahead anyway
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")
-SETTINGS = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s", "ramp_s",
-            "lookahead_s", "window_period_s", "sample_period_s", "lead_s", "start_lead_s", "max_lookahead_s",
-            "pose_timeout_s")
-
-
-def check_settings(robot, s: dict) -> str | None:
-    """The reason the planner settings ``s`` are invalid, or None."""
-    unit = robot.vibration_unit
-    direction = np.asarray(list(s["direction"]), dtype=float)
-    if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < 1e-9:
-        return f"direction must be 3 finite values, not all zero; got {list(s['direction'])}"
-    if s["frame"] not in FRAMES:
-        return f"frame must be one of {list(FRAMES)}, got {s['frame']!r}"
-    for name, value in s.items():
-        if name not in ("direction", "frame") and not math.isfinite(value):
-            return f"{name} must be finite, got {value}"
-    if not unit.frequency_min <= s["frequency_hz"] <= unit.frequency_max:
-        return (f"frequency_hz {s['frequency_hz']} is outside the vibration unit's band "
-                f"[{unit.frequency_min}, {unit.frequency_max}] Hz")
-    for name in ("sample_period_s", "lookahead_s", "window_period_s", "max_lookahead_s", "pose_timeout_s"):
-        if s[name] <= 0:
-            return f"{name} must be > 0, got {s[name]}"
-    for name in ("lead_s", "start_lead_s", "duration_s"):
-        if s[name] < 0:
-            return f"{name} must be >= 0, got {s[name]}"
-    samples = (max(s["max_lookahead_s"], s["lookahead_s"] + s["ramp_s"]) + s["start_lead_s"]) / s["sample_period_s"]
-    if samples > MAX_WINDOW_SAMPLES:
-        return (f"a window could hold {samples:.0f} samples (max_lookahead_s / sample_period_s); at most "
-                f"{MAX_WINDOW_SAMPLES}: raise sample_period_s or lower max_lookahead_s")
-    if s["amplitude_m"] < 0:
-        return f"amplitude_m must be >= 0, got {s['amplitude_m']}"
-    if s["amplitude_m"] == 0 and s["acceleration_g"] <= 0:
-        return "acceleration_g must be > 0 when amplitude_m = 0"
-    if s["ramp_s"] <= 0:
-        return f"ramp_s must be > 0, got {s['ramp_s']}"
-    if s["duration_s"] != 0 and s["duration_s"] < 2 * s["ramp_s"]:
-        return f"duration_s {s['duration_s']} must be 0 (until stop) or >= 2 ramp_s = {2 * s['ramp_s']}"
-    if s["lookahead_s"] <= s["window_period_s"]:
-        return (f"lookahead_s {s['lookahead_s']} must exceed window_period_s {s['window_period_s']} (the next "
-                "window must arrive before the last one's ramp-out)")
-    if s["start_lead_s"] < s["lead_s"]:
-        return f"start_lead_s {s['start_lead_s']} must be >= lead_s {s['lead_s']} (the first window starts at t0)"
-    if s["max_lookahead_s"] < s["lookahead_s"]:
-        return f"max_lookahead_s {s['max_lookahead_s']} must be >= lookahead_s {s['lookahead_s']}"
-    if s["sample_period_s"] * s["frequency_hz"] > 0.1:
-        return (f"sample_period_s {s['sample_period_s']} is too coarse for {s['frequency_hz']} Hz "
-                "(need >= 10 samples per period)")
-    return None
 
 
 class VibrationPlannerNode(Node):
@@ -124,32 +81,14 @@ class VibrationPlannerNode(Node):
         super().__init__("vibration_planner")
         self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
-        unit = self.robot.vibration_unit
-        self.declare_parameter("direction", [0.0, 0.0, 1.0], ParameterDescriptor(
+        self.declare_parameter("direction", list(DEFAULT_DIRECTION), ParameterDescriptor(
             type=ParameterType.PARAMETER_DOUBLE_ARRAY,
             description="vibration direction (3 values, any non-zero length) in `frame`"))
-        self.declare_parameter("frame", "platform", text_param("frame of `direction`: platform | base"))
-        number = [
-            ("amplitude_m", 0.0, "platform displacement amplitude, m (0 = use acceleration_g)", 0.0, 0.01),
-            ("acceleration_g", 0.3, "peak platform acceleration, g (used when amplitude_m = 0)", 0.0, 10.0),
-            ("frequency_hz", 35.0, "vibration frequency, Hz (the vibration unit's band)", unit.frequency_min,
-             unit.frequency_max),
-            ("phase_rad", 0.0, "phase of the platform vibration, rad", -2 * math.pi, 2 * math.pi),
-            ("duration_s", 0.0, "vibration duration incl. ramps, s (0 = until stop)", 0.0, 86400.0),
-            ("ramp_s", 0.2, "ramp-in / ramp-out time, s", 0.01, 10.0),
-            ("lookahead_s", 2.0, "vibration carried by each streamed window before its ramp-out tail, s", 0.05, 60.0),
-            ("window_period_s", 0.5, "period between streamed windows, s (< lookahead_s)", 0.01, 30.0),
-            ("sample_period_s", 0.001, "sample spacing in a window, s", 1e-4, 0.05),
-            ("lead_s", 0.3, "streamed windows start this far ahead of now, s", 0.0, 2.0),
-            ("start_lead_s", 1.0, "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0),
-            ("max_lookahead_s", 5.0, "a finite vibration ending within this time is sent whole in one window, s "
-             "(the emulator accepts windows reaching up to 30 s ahead)", 0.1, 30.0),
-            ("pose_timeout_s", 1.0, "start needs a pose estimate received within this time, s", 0.01, 60.0),
-        ]
-        for name, default, text, low, high in number:
-            declare_float(self, name, default, float_param(text, low, high))
+        self.declare_parameter("frame", DEFAULT_FRAME, text_param("frame of `direction`: platform | base"))
+        for name, spec in parameters(self.robot).items():
+            declare_float(self, name, spec.default, float_param(spec.description, spec.low, spec.high))
         self.add_on_set_parameters_callback(self.on_set_parameters)
-        reason = check_settings(self.robot, self.settings())
+        reason = settings_reason(self.robot, self.settings())
         if reason:
             raise ValueError(f"invalid initial parameters: {reason}")
 
@@ -185,7 +124,7 @@ class VibrationPlannerNode(Node):
             if p.name in s:
                 s[p.name] = p.value
         try:
-            reason = check_settings(self.robot, s)
+            reason = settings_reason(self.robot, s)
         except (TypeError, ValueError) as exc:
             reason = f"invalid parameter value: {exc}"
         if reason:
@@ -277,41 +216,19 @@ class VibrationPlannerNode(Node):
             pose = pose_from_position_quaternion(position, quaternion)
         except StewartError as exc:
             return self._refuse(response, f"pose estimate unusable: {exc}")
-        use_amplitude = s["amplitude_m"] > 0
-        duration = s["duration_s"] if s["duration_s"] > 0 else None
         try:
-            plan = decompose_vibration(
-                self.robot, pose, list(s["direction"]),
-                amplitude=s["amplitude_m"] if use_amplitude else None,
-                acceleration_g=None if use_amplitude else s["acceleration_g"],
-                frequency=s["frequency_hz"], phase=s["phase_rad"], frame=s["frame"], method="exact",
-                check_limits=True,
-            )
-            stream = VibrationStream(self.robot, plan, StreamSettings(
-                duration=duration, ramp_s=s["ramp_s"], sample_period_s=s["sample_period_s"],
-                lookahead_s=s["lookahead_s"], lead_s=s["lead_s"], max_lookahead_s=s["max_lookahead_s"]))
-            t0 = now + s["start_lead_s"]
-            first = stream.next_window(now - t0)
-            check_command_limits(self.robot.vibration_unit, first.times, first.position, first.velocity,
-                                 first.acceleration)
-            if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
-                probe = VibrationStream(self.robot, plan, stream.settings)
-                probe.next_window(-s["start_lead_s"])
-                stop = probe.stop_window(s["ramp_s"])
-                if stop is not None:
-                    check_command_limits(self.robot.vibration_unit, stop.times, stop.position, stop.velocity,
-                                         stop.acceleration)
-        except VibrationLimitError as exc:
-            return self._refuse(response, f"infeasible vibration ({type(exc).__name__}): {exc} (with the ramps of "
-                                          f"ramp_s {s['ramp_s']} s; a longer ramp_s lowers the peak acceleration)")
+            started = start_check(self.robot, pose, s)
         except StewartError as exc:
-            return self._refuse(response, f"infeasible vibration ({type(exc).__name__}): {exc}")
+            return self._refuse(response, start_refusal(exc, s))
+        plan, stream, first = started.plan, started.stream, started.first
+        t0 = now + s["start_lead_s"]
+        duration = s["duration_s"] if s["duration_s"] > 0 else None
         self.plan, self.stream = plan, stream
         self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"]}
         self.state, self.last_error = "running", ""
         self.seen_event = emulator.event_seq if emulator is not None else 0
         self.publish(first)
-        acc_g = plan.amplitude * (2 * math.pi * plan.frequency) ** 2 / STANDARD_GRAVITY
+        acc_g = peak_acceleration_g(plan)
         ran = dict(s, direction=list(s["direction"]), t0_s=t0, pose=pose.tolist())
         text = (
             f"started: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um ({acc_g:.3f} g) "

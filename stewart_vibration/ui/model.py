@@ -7,8 +7,9 @@ computed with the core's own checks:
 - reachability: the six leg lengths against the stroke, the joint angles against their limits, the
   Jacobian condition number, the first violated limit with its reason (``kinematics.check_pose``);
 - a planned path's waypoint count and worst margins to the limits;
-- the vibration preview: the planner's settings check, the decomposition (leg amplitudes, phases 0 or
-  pi, gains), the peak leg acceleration against the unit's limit and the reason it is infeasible;
+- the vibration preview: the decomposition (leg amplitudes, phases 0 or pi, gains), the peak leg
+  acceleration against the unit's limit and the reason it is infeasible from the planner's own start check
+  (``vibration.settings.start_check``);
 - the planner's start answer parsed (gains, leg amplitudes and phases, t0, settings JSON);
 - a token-bucket rate limiter, a decimator for the browser streams and a buffer of the full-rate streams
   that feeds the run summary (``run_summary.summarize_vibration``) after a vibration.
@@ -25,13 +26,18 @@ from collections import deque
 
 import numpy as np
 
-from ..errors import InvalidInputError, StewartError, VibrationLimitError
+from ..errors import InvalidInputError, StewartError
 from ..kinematics import check_pose, condition_number, inverse_kinematics, joint_angles
 from ..kinematics.rotations import rotation_from_rpy
 from ..robot import STANDARD_GRAVITY, Robot
-from ..vibration import decompose_vibration
-from ..vibration.feasibility import check_command_limits
-from ..vibration.streaming import StreamSettings, VibrationStream
+from ..vibration.settings import (
+    VIBRATION_KEYS,
+    default_settings,
+    plan_vibration,
+    settings_reason,
+    start_check,
+    start_refusal,
+)
 
 CONVENTION = ("pose [x, y, z, roll, pitch, yaw] of the platform frame in the base frame; "
               "R = Rz(yaw) Ry(pitch) Rx(roll) (paper eq. 3); x, y, z in mm, angles in deg")
@@ -39,11 +45,12 @@ POSE_FIELDS = ("x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg")
 POSITION_LIMIT_MM = 1000.0  # entries beyond these are typos, refused before any check
 ANGLE_LIMIT_DEG = 360.0
 # The planner's vibration parameters the page sets (vibration_planner SetParameters)
-VIBRATION_PARAMETERS = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad",
-                        "duration_s", "ramp_s")
-# Streaming parameters the planner's settings check also reads; used until the planner's own values are known
-STREAM_DEFAULTS = {"lookahead_s": 2.0, "window_period_s": 0.5, "sample_period_s": 0.001, "lead_s": 0.3,
-                   "start_lead_s": 1.0, "max_lookahead_s": 5.0, "pose_timeout_s": 1.0}
+VIBRATION_PARAMETERS = VIBRATION_KEYS
+
+
+def stream_defaults(robot: Robot) -> dict:
+    """The planner's streaming settings at their defaults: used until the planner's own values are known."""
+    return {k: v for k, v in default_settings(robot).items() if k not in VIBRATION_KEYS}
 
 
 def jsonable(value):
@@ -201,22 +208,19 @@ def range_reason(settings: dict, ranges: dict) -> str | None:
     return None
 
 
-def vibration_preview(robot: Robot, pose, settings: dict, settings_check=None, ranges=None) -> dict:
+def vibration_preview(robot: Robot, pose, settings: dict, ranges=None) -> dict:
     """What the planner would run at ``pose`` with ``settings`` (its full parameter set): the decomposition
     (leg amplitudes um, phases rad, gains), the peak leg acceleration (g) against the unit's limit, and
-    ``feasible`` / ``reason`` from the same checks the planner makes (its ``settings_check``, the declared
-    ``ranges``, decompose_vibration(check_limits=True), the first streamed window with its ramp)."""
+    ``feasible`` / ``reason`` from the planner's own start check (``vibration.settings.start_check``: the
+    settings, the decomposition's limits, the first streamed window with its ramp, a stop window) after the
+    planner's declared ``ranges`` {name: (low, high)}."""
     unit = robot.vibration_unit
     out = {"feasible": False, "reason": None, "limits": {
         "acceleration_max_g": unit.acceleration_max / STANDARD_GRAVITY, "amplitude_max_um": unit.amplitude_max * 1e6,
         "velocity_max_mm_s": unit.velocity_max * 1e3, "frequency_band_hz": [unit.frequency_min, unit.frequency_max]}}
     s = settings
-    use_amplitude = s["amplitude_m"] > 0
-    kwargs = dict(direction=list(s["direction"]), amplitude=s["amplitude_m"] if use_amplitude else None,
-                  acceleration_g=None if use_amplitude else s["acceleration_g"], frequency=s["frequency_hz"],
-                  phase=s["phase_rad"], frame=s["frame"], method="exact")
     try:
-        plan = decompose_vibration(robot, pose, check_limits=False, **kwargs)
+        plan = plan_vibration(robot, pose, s, check_limits=False)
     except StewartError as exc:
         out["reason"] = f"invalid vibration ({type(exc).__name__}): {exc}"
         return jsonable(out)
@@ -228,30 +232,17 @@ def vibration_preview(robot: Robot, pose, settings: dict, settings_check=None, r
         "peak_leg_acceleration_g": plan.peak_leg_acceleration / STANDARD_GRAVITY,
         "peak_leg_velocity_mm_s": plan.leg_amplitudes * omega * 1e3, "equations": plan.equations(),
     })
-    reason = range_reason(s, ranges or {}) or (settings_check(robot, s) if settings_check else None)
+    reason = range_reason(s, ranges or {}) or settings_reason(robot, s)
     if reason:
         out["reason"] = reason
         return jsonable(out)
     try:
-        decompose_vibration(robot, pose, check_limits=True, **kwargs)
-        _check_first_window(robot, plan, s)
-    except VibrationLimitError as exc:
-        out["reason"] = (f"infeasible vibration ({type(exc).__name__}): {exc} (with the ramps of ramp_s "
-                         f"{s['ramp_s']} s; a longer ramp_s lowers the peak acceleration)")
+        start_check(robot, pose, s)
     except StewartError as exc:
-        out["reason"] = f"infeasible vibration ({type(exc).__name__}): {exc}"
+        out["reason"] = start_refusal(exc, s)
     else:
         out["feasible"] = True
     return jsonable(out)
-
-
-def _check_first_window(robot: Robot, plan, s: dict) -> None:
-    """The vib_* command the planner would send first (ramp-in included), against the unit's limits."""
-    stream = VibrationStream(robot, plan, StreamSettings(
-        duration=s["duration_s"] or None, ramp_s=s["ramp_s"], sample_period_s=s["sample_period_s"],
-        lookahead_s=s["lookahead_s"], lead_s=s["lead_s"], max_lookahead_s=s["max_lookahead_s"]))
-    window = stream.next_window(-s["start_lead_s"])
-    check_command_limits(robot.vibration_unit, window.times, window.position, window.velocity, window.acceleration)
 
 
 _LIST = r"(\[[^\]]*\])"
