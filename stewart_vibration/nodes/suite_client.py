@@ -1,0 +1,205 @@
+"""The main job's ROS client (its own rclpy Context, in the suite's namespace and domain): readiness and
+the emulator's lifecycle, the topics and services the scenario's steps use (``runtime.steps.SuiteClient``),
+and the recorder's stop.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+
+import numpy as np
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from geometry_msgs.msg import PoseStamped
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+from rcl_interfaces.srv import SetParameters
+from rclpy.context import Context
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+
+from ..emulation.vibration_status import report_from_values
+from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
+from ..runtime.steps import StepFailed
+from . import ensure_ament_prefix_path
+from .common import make_executor, pose_from_msg, pose_stamped
+
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+
+
+class SuiteClient:
+    """A client node of the running suite. ``dead()`` names nodes that died (a wait then fails at once)."""
+
+    def __init__(self, namespace: str, domain_id: int, real_time_factor: float, dead: Callable[[], list[str]],
+                 log_dir=None):
+        ensure_ament_prefix_path()
+        self.namespace, self.real_time_factor, self.dead, self.log_dir = namespace, real_time_factor, dead, log_dir
+        # the runner's own client gets the suite's DDS transport profile too (loopback only by default); Fast DDS
+        # reads it when this process creates its first participant
+        apply_environment(os.environ, dds_environment(os.environ.get(DDS_PROFILE_ENV)))
+        self.context = Context()
+        self.context.init(domain_id=domain_id)
+        self.node = Node("suite_runner", namespace=namespace, context=self.context)
+        self.executor = make_executor(self.context)  # EventsExecutor: a third of the CPU per message
+        self.executor.add_node(self.node)
+        self.clock: float | None = None
+        self.latest: dict = {}
+        # depth 1: the runner only needs the latest sample and must not fall behind the suite
+        self.node.create_subscription(Clock, "/clock", self._on_clock, 1)
+        self.readiness_subs = [
+            self.node.create_subscription(kind, topic, lambda m, t=topic: self.latest.__setitem__(t, m), 1)
+            for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState))]
+        self.target_pub = self.node.create_publisher(PoseStamped, "platform/target_pose", 10)
+        self.vibration_status = None  # latest VibrationReport of the emulator
+        self.status_history: list = []  # (state, since, reason) transitions seen
+        self.planner_message: str | None = None  # message of the planner's latest /diagnostics status
+        self.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, STATUS_QOS)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
+        self._guard = None  # latest kinematics/guard_status
+        self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status",
+                                      lambda m: setattr(self, "_guard", m), STATUS_QOS)
+        self._ground_truth_sub = None
+
+    # -- callbacks --------------------------------------------------------------------------------------
+    def _on_clock(self, msg: Clock) -> None:
+        self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
+
+    def _on_vibration_status(self, msg: DiagnosticStatus) -> None:
+        level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
+        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+        if not self.status_history or self.status_history[-1][:2] != (report.state, report.since):
+            self.status_history.append((report.state, report.since, report.reason))
+        self.vibration_status = report
+
+    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+        for status in msg.status:
+            if status.name.startswith("vibration_planner"):
+                self.planner_message = status.message
+
+    # -- waiting ----------------------------------------------------------------------------------------
+    def spin_until(self, predicate, timeout: float, what: str) -> None:
+        """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s) or as soon as a node died."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            dead = self.dead()
+            if dead:
+                raise StepFailed(f"{', '.join(dead)} died while waiting for {what} (see {self.log_dir})")
+            if predicate():
+                return
+            self.executor.spin_once(timeout_sec=0.02)
+        raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
+
+    def spin_once(self, timeout_s: float = 0.5) -> None:
+        self.executor.spin_once(timeout_sec=timeout_s)
+
+    def wait_sim(self, seconds: float, what: str) -> None:
+        """Wait ``seconds`` of sim time."""
+        self.spin_until(lambda: self.clock is not None, 30, "/clock")
+        end = self.clock + seconds
+        rtf = max(self.real_time_factor, 0.05)
+        self.spin_until(lambda: self.clock >= end, seconds / rtf + 60, what)
+
+    def call(self, srv_type, name: str, request, timeout: float = 30.0):
+        """Call service ``name`` and return its answer; StepFailed if it is not up or does not answer."""
+        client = self.node.create_client(srv_type, name)
+        try:
+            self.spin_until(client.service_is_ready, timeout, f"service {name}")
+            future = client.call_async(request)
+            self.spin_until(future.done, timeout, f"answer of {name}")
+            return future.result()
+        finally:
+            self.node.destroy_client(client)
+
+    # -- readiness ----------------------------------------------------------------------------------------
+    def transition(self, node: str, transition_id: int, label: str) -> None:
+        """Drive a lifecycle transition of ``node`` (lifecycle_msgs ChangeState); StepFailed if refused."""
+        request = ChangeState.Request()
+        request.transition.id = transition_id
+        if not self.call(ChangeState, f"{node}/change_state", request, timeout=60.0).success:
+            raise StepFailed(f"{node} refused the lifecycle transition '{label}' (see {self.log_dir})")
+
+    def wait_ready(self, progress) -> None:
+        """Configure and activate the emulator, then wait until every node works: /clock, pose and force
+        estimates, the planner's and the recorder's services, the recorder subscribed to the states."""
+        ns = self.namespace.rstrip("/")
+        self.transition("hardware_emulator", Transition.TRANSITION_CONFIGURE, "configure")
+        self.transition("hardware_emulator", Transition.TRANSITION_ACTIVATE, "activate")
+        progress("ready: hardware_emulator configured and active (lifecycle)")
+        self.spin_until(lambda: self.clock is not None, 60, "the emulator's /clock")
+        progress("ready: hardware_emulator (/clock)")
+        self.spin_until(lambda: "platform/pose_estimate" in self.latest, 60, "platform/pose_estimate")
+        progress("ready: kinematics (pose estimates)")
+        self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
+        progress("ready: leg_force_estimator (force estimates)")
+        for service in ("vibration_planner/start", "mcap_recorder/stop"):
+            client = self.node.create_client(Trigger, service)
+            self.spin_until(client.service_is_ready, 60, f"service {service}")
+            self.node.destroy_client(client)
+        progress("ready: vibration_planner, mcap_recorder (services)")
+
+        def recorder_subscribed():
+            infos = self.node.get_subscriptions_info_by_topic(f"{ns}/legs/joint_states")
+            return any(i.node_name == "mcap_recorder" for i in infos)
+
+        self.spin_until(recorder_subscribed, 60, "the recorder to subscribe to legs/joint_states")
+        progress("ready: mcap_recorder is recording the suite's topics")
+        for sub in self.readiness_subs:  # only the ground truth and /clock are needed from here on
+            self.node.destroy_subscription(sub)
+        self.readiness_subs = []
+
+    # -- what the scenario's steps use (runtime.steps.SuiteClient) ------------------------------------------
+    def send_target(self, pose) -> None:
+        self.target_pub.publish(pose_stamped(pose, self.node.get_clock().now().to_msg()))
+
+    def follow_ground_truth(self, on: bool) -> None:
+        """Subscribe to the 500 Hz platform/pose (only while a move settles) or stop."""
+        if on and self._ground_truth_sub is None:
+            self.latest.pop("platform/pose", None)
+            self._ground_truth_sub = self.node.create_subscription(
+                PoseStamped, "platform/pose", lambda m: self.latest.__setitem__("platform/pose", m), 1)
+        elif not on and self._ground_truth_sub is not None:
+            self.node.destroy_subscription(self._ground_truth_sub)
+            self._ground_truth_sub = None
+
+    def ground_truth(self) -> np.ndarray | None:
+        msg = self.latest.get("platform/pose")
+        return None if msg is None else pose_from_msg(msg.pose)
+
+    def guard_status(self) -> tuple[dict, str]:
+        status = self._guard
+        return ({kv.key: kv.value for kv in status.values}, status.message) if status is not None else ({}, "")
+
+    def set_planner_parameters(self, parameters: dict) -> list[str]:
+        """Set the planner's parameters (one SetParameters call); the refusals as "name: reason"."""
+        params = []
+        for key, value in parameters.items():
+            value = [float(v) for v in value] if isinstance(value, list) else value
+            value = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
+            params.append(Parameter(key, value=value).to_parameter_msg())
+        res = self.call(SetParameters, "vibration_planner/set_parameters", SetParameters.Request(parameters=params))
+        return [f"{p.name}: {r.reason}" for p, r in zip(params, res.results, strict=True) if not r.successful]
+
+    def start_vibration(self) -> tuple[bool, str]:
+        res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
+        return res.success, res.message
+
+    # -- the end --------------------------------------------------------------------------------------------
+    def stop_recorder(self, progress):
+        """Ask the recorder to finish its file; the file's path, or None (SIGINT finishes it then)."""
+        try:
+            res = self.call(Trigger, "mcap_recorder/stop", Trigger.Request(), timeout=10.0)
+            progress(f"recorder: {res.message}")
+            return res.message if res.success else None
+        except (TimeoutError, RuntimeError, StepFailed) as exc:
+            progress(f"recorder stop service failed ({exc}); SIGINT finishes the file")
+            return None
+
+    def close(self) -> None:
+        self.executor.shutdown()
+        self.node.destroy_node()
+        self.context.try_shutdown()

@@ -1,0 +1,112 @@
+"""The suite's node processes for one run (no rclpy): start each node with the run's arguments, watch them,
+restart them under --keep-running, stop them and say which ended badly.
+
+The ROS side of the bring-up (readiness, lifecycle, the recorder's stop) is ``nodes.suite_client``; the
+scenario's steps are ``runtime.steps``; ``nodes.suite_runner`` puts the three together.
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Callable
+from pathlib import Path
+
+from ..install import default_config_dir
+from .processes import NodeProcess, ros_environment, start_python_module
+from .steps import RunOptions, RunRecord
+from .suite import OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
+
+CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT
+
+
+def recorder_stats(log_text: str) -> dict | None:
+    """The recorder's counts of its last file from its log (the MCAP_RECORDER_STATS line)."""
+    lines = [line for line in log_text.splitlines() if line.startswith("MCAP_RECORDER_STATS ")]
+    return json.loads(lines[-1].split(" ", 1)[1]) if lines else None
+
+
+def node_arguments(options: RunOptions) -> dict[str, list[str]]:
+    """Per node name, its ``--ros-args`` for this run: namespace, the suite's parameter file and the run's own
+    settings (real-time factor, output folder, tissue; the emulator waits to be configured and activated)."""
+    params = options.params_file or default_config_dir() / SUITE_PARAMS_FILE
+    common = ["--ros-args", "-r", f"__ns:={options.namespace}", "--params-file", str(params)]
+    extra = {
+        "hardware_emulator": ["-p", f"real_time_factor:={options.real_time_factor}", "-p", "autostart:=false"],
+        "mcap_recorder": ["-p", f"output_dir:={Path(options.out_dir).resolve()}"],
+    }
+    if options.tissue_config:
+        for name in ("hardware_emulator", "kinematics"):
+            extra[name] = extra.get(name, []) + ["-p", f"tissue_config:={options.tissue_config}"]
+    nodes = SUITE_NODES + [OPTIONAL_NODES[key] for key in options.extra_nodes]
+    return {node.name: common + extra.get(node.name, []) for node in nodes}
+
+
+class SuiteProcesses:
+    """The run's node processes (each its own process group; see ``processes``)."""
+
+    def __init__(self, options: RunOptions, record: RunRecord):
+        self.options, self.record = options, record
+        self.procs: list[NodeProcess] = []
+        self._dead: set[str] = set()  # reported by supervise(), not again by stop()
+
+    def start(self) -> None:
+        """Start every node of the run on its ROS domain, logs in <out>/logs."""
+        opts = self.options
+        env = ros_environment(opts.domain_id)
+        Path(opts.out_dir).mkdir(parents=True, exist_ok=True)
+        self.record.log_dir = Path(opts.out_dir) / "logs"
+        modules = {node.name: node.module for node in SUITE_NODES + list(OPTIONAL_NODES.values())}
+        for name, args in node_arguments(opts).items():
+            self.procs.append(start_python_module(name, modules[name], args, env, self.record.log_dir))
+
+    def dead(self) -> list[str]:
+        """Names of the nodes that are no longer running."""
+        return [p.name for p in self.procs if not p.alive()]
+
+    def log_lines(self, node: str, marker: str) -> list[str]:
+        """Lines of ``node``'s log that contain ``marker`` (e.g. the URL an optional node prints)."""
+        proc = next((p for p in self.procs if p.name == node), None)
+        return [line for line in proc.log_text().splitlines() if marker in line] if proc else []
+
+    def supervise(self, respawn: set[str], idle: Callable[[], None]) -> None:
+        """Keep the suite up until interrupted (--keep-running): a node that exits is reported and, when its
+        name is in ``respawn``, started again with the same arguments; the others keep running. ``idle()``
+        runs between the checks (the client spins there)."""
+        progress = self.options.progress
+        while True:
+            for i, proc in enumerate(self.procs):
+                code = proc.popen.poll()
+                if code is None or proc.name in self._dead:
+                    continue
+                if proc.name in respawn:
+                    progress(f"{proc.name} exited with code {code}; restarting it (log: {proc.log_path})")
+                    self.record.restarts.append((proc.name, code))
+                    self.procs[i] = proc.restart()
+                else:
+                    progress(f"{proc.name} exited with code {code}; not restarted (--respawn does not name it); "
+                             "the other nodes keep running")
+                    self.record.failures.append(f"{proc.name} exited with code {code} during --keep-running "
+                                                f"(log: {proc.log_path})")
+                    self._dead.add(proc.name)
+            idle()
+
+    def stop(self) -> None:
+        """Stop every process (last started first); record a failure for every node that exited abnormally or
+        could not be stopped, the recorder's counts, and its drops."""
+        for proc in reversed(self.procs):
+            died = proc.popen.poll()
+            if proc.name in self._dead:
+                continue
+            code = proc.stop(grace_s=10.0)
+            if code is None:
+                self.record.failures.append(f"{proc.name} could not be stopped (log: {proc.log_path})")
+            elif died is not None and died not in CLEAN_EXITS:
+                self.record.failures.append(f"{proc.name} died during the run with exit code {died} "
+                                            f"(log: {proc.log_path})")
+            elif code not in CLEAN_EXITS:
+                self.record.failures.append(f"{proc.name} exited with code {code} (log: {proc.log_path})")
+            if proc.name == "mcap_recorder":
+                self.record.recorder_stats = recorder_stats(proc.log_text())
+        stats = self.record.recorder_stats
+        if stats is not None and stats.get("dropped", 0):
+            self.record.failures.append(f"the recorder dropped {stats['dropped']} of {stats['received']} messages")

@@ -1,0 +1,234 @@
+"""The scenario's steps as the main job runs them (no rclpy): move, guarded move, vibrate.
+
+The steps drive the suite through a client (``SuiteClient``: the ROS side, ``nodes.suite_client``) and
+record what happened in a ``RunRecord``. Every wait is on something observable (the emulator's ground
+truth, vibration/status, kinematics/guard_status, the sim clock), never a fixed sleep.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Protocol
+
+import numpy as np
+
+from .scenario import MoveStep, Scenario, VibrateStep
+from .suite import DEFAULT_NAMESPACE
+
+SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
+SETTLE_HOLD_S = 0.5  # a move is done when the ground truth held within tolerance this long (sim s)
+
+
+class StepFailed(RuntimeError):
+    """A scenario step did not complete (with the reason)."""
+
+
+@dataclass
+class RunOptions:
+    """How the main job runs: namespace, ROS domain, sim speed, output, extra nodes, tolerances."""
+
+    namespace: str = DEFAULT_NAMESPACE
+    domain_id: int = 42
+    real_time_factor: float = 1.0
+    out_dir: Path = Path("runs")
+    params_file: Path | None = None
+    extra_nodes: tuple = ()  # runtime.suite.OPTIONAL_NODES keys to start as well ("foxglove", "ui")
+    tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
+    settle_tolerance_m: float = 1e-5
+    settle_tolerance_rad: float = np.radians(0.01)
+    step_timeout_s: float = 120.0  # wall clock, per step
+    progress: Any = print
+
+
+@dataclass
+class RunRecord:
+    """What happened: MCAP path, per-step results and event times (sim s)."""
+
+    mcap_path: Path | None = None
+    log_dir: Path | None = None
+    moves: list = field(default_factory=list)  # dicts: name, target, pose_error_m, pose_error_deg, time
+    vibrations: list = field(default_factory=list)  # dicts: parameters (what ran), start_time, t0, stop_time, ...
+    interrupted: bool = False
+    failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
+    recorder_stats: dict | None = None  # the recorder's counts of its last file (received, written, dropped)
+    restarts: list = field(default_factory=list)  # (node, exit code) of nodes restarted under --keep-running
+    guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
+
+
+class SuiteClient(Protocol):
+    """What the steps need from the running suite (``nodes.suite_client.SuiteClient`` over ROS)."""
+
+    clock: float | None  # latest /clock (sim s)
+    vibration_status: Any  # latest emulation.vibration_status.VibrationReport, or None
+    planner_message: str | None  # message of the planner's latest /diagnostics status
+
+    def spin_until(self, predicate, timeout: float, what: str) -> None: ...
+    def wait_sim(self, seconds: float, what: str) -> None: ...
+    def send_target(self, pose) -> None: ...
+    def ground_truth(self) -> np.ndarray | None: ...
+    def follow_ground_truth(self, on: bool) -> None: ...
+    def guard_status(self) -> tuple[dict, str]: ...
+    def set_planner_parameters(self, parameters: dict) -> list[str]: ...
+    def start_vibration(self) -> tuple[bool, str]: ...
+
+
+def ran_settings(start_answer: str) -> dict:
+    """The settings the planner reports it ran: the JSON after "settings: " in its start answer (with t0_s)."""
+    import json
+
+    return json.loads(start_answer.rsplit("settings: ", 1)[1])
+
+
+class ScenarioSteps:
+    """Runs a scenario's steps through ``client``; results go to ``record``."""
+
+    def __init__(self, client: SuiteClient, options: RunOptions, record: RunRecord):
+        self.client, self.options, self.record = client, options, record
+
+    def run(self, scenario: Scenario) -> RunRecord:
+        for index, step in enumerate(scenario.steps, start=1):
+            label = f"step {index}/{len(scenario.steps)}"
+            if isinstance(step, MoveStep):
+                self.move_to(step, label)
+            elif isinstance(step, VibrateStep):
+                self.vibrate(step, label)
+        return self.record
+
+    # -- moves ---------------------------------------------------------------------------------------------
+    def move_to(self, step: MoveStep, label: str) -> None:
+        """Send the target; wait until it settles (or, for a guarded move, until the force guard stops it)."""
+        self.options.progress(f"{label}: move to {step.name} {np.round(step.pose, 5).tolist()}")
+        start = self.client.clock
+        # the 500 Hz ground truth only while a move settles: the runner must not load the machine
+        self.client.follow_ground_truth(True)
+        try:
+            (self._guarded if step.guarded else self._settle)(step, label, start)
+        finally:
+            self.client.follow_ground_truth(False)
+
+    def _settle(self, step: MoveStep, label: str, start: float) -> None:
+        """Wait until the ground truth holds within tolerance for SETTLE_HOLD_S of sim time."""
+        opts, client = self.options, self.client
+        client.send_target(step.pose)
+        held_since = [None]
+
+        def settled():
+            pose = client.ground_truth()
+            if pose is None or client.clock is None or client.clock < start + 0.1:
+                return False
+            err = pose - step.pose
+            ok = np.abs(err[:3]).max() < opts.settle_tolerance_m and np.abs(err[3:]).max() < opts.settle_tolerance_rad
+            if not ok:
+                held_since[0] = None
+                return False
+            held_since[0] = held_since[0] or client.clock
+            return client.clock - held_since[0] >= SETTLE_HOLD_S
+
+        client.spin_until(settled, opts.step_timeout_s, f"the platform to settle at {step.name}")
+        err = client.ground_truth() - step.pose
+        self.record.moves.append({
+            "name": step.name, "target": step.pose.tolist(), "time": client.clock,
+            "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
+        })
+        opts.progress(f"{label}: settled at {step.name} in {client.clock - start:.2f} s sim; ground-truth error "
+                      f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
+
+    def _guarded(self, step: MoveStep, label: str, start: float) -> None:
+        """A move the force guard must stop: wait for kinematics/guard_status to report a trip during it, then
+        for the platform to come to rest short of the target (SETTLE_HOLD_S of sim time still)."""
+        opts, client = self.options, self.client
+        client.send_target(step.pose)
+
+        def tripped():
+            values = client.guard_status()[0]
+            return values.get("state") == "tripped" and float(values.get("trip_time_s", -1.0)) >= start - 1e-6
+
+        def reached():
+            pose = client.ground_truth()
+            return pose is not None and np.abs(pose[:3] - step.pose[:3]).max() < opts.settle_tolerance_m
+
+        client.spin_until(lambda: tripped() or reached(), opts.step_timeout_s, "the force guard to stop the move")
+        if not tripped():
+            raise StepFailed(f"the force guard did not stop the move to {np.round(step.pose, 5).tolist()}: the "
+                             "platform reached the target")
+        last, still = [None], [None]
+
+        def at_rest():
+            pose = client.ground_truth()
+            if pose is None:
+                return False
+            if last[0] is None or np.abs(pose[:3] - last[0][:3]).max() > 1e-6:
+                last[0], still[0] = pose, client.clock
+                return False
+            return client.clock - still[0] >= SETTLE_HOLD_S
+
+        client.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
+        held = last[0]
+        values, message = client.guard_status()
+        record = {"target": step.pose.tolist(), "time": client.clock, "guard": values, "stopped_pose": held.tolist(),
+                  "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3]))}
+        self.record.guard_stops.append(record)
+        opts.progress(f"{label}: the force guard stopped the move as expected: {message}; "
+                      f"held {record['short_of_target_m'] * 1e3:.2f} mm short of the target")
+
+    # -- vibration -----------------------------------------------------------------------------------------
+    def vibrate(self, step: VibrateStep, label: str) -> None:
+        """Set the planner's parameters, start, and follow the emulator's vibration/status until the
+        vibration is over; an abort, a refusal or a vibration shorter than planned fails the step. The record
+        keeps the settings the planner reports it ran (its start answer), which the summary judges against."""
+        opts, client = self.options, self.client
+        refused = client.set_planner_parameters(step.parameters)
+        if refused:
+            raise StepFailed(f"planner refused parameters: {'; '.join(refused)}")
+        ok, answer = client.start_vibration()
+        if not ok:
+            raise StepFailed(f"vibration start refused: {answer}")
+        ran = ran_settings(answer)
+        start, t0 = client.clock, float(ran["t0_s"])
+        ramp, duration = float(ran["ramp_s"]), float(ran["duration_s"])
+        opts.progress(f"{label}: vibrating: {answer.rsplit('; settings: ', 1)[0]}")
+        record = {"parameters": ran, "start_time": start, "t0": t0, "start_message": answer}
+        self.record.vibrations.append(record)
+        rtf = max(opts.real_time_factor, 0.05)
+
+        def failed() -> str | None:
+            report, planner = client.vibration_status, client.planner_message
+            if planner is not None and "aborted:" in planner:
+                return f"the planner aborted the vibration: {planner}"
+            if report is not None and report.state in ("estopped", "stopped") and report.since >= t0 - 1e-6:
+                return f"the vibration units {report.message}"
+            if report is not None and report.event.startswith("refused") and report.event_stamp is not None and \
+                    abs(report.event_stamp - t0) < 1e-6:
+                return f"the hardware emulator {report.event}"
+            return None
+
+        def fail(reason: str):
+            record["failure"] = reason
+            raise StepFailed(reason)
+
+        def watch(until: float, what: str) -> None:
+            client.spin_until(lambda: failed() is not None or (client.clock is not None and client.clock >= until),
+                              (until - client.clock) / rtf + 60, what)
+            if reason := failed():
+                fail(reason)
+
+        watch(t0 + ramp, "the vibration to begin")
+        report = client.vibration_status
+        if report is None or report.state not in ("ramping_in", "running"):
+            fail(f"the vibration did not begin at t0 = {t0:.3f} s: the emulator reports "
+                 f"{report.message if report else 'nothing (no vibration/status)'}")
+        watch(t0 + duration, "the vibration to finish")
+        client.spin_until(lambda: failed() is not None or (client.vibration_status is not None and
+                                                            client.vibration_status.state in ("idle", "stopped")),
+                          30 / rtf, "the units to come to rest")
+        if reason := failed():
+            fail(reason)
+        record["stop_time"] = client.clock
+        ended = client.vibration_status.since
+        record["status_active_s"] = ended - t0
+        opts.progress(f"{label}: vibration done: the emulator reports the units active from t0 = {t0:.3f} s to "
+                      f"{ended:.3f} s ({ended - t0:.3f} s of the planned {duration:.3f} s)")
+        client.wait_sim(SETTLE_AFTER_VIBRATION_S, "the platform to settle after the vibration")
+        if ended < t0 + duration - 0.05:
+            fail(f"the vibration ended {t0 + duration - ended:.3f} s early: {client.vibration_status.message}")

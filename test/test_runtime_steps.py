@@ -1,0 +1,106 @@
+"""The scenario's steps (runtime/steps.py) against a scripted client: no ROS, no processes. What the main job
+does over DDS (test_main_job) is the same code with nodes/suite_client.py as the client."""
+
+from __future__ import annotations
+
+import json
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
+from stewart_vibration.runtime.steps import RunOptions, RunRecord, ScenarioSteps, StepFailed
+
+
+class ScriptedSuite:
+    """A suite that answers at once: moves reach their target after 0.2 s of sim time (or stop 1 mm short when
+    the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
+
+    def __init__(self, active_s=None, refuse=None, guard_trips=False):
+        self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
+        self.vibration_status, self.planner_message = None, None
+        self.active_s, self.refuse, self.guard_trips = active_s, refuse, guard_trips
+        self.t0 = self.duration = None
+        self.following = []
+        self.sent_parameters = {}
+
+    def spin_until(self, predicate, timeout, what):
+        for _ in range(100_000):
+            if predicate():
+                return
+            self.clock += 0.01
+            self._advance()
+        raise StepFailed(f"timed out waiting for {what}")
+
+    def wait_sim(self, seconds, what):
+        end = self.clock + seconds
+        self.spin_until(lambda: self.clock >= end, 0, what)
+
+    def _advance(self):
+        if self.target is not None:
+            goal = self.target - (np.r_[0, 0, 1e-3, 0, 0, 0] if self.guard_trips else 0)
+            self.pose = goal if self.clock - self.sent_at > 0.2 else self.pose
+        if self.t0 is not None:
+            end = self.t0 + self.active_s
+            state = "pending" if self.clock < self.t0 else "running" if self.clock < end else "idle"
+            since = self.t0 if state == "running" else end if state == "idle" else 0.0
+            self.vibration_status = SimpleNamespace(state=state, since=since, message=state, event="accepted",
+                                                    event_stamp=self.t0, reason="")
+
+    def send_target(self, pose):
+        self.target, self.sent_at = np.asarray(pose, float), self.clock
+
+    def ground_truth(self):
+        return self.pose.copy()
+
+    def follow_ground_truth(self, on):
+        self.following.append(on)
+
+    def guard_status(self):
+        tripped = self.guard_trips and self.target is not None and self.clock > self.sent_at
+        return ({"state": "tripped", "trip_time_s": str(self.sent_at)} if tripped else {}), "tripped: force"
+
+    def set_planner_parameters(self, parameters):
+        self.sent_parameters = dict(parameters)
+        return []
+
+    def start_vibration(self):
+        if self.refuse:
+            return False, self.refuse
+        self.t0, self.duration = self.clock + 1.0, float(self.sent_parameters["duration_s"])
+        self.active_s = self.duration if self.active_s is None else self.active_s
+        ran = dict(self.sent_parameters, ramp_s=0.2, frequency_hz=35.0, t0_s=self.t0)
+        return True, f"started: ...; settings: {json.dumps(ran)}"
+
+
+def run(client, steps):
+    record = RunRecord()
+    ScenarioSteps(client, RunOptions(progress=lambda *_: None), record).run(Scenario("test", steps))
+    return record
+
+
+def test_moves_settle_and_vibrations_are_recorded_with_the_settings_that_ran():
+    client = ScriptedSuite()
+    record = run(client, [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0]), VibrateStep({"duration_s": 2.0})])
+    assert record.moves[0]["pose_error_m"] == 0.0 and client.following == [True, False]
+    vib = record.vibrations[0]
+    assert vib["parameters"]["ramp_s"] == 0.2 and vib["parameters"]["duration_s"] == 2.0  # from the answer
+    assert vib["t0"] == pytest.approx(vib["start_time"] + 1.0) and vib["status_active_s"] == pytest.approx(2.0)
+    assert "failure" not in vib
+
+
+def test_a_short_vibration_or_a_refused_start_fails_the_step():
+    client = ScriptedSuite(active_s=1.0)
+    with pytest.raises(StepFailed, match="ended 1.000 s early"):
+        run(client, [VibrateStep({"duration_s": 2.0})])
+    with pytest.raises(StepFailed, match="vibration start refused: infeasible"):
+        run(ScriptedSuite(refuse="infeasible vibration (VibrationLimitError): ..."), [VibrateStep({"duration_s": 2.0})])
+
+
+def test_a_guarded_move_must_be_stopped_by_the_force_guard():
+    target = np.r_[0, 0, 0.17, 0, 0, 0]
+    record = run(ScriptedSuite(guard_trips=True), [MoveStep("guarded", target, guarded=True)])
+    assert record.guard_stops[0]["short_of_target_m"] == pytest.approx(1e-3)
+    with pytest.raises(StepFailed, match="the force guard did not stop the move"):
+        run(ScriptedSuite(guard_trips=False), [MoveStep("guarded", target, guarded=True)])
