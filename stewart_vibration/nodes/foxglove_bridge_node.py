@@ -39,23 +39,9 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
 from foxglove.messages import (
-    ArrowPrimitive,
-    Color,
-    CylinderPrimitive,
-    FrameTransform,
-    FrameTransforms,
-    LinePrimitive,
-    LinePrimitiveLineType,
-    Point3,
-    Pose,
-    Quaternion,
-    SceneEntity,
     SceneEntityDeletion,
     SceneEntityDeletionType,
     SceneUpdate,
-    SpherePrimitive,
-    Timestamp,
-    Vector3,
 )
 from foxglove.websocket import Capability
 from rclpy.clock import Clock, ClockType
@@ -69,6 +55,7 @@ from ..messages import cdr
 from ..messages.cdr import header_stamp_ns
 from ..robot import load_robot
 from ..visualization import scene as scene_model
+from ..visualization.foxglove_schemas import foxglove_entities, foxglove_timestamp, foxglove_transforms
 from .common import VIB_NAMES, declare_float, declare_read_only, float_param, int_param, run_node, text_param
 from .mcap_recorder_node import SUITE_TOPICS
 from .ros_graph import message_class, offered_profile, rclpy_profile
@@ -261,8 +248,8 @@ class FoxgloveBridgeNode(Node):
         self._transforms.log(foxglove_transforms(scene), log_time=now)
         deletions = []
         if direction is None and self._arrow_shown:
-            deletions = [SceneEntityDeletion(timestamp=_timestamp(stamp), type=SceneEntityDeletionType.MatchingId,
-                                             id=scene_model.VIBRATION_ENTITY)]
+            deletions = [SceneEntityDeletion(timestamp=foxglove_timestamp(stamp),
+                                             type=SceneEntityDeletionType.MatchingId, id=scene_model.VIBRATION_ENTITY)]
         self._arrow_shown = direction is not None
         self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(scene.stamp, entities)),
                            log_time=now)
@@ -289,57 +276,6 @@ def start_websocket_server(host: str, port: int, context: foxglove.Context):
         hint = ("another program (another bridge?) listens there: stop it or choose -p port:=N"
                 if "in use" in reason else "check -p host:= (an address of this machine, e.g. 127.0.0.1)")
         raise RuntimeError(f"Foxglove WebSocket server cannot listen on {host}:{port}: {reason}; {hint}") from None
-
-
-# -- scene (plain data) -> Foxglove schema objects -------------------------------------------------
-def _timestamp(seconds: float) -> Timestamp:
-    sec, nanosec = cdr.stamp_parts(seconds)
-    return Timestamp(sec, nanosec)
-
-
-def _vector(v) -> Vector3:
-    return Vector3(x=float(v[0]), y=float(v[1]), z=float(v[2]))
-
-
-def _quaternion(q) -> Quaternion:
-    return Quaternion(x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
-
-
-def _pose(position, orientation) -> Pose:
-    return Pose(position=_vector(position), orientation=_quaternion(orientation))
-
-
-def _color(c) -> Color:
-    return Color(r=c[0], g=c[1], b=c[2], a=c[3])
-
-
-IDENTITY = (0.0, 0.0, 0.0, 1.0)
-
-
-def foxglove_transforms(scene: scene_model.Scene) -> FrameTransforms:
-    stamp = _timestamp(scene.stamp)
-    return FrameTransforms(transforms=[
-        FrameTransform(timestamp=stamp, parent_frame_id=t.parent, child_frame_id=t.child,
-                       translation=_vector(t.translation), rotation=_quaternion(t.rotation))
-        for t in scene.transforms])
-
-
-def foxglove_entities(stamp_s: float, entities) -> list[SceneEntity]:
-    stamp = _timestamp(stamp_s)
-    return [SceneEntity(
-        timestamp=stamp, frame_id=e.frame_id, id=e.id, frame_locked=True,
-        cylinders=[CylinderPrimitive(pose=_pose(c.position, c.orientation), size=_vector(c.size),
-                                     bottom_scale=1.0, top_scale=1.0, color=_color(c.color)) for c in e.cylinders],
-        spheres=[SpherePrimitive(pose=_pose(s.position, IDENTITY), size=_vector([s.diameter] * 3),
-                                 color=_color(s.color)) for s in e.spheres],
-        lines=[LinePrimitive(type=LinePrimitiveLineType.LineLoop if line.closed else LinePrimitiveLineType.LineStrip,
-                             pose=_pose((0, 0, 0), IDENTITY), thickness=line.thickness, scale_invariant=False,
-                             points=[Point3(x=float(p[0]), y=float(p[1]), z=float(p[2])) for p in line.points],
-                             color=_color(line.color)) for line in e.lines],
-        arrows=[ArrowPrimitive(pose=_pose(a.position, a.orientation), shaft_length=a.shaft_length,
-                               shaft_diameter=a.shaft_diameter, head_length=a.head_length,
-                               head_diameter=a.head_diameter, color=_color(a.color)) for a in e.arrows],
-    ) for e in entities]
 
 
 def main(args=None) -> int:
