@@ -30,13 +30,13 @@ from ..paper import (
     PAPER_PHASE_RAD,
     paper_pose,
 )
-from ..robot import STANDARD_GRAVITY, Robot
+from ..robot import Robot
 from ..sim.mjcf import SimulationSettings
 from ..sim.mujoco_sim import StewartSim, universal_angles
+from ..vibration.waveform import displacement_from_acceleration
 from .newton_euler import leg_forces, leg_forces_paper
 from .platform_trajectory import (
     SinusoidalTrajectory,
-    amplitude_for_acceleration,
     force_line_direction,
     vibration_trajectory,
 )
@@ -154,7 +154,7 @@ def paper_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
 def clinical_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
     """Clinical case: 35 Hz, 0.3 g peak along the force line at the paper pose."""
     pose = paper_pose(robot)
-    amp = amplitude_for_acceleration(CLINICAL_ACCELERATION_G * STANDARD_GRAVITY, CLINICAL_FREQUENCY_HZ)
+    amp = displacement_from_acceleration(CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ)
     traj = vibration_trajectory(pose, force_line_direction(pose).reshape(3), amp, CLINICAL_FREQUENCY_HZ)
     return traj, f"clinical: {CLINICAL_FREQUENCY_HZ:g} Hz, {CLINICAL_ACCELERATION_G:g} g ({amp * 1e6:.1f} um) " \
                  "along the force line at the paper pose"
@@ -253,4 +253,3 @@ def leg_spin_force_correction(sim: StewartSim, pose, twist, accel) -> np.ndarray
         wrench -= np.r_[dh, np.cross(rho, dh)]
         cols[:, i] = np.r_[s, np.cross(rho, s)]
     return np.linalg.solve(cols, wrench)
-

@@ -112,8 +112,3 @@ def vibration_trajectory(pose, direction, amplitude: float, frequency_hz: float,
     amp = np.zeros((1, 6))
     amp[0, :3] = amplitude * u
     return SinusoidalTrajectory(pose.copy(), amp, np.array([2 * np.pi * frequency_hz]), np.full((1, 6), phase))
-
-
-def amplitude_for_acceleration(peak_accel: float, frequency_hz: float) -> float:
-    """Displacement amplitude (m) of a sinusoid with peak acceleration peak_accel (m/s^2) at frequency_hz."""
-    return peak_accel / (2 * np.pi * frequency_hz) ** 2

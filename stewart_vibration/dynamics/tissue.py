@@ -120,18 +120,6 @@ class TissueModel:
             return k * self.length_m * math.expm1(u / self.length_m)
         return float(self.axial_spring(u))
 
-    def axial_stiffness(self, distraction) -> np.ndarray:
-        """d f / d u (N/m) at axial displacements u [...] (m)."""
-        u = np.asarray(distraction, dtype=float)
-        k = self.stiffness[2]
-        if self.stiffening == "exponential":
-            grown = k * np.exp(np.maximum(u, 0.0) / self.length_m)
-        elif self.stiffening == "piecewise_linear":
-            grown = self.slopes_n_m[np.clip(np.searchsorted(self.breakpoints_m, u, side="right") - 1, 0, None)]
-        else:
-            grown = np.full_like(u, k)
-        return np.where(u > 0, grown, k)
-
 
 def _cross(a, b):
     """a x b over the last axis (np.cross costs ~20 us per call on one vector: the emulator calls this per block)."""
@@ -309,10 +297,6 @@ def tissue_from_dict(tree: dict, robot: Robot, source: str = "<dict>") -> Tissue
         name=str(tree.get("name", "tissue")), source=source)
 
 
-def default_tissue_path() -> Path:
-    return default_config_dir() / "tissue.yaml"
-
-
 def load_tissue(path, robot: Robot) -> TissueModel:
     """Tissue model from a YAML file; a bare file name is looked up in the config directory too.
     ConfigError on a missing file, bad YAML or a bad value."""
@@ -333,7 +317,6 @@ def load_tissue_option(value: str | None, robot: Robot) -> TissueModel | None:
 
 __all__ = [
     "TissueModel",
-    "default_tissue_path",
     "load_tissue",
     "load_tissue_option",
     "resolve_pose",

@@ -136,9 +136,6 @@ class BagFileWriter:
         )
         self._topics[topic] = _Topic(topic, type_name, qos_yaml, type_hash, channel_id, has_header_first(type_name))
 
-    def has_topic(self, topic: str) -> bool:
-        return topic in self._topics
-
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
         self._writer.add_metadata(name, data)
 

@@ -210,7 +210,6 @@ class JointStateDecoder:
     def __init__(self):
         self._names_key = None
         self._names = ()
-        self._after_names = 0
 
     def decode(self, data) -> JointStateData:
         r = _Reader(data, "JointState")

@@ -168,7 +168,6 @@ class ForceGuard:
         self.blocked: list[np.ndarray] = []  # directions of every move stopped since the last reset
         self._stopping: GuardedMove | None = None  # the move the latest trip stopped
         self.peak = (0.0, 0.0)  # largest force and moment magnitudes estimated since the trip
-        self.last_wrench = np.zeros(6)
         self._state_t = np.zeros(0)
         self._state_sigma = np.zeros(0)
         self._stop_retries = 0
@@ -250,7 +249,6 @@ class ForceGuard:
         wrenches = np.asarray(wrenches, float)
         if not len(wrenches):
             return None
-        self.last_wrench = wrenches[-1]
         move = self.move
         if move is None:
             return None

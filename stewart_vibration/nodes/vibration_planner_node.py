@@ -49,12 +49,12 @@ from ..vibration.settings import (
     DEFAULT_FRAME,
     SETTINGS,
     parameters,
-    peak_acceleration_g,
     settings_reason,
     start_check,
     start_refusal,
 )
 from ..vibration.streaming import StreamInterrupted, VibrationStream
+from ..vibration.waveform import acceleration_from_displacement
 from .common import (
     ERROR,
     OK,
@@ -228,7 +228,7 @@ class VibrationPlannerNode(Node):
         self.state, self.last_error = "running", ""
         self.seen_event = emulator.event_seq if emulator is not None else 0
         self.publish(first)
-        acc_g = peak_acceleration_g(plan)
+        acc_g = acceleration_from_displacement(plan.amplitude, plan.frequency)
         ran = dict(s, direction=list(s["direction"]), t0_s=t0, pose=pose.tolist())
         text = (
             f"started: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um ({acc_g:.3f} g) "

@@ -38,6 +38,7 @@ from ..vibration.settings import (
     start_check,
     start_refusal,
 )
+from ..vibration.waveform import acceleration_from_displacement
 
 CONVENTION = ("pose [x, y, z, roll, pitch, yaw] of the platform frame in the base frame; "
               "R = Rz(yaw) Ry(pitch) Rx(roll) (paper eq. 3); x, y, z in mm, angles in deg")
@@ -226,7 +227,8 @@ def vibration_preview(robot: Robot, pose, settings: dict, ranges=None) -> dict:
         return jsonable(out)
     omega = 2 * math.pi * plan.frequency
     out.update({
-        "amplitude_um": plan.amplitude * 1e6, "acceleration_g": plan.amplitude * omega**2 / STANDARD_GRAVITY,
+        "amplitude_um": plan.amplitude * 1e6,
+        "acceleration_g": acceleration_from_displacement(plan.amplitude, plan.frequency),
         "frequency_hz": plan.frequency, "phase_rad": plan.phase, "direction_base": plan.direction,
         "gains": plan.gains, "leg_amplitudes_um": plan.leg_amplitudes * 1e6, "leg_phases_rad": plan.leg_phases,
         "peak_leg_acceleration_g": plan.peak_leg_acceleration / STANDARD_GRAVITY,

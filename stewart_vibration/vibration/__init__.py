@@ -7,16 +7,11 @@ planned platform motion for the ROS planner and the force estimator.
 """
 
 from .classify import MotionClassification, classify_motion, common_period
-from .decompose import (
-    VibrationDecomposition,
-    acceleration_from_displacement,
-    decompose_vibration,
-    displacement_from_acceleration,
-)
+from .decompose import VibrationDecomposition, decompose_vibration
 from .screw import VibrationScrew
 from .signals import LegVibrationSamples, PlatformVibrationMotion, platform_vibration_motion, sample_leg_vibration
 from .superpose import SuperpositionResult, naive_superposition, superpose_vibration
-from .waveform import envelope
+from .waveform import acceleration_from_displacement, displacement_from_acceleration, envelope
 
 __all__ = [
     "LegVibrationSamples",

@@ -23,7 +23,7 @@ from ..input_checks import as_batch
 from ..kinematics import inverse_kinematics
 from ..kinematics.rotations import rotation_from_rpy
 from ..paper import CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ
-from ..robot import STANDARD_GRAVITY, Robot
+from ..robot import Robot
 from .feasibility import check_frequency, check_leg_peaks, check_stroke
 from .screw import (
     VibrationScrew,
@@ -33,20 +33,10 @@ from .screw import (
     twist_per_unit,
     unit_vector,
 )
-from .waveform import default_times, sinusoid
+from .waveform import default_times, displacement_from_acceleration, sinusoid
 
 FRAMES = ("platform", "base")
 METHODS = ("exact", "linear")
-
-
-def displacement_from_acceleration(acceleration_g: float, frequency: float) -> float:
-    """Peak displacement X = a / (2 pi f)^2 (m) of a sinusoid with peak acceleration a (g) at f (Hz)."""
-    return float(acceleration_g) * STANDARD_GRAVITY / (2.0 * np.pi * float(frequency)) ** 2
-
-
-def acceleration_from_displacement(amplitude: float, frequency: float) -> float:
-    """Peak acceleration (g) of a sinusoid of peak displacement ``amplitude`` (m) at f (Hz)."""
-    return float(amplitude) * (2.0 * np.pi * float(frequency)) ** 2 / STANDARD_GRAVITY
 
 
 def wrap_phase(phase):
@@ -104,11 +94,6 @@ class VibrationDecomposition:
     def direction(self) -> np.ndarray:
         """Unit translation direction (base frame), or the rotation axis for a rotation."""
         return self.screw.axis if self.screw.rotational else self.screw.translation
-
-    @property
-    def leg_signals(self) -> np.ndarray:
-        """The method's sampled leg signals (N, 6) (m): exact if computed, else linear."""
-        return self.exact_signals if self.exact_signals is not None else self.linear_signals
 
     @property
     def second_order_offset(self) -> np.ndarray:

@@ -156,18 +156,11 @@ def leg_length_change(robot: Robot, pose: np.ndarray, screw: VibrationScrew, del
     return LegLengthChange(change=change, slope=slope, curvature=curvature)
 
 
-def linear_gains(robot: Robot, pose: np.ndarray, screw: VibrationScrew) -> np.ndarray:
-    """k = J s (6,): leg-length change per unit delta to first order (m/m or m/rad)."""
-    _, _, _, jac = nominal_leg_geometry(robot, pose)
-    return jac @ twist_per_unit(screw, pose[:3])
-
-
 __all__ = [
     "LegLengthChange",
     "VibrationScrew",
     "displaced_poses",
     "leg_length_change",
-    "linear_gains",
     "nominal_leg_geometry",
     "twist_per_unit",
     "unit_vector",

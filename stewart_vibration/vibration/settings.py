@@ -19,7 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError, StewartError, VibrationLimitError
-from ..robot import STANDARD_GRAVITY, Robot
+from ..robot import Robot
 from .decompose import FRAMES, VibrationDecomposition, decompose_vibration
 from .feasibility import check_command_limits
 from .streaming import StreamSettings, VibrationStream, VibrationWindow
@@ -201,8 +201,3 @@ def start_refusal(exc: StewartError, s: dict) -> str:
         return (f"infeasible vibration ({type(exc).__name__}): {exc} (with the ramps of ramp_s {s['ramp_s']} s; a "
                 "longer ramp_s lowers the peak acceleration)")
     return f"infeasible vibration ({type(exc).__name__}): {exc}"
-
-
-def peak_acceleration_g(plan: VibrationDecomposition) -> float:
-    """The platform's peak acceleration (g) of a translational plan: A (2 pi f)^2 / g."""
-    return plan.amplitude * (2 * math.pi * plan.frequency) ** 2 / STANDARD_GRAVITY

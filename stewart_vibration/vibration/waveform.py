@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..robot import STANDARD_GRAVITY
 from ..splines import smoothstep
 
 
@@ -92,3 +93,13 @@ def default_times(frequency: float, duration: float | None = None, samples_per_p
     if duration <= 0:
         raise InvalidInputError(f"duration must be > 0 s, got {duration}")
     return np.arange(int(np.floor(duration / step + 1e-9)) + 1) * step
+
+
+def displacement_from_acceleration(acceleration_g: float, frequency: float) -> float:
+    """Peak displacement X = a / (2 pi f)^2 (m) of a sinusoid with peak acceleration a (g) at f (Hz)."""
+    return float(acceleration_g) * STANDARD_GRAVITY / (2.0 * np.pi * float(frequency)) ** 2
+
+
+def acceleration_from_displacement(amplitude: float, frequency: float) -> float:
+    """Peak acceleration (g) of a sinusoid of peak displacement ``amplitude`` (m) at f (Hz)."""
+    return float(amplitude) * (2.0 * np.pi * float(frequency)) ** 2 / STANDARD_GRAVITY
