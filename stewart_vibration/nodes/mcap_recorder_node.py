@@ -39,6 +39,7 @@ from pathlib import Path
 
 import rclpy
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -46,7 +47,7 @@ from std_srvs.srv import Trigger
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
-from .common import declare_float, float_param
+from .common import OK, WARN, Diagnostics, declare_float, float_param
 from .mcap_ros import (
     declare_read_only,
     make_executor,
@@ -105,9 +106,27 @@ class McapRecorderNode(Node):
         self.create_service(Trigger, "~/start", self._on_start)
         self.create_service(Trigger, "~/stop", self._on_stop)
         self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
+        # the file being written and its counters, for UIs that start after the "recording to" log line
+        self.diagnostics = Diagnostics(self, "mcap recorder")
+        self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._last_file = ""
         self._discover()
         if self.get_parameter("record_on_start").value:
             self.start_recording()
+        self.report()
+
+    def report(self) -> None:
+        """/diagnostics: recording <path> (OK) or not recording, with the counters; WARN once messages dropped."""
+        writer = self._writer
+        if writer is None:
+            self.diagnostics.set(OK, "not recording", path="", last_file=self._last_file)
+            return
+        stats = writer.stats
+        level = WARN if stats.dropped else OK
+        message = f"recording {writer.path}" + (f"; {stats.dropped} messages dropped" if stats.dropped else "")
+        self.diagnostics.set(level, message, path=str(writer.path), last_file=self._last_file,
+                             received=stats.received, written=stats.written, dropped=stats.dropped,
+                             topics=len(self._known))
 
     # -- recording ------------------------------------------------------------------
     def _next_path(self) -> Path:
@@ -138,6 +157,7 @@ class McapRecorderNode(Node):
                 writer.add_topic(topic, type_name, qos_yaml, type_hash)
             self._writer = writer
             self.get_logger().info(f"recording to {writer.path}")
+            self.report()
         return self._writer.path
 
     def stop_recording(self) -> dict | None:
@@ -151,6 +171,8 @@ class McapRecorderNode(Node):
         files.append(writer.bag_file())
         metadata = write_metadata_yaml(folder, bag_metadata(files))
         self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
+        self._last_file = str(writer.path)
+        self.report()
         report = {
             "path": str(writer.path),
             "metadata_yaml": str(metadata),
