@@ -23,8 +23,10 @@ from ..rotations import MESSAGE_QUATERNION_TOLERANCE, pose_from_position_quatern
 from .mcap_ros import make_executor, spin_until_stopped
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
-# reader that stalls longer than depth / rate loses samples, so allow ~1 s of lag.
-STREAM_DEPTH = 500
+# reader that stalls longer than depth / rate loses samples. 3 s: on a 2-core machine shared with a
+# browser and a test run (load average 7-10) kinematics once stalled ~1.4 s and lost 196 states with
+# 1 s; the memory is ~0.5 MB per endpoint.
+STREAM_DEPTH = 1500
 
 LEG_NAMES = [f"leg_{i}" for i in range(1, 7)]
 VIB_NAMES = [f"vib_{i}" for i in range(1, 7)]
