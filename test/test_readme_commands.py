@@ -37,6 +37,9 @@ COPY_IGNORE = shutil.ignore_patterns(".git", ".venv", "runs", "build", "install"
 NEEDS_A_ROS_INSTALL = {
     "ros2 launch stewart_vibration stewart_vibration.launch.py real_time_factor:=1.0":
         "test_launch_file.py runs generate_launch_description; test_dds_loopback.py checks its DDS profile",
+    "ros2 launch stewart_vibration stewart_vibration.launch.py ui:=true":
+        "test_launch_file.py (optional nodes); the planning_ui executable runs from the colcon install in "
+        "test_ros_install_block_as_written",
     "ros2 bag info runs/latest": "test_mcap_bag_directory.py opens the run folder with rosbags' rosbag2 reader",
     "ros2 bag play runs/latest": "test_mcap_bag_directory.py (reader) and test_mcap_replay_clock.py (/clock)",
 }
@@ -281,11 +284,13 @@ def test_ros_install_block_as_written(workspace):
     result = workspace.run(build, timeout=600, setup="set +u")
     assert result.returncode == 0, result.stdout[-4000:]
     assert (workspace.path / "install" / "stewart_vibration" / "share" / "stewart_vibration" / "config").is_dir()
-    for command in [c for c in lines if kind_of(c) == "ros2_run"]:
+    runs = commands_of("ros2_run")  # this block's and the other sections' (planning_ui ...)
+    assert set(c for c in lines if kind_of(c) == "ros2_run") < set(runs)
+    for command in runs:
         node = workspace.start(command, setup="source install/local_setup.bash")
         try:
             executable = shlex.split(command)[3]
-            ready = node.wait_for(r"(ready|active|recording|listening|serving)", timeout=60)
+            ready = node.wait_for(r"(ready|active|recording|listening|serving|planning UI at)", timeout=60)
             assert node.proc.poll() is None, f"{command} exited\n{node.text[-3000:]}"
             assert ready, f"{executable} never said it was ready\n{node.text[-3000:]}"
             assert "/install/stewart_vibration/" in node_command_line(node.proc.pid)
