@@ -129,8 +129,9 @@ class Workspace:
     def __init__(self, path: Path, domain: int, shim_bin: Path):
         self.path, self.domain = path, domain
         env = {k: v for k, v in os.environ.items() if not k.startswith(("FASTRTPS_", "FASTDDS_", "ROS_"))}
-        env.update(STEWART_VENV=sys.prefix, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                   PATH=f"{shim_bin}:{env['PATH']}", PYTHONUNBUFFERED="1")
+        # the copy borrows this venv: it must not re-point the venv's editable install at itself
+        env.update(STEWART_VENV=sys.prefix, STEWART_VENV_NO_INSTALL="1", ROS_DOMAIN_ID=str(domain),
+                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PATH=f"{shim_bin}:{env['PATH']}", PYTHONUNBUFFERED="1")
         self.env = env
 
     def script(self, command: str, setup: str = "") -> list[str]:
@@ -189,6 +190,11 @@ class LineReader:
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
+    # bring the venv up to date for this checkout first (the copy may not install into it)
+    setup = subprocess.run(["bash", "-c", "source tools/env.sh"], cwd=ROOT, text=True, timeout=600,
+                           env=dict(os.environ, STEWART_VENV=sys.prefix), stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT)
+    assert setup.returncode == 0, setup.stdout
     path = tmp_path_factory.mktemp("readme") / "stewart_vibration"
     shutil.copytree(ROOT, path, ignore=COPY_IGNORE, symlinks=True)
     shim_bin = path.parent / "shim_bin"
