@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..mcap_log.run_folders import new_run_folder
 from ..processes import claim_ros_domain
 from ..robot import load_robot
 from ..scenario import load_scenario, resolve_tissue_path
@@ -37,7 +38,9 @@ def register(subparsers) -> None:
                      help="override every vibration's duration (s, incl. ramps)")
     cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
                      help="sim seconds per wall second (default 1; 0 = as fast as the machine can)")
-    cmd.add_argument("--out", default="runs/latest", help="output directory (MCAP, logs, report)")
+    cmd.add_argument("--out", default=None,
+                     help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
+                          "runs/latest pointing at it")
     cmd.add_argument("--domain-id", type=domain_id, default=None,
                      help="ROS_DOMAIN_ID, 0..101 (default: $ROS_DOMAIN_ID if set, else a free one)")
     cmd.add_argument("--namespace", default="/stewart", help="namespace of every node (default /stewart)")
@@ -97,7 +100,7 @@ def run(args) -> int:
     if unknown:
         _log(f"--respawn: unknown node(s) {sorted(unknown)}; known: {[n.name for n in SUITE_NODES]}")
         return 2
-    out = Path(args.out)
+    out = Path(args.out) if args.out else new_run_folder("runs")
     domain, _lock, source = _choose_domain(args.domain_id)
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
