@@ -37,7 +37,8 @@ def register(subparsers) -> None:
     cmd.add_argument("--duration", type=positive_float,
                      help="override every vibration's duration (s, incl. ramps)")
     cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
-                     help="sim seconds per wall second (default 1; 0 = as fast as the machine can)")
+                     help="sim seconds per wall second (default 1; 0 = the emulator as fast as it can: on 2 cores "
+                          "the other nodes keep up to about 2x, beyond that the run reports lost samples)")
     cmd.add_argument("--out", default=None,
                      help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
                           "runs/latest pointing at it")

@@ -108,7 +108,8 @@ class VibrationStatusTracker:
             self._stopped_reason = self._stopped_reason or buffer.ramp_reason
         if estopped:
             state, level = "estopped", ERROR
-            reason = "emergency stop latched (vibration ramped to zero, struts stopped and held); call hardware_emulator/reset"
+            reason = ("emergency stop latched (vibration ramped to zero, struts stopped and held); "
+                      "call hardware_emulator/reset")
         elif buffer.state == "idle" and self._stopped_reason:
             state, level, reason = "stopped", WARN, self._stopped_reason
         elif buffer.state == "idle":

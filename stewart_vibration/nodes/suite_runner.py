@@ -426,8 +426,16 @@ class SuiteRunner:
                 raise StepFailed(reason)
 
         watch(t0 + ramp, "the vibration to begin")
+        # the emulator reports at 10 Hz of wall time: faster than real time the newest report may predate t0, so
+        # wait for one from t0 on and look for the start among the state changes seen (a short ramp-in can fall
+        # between two reports)
+        self.spin_until(lambda: failed() is not None or (self.vibration_status is not None and
+                                                          self.vibration_status.time >= t0), 10.0,
+                        "a vibration report from t0 on")
         report = self.vibration_status
-        if report is None or report.state not in ("ramping_in", "running"):
+        began = any(state in ("ramping_in", "running") and since >= t0 - 0.01
+                    for state, since, _reason in self.status_history)
+        if report is None or not began:
             reason = (f"the vibration did not begin at t0 = {t0:.3f} s: the emulator reports "
                       f"{report.message if report else 'nothing (no vibration/status)'}")
             record["failure"] = reason

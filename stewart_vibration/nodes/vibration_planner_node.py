@@ -15,7 +15,8 @@ tail, so if no later window arrives the units ramp out smoothly on their own.
 States: idle, running, stopping, aborted (with the reason). start works from
 idle or aborted: it needs a recent pose estimate (pose_timeout_s) and, when the
 emulator's status is known, units at rest and no latched e-stop (otherwise it
-says why). t0 = start call + start_lead_s (node clock, sim time). The planner
+says why). t0 = start call + start_lead_s (wall seconds: scaled to sim seconds by the
+sim clock's rate when it runs faster than real time). The planner
 aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN
 otherwise) and in its state -- when the emulator refuses one of its windows,
 e-stops, reports the units stopped or idle before the planned end, or when it
@@ -45,6 +46,7 @@ from ..errors import StewartError, VibrationLimitError
 from ..messages import cdr
 from ..robot import STANDARD_GRAVITY, load_robot
 from ..rotations import pose_from_position_quaternion
+from ..sim_clock import ClockRate
 from ..vibration import decompose_vibration
 from ..vibration.decompose import FRAMES
 from ..vibration.feasibility import check_command_limits
@@ -140,11 +142,14 @@ class VibrationPlannerNode(Node):
             ("lookahead_s", 2.0, "vibration carried by each streamed window before its ramp-out tail, s", 0.05, 60.0),
             ("window_period_s", 0.5, "period between streamed windows, s (< lookahead_s)", 0.01, 30.0),
             ("sample_period_s", 0.001, "sample spacing in a window, s", 1e-4, 0.05),
-            ("lead_s", 0.3, "streamed windows start this far ahead of now, s", 0.0, 2.0),
-            ("start_lead_s", 1.0, "the vibration starts (t0) this far after the start call, s (>= lead_s)", 0.0, 5.0),
+            ("lead_s", 0.3, "streamed windows start this far ahead of now, s of wall time (more sim seconds when "
+             "the sim clock runs faster than real time)", 0.0, 2.0),
+            ("start_lead_s", 1.0, "the vibration starts (t0) this far after the start call, s of wall time (>= "
+             "lead_s; more sim seconds when the sim clock runs faster than real time)", 0.0, 5.0),
             ("max_lookahead_s", 5.0, "a finite vibration ending within this time is sent whole in one window, s "
              "(the emulator accepts windows reaching up to 30 s ahead)", 0.1, 30.0),
-            ("pose_timeout_s", 1.0, "start needs a pose estimate received within this time, s", 0.01, 60.0),
+            ("pose_timeout_s", 1.0, "start needs a pose estimate received within this time, s of wall time",
+             0.01, 60.0),
         ]
         for name, default, text, low, high in number:
             declare_float(self, name, default, float_param(text, low, high))
@@ -164,6 +169,10 @@ class VibrationPlannerNode(Node):
         self.seen_event = 0
         self._pose_seen = 0
         self._last_tick = time.monotonic()
+        # leads are wall-clock margins (a window must reach the emulator in time): faster than real time
+        # they are scaled to as many more sim seconds
+        self.clock_rate = ClockRate()
+        self._last_rate_sample = 0.0
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
         self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
@@ -270,8 +279,9 @@ class VibrationPlannerNode(Node):
         s = self.settings()
         data, received = self.pose_data
         age = now - received
-        if age > s["pose_timeout_s"]:
-            return self._refuse(response, f"pose estimate is {age:.3f} s old (pose_timeout_s {s['pose_timeout_s']})")
+        if age > self.clock_rate.wall_margin(s["pose_timeout_s"]):
+            return self._refuse(response, f"pose estimate is {age:.3f} s old (pose_timeout_s {s['pose_timeout_s']} "
+                                          f"of wall time; the sim clock runs at {self.clock_rate.rate():.2f}x)")
         try:
             _, _, position, quaternion = cdr.decode_pose_stamped(data)
             pose = pose_from_position_quaternion(position, quaternion)
@@ -287,16 +297,18 @@ class VibrationPlannerNode(Node):
                 frequency=s["frequency_hz"], phase=s["phase_rad"], frame=s["frame"], method="exact",
                 check_limits=True,
             )
+            margin = self.clock_rate.wall_margin  # wall seconds -> sim seconds
             stream = VibrationStream(self.robot, plan, StreamSettings(
                 duration=duration, ramp_s=s["ramp_s"], sample_period_s=s["sample_period_s"],
-                lookahead_s=s["lookahead_s"], lead_s=s["lead_s"], max_lookahead_s=s["max_lookahead_s"]))
-            t0 = now + s["start_lead_s"]
+                lookahead_s=s["lookahead_s"], lead_s=margin(s["lead_s"]),
+                max_lookahead_s=s["max_lookahead_s"] + margin(s["start_lead_s"]) - s["start_lead_s"]))
+            t0 = now + margin(s["start_lead_s"])
             first = stream.next_window(now - t0)
             check_command_limits(self.robot.vibration_unit, first.times, first.position, first.velocity,
                                  first.acceleration)
             if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
                 probe = VibrationStream(self.robot, plan, stream.settings)
-                probe.next_window(-s["start_lead_s"])
+                probe.next_window(now - t0)
                 stop = probe.stop_window(s["ramp_s"])
                 if stop is not None:
                     check_command_limits(self.robot.vibration_unit, stop.times, stop.position, stop.velocity,
@@ -359,6 +371,9 @@ class VibrationPlannerNode(Node):
     def tick(self) -> None:
         wall = time.monotonic()
         gap, self._last_tick = wall - self._last_tick, wall
+        if gap <= STALL_S and wall - self._last_rate_sample >= 0.05:
+            self._last_rate_sample = wall
+            self.clock_rate.add(wall, self.now_s())
         run = self.run
         if run is None:
             return
