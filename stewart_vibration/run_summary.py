@@ -167,6 +167,9 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, parameters: d
            "start_time_s": start, "window_s": [t0, t1], "gains": plan.gains}
     pt, poses = signals["pose"]
     sel = (pt >= t0) & (pt <= t1)
+    if sel.sum() < 4:  # it never ran (refused, aborted, interrupted) or the log lacks the ground truth
+        raise ValueError(f"only {int(sel.sum())} ground-truth poses in its steady part {t0:.3f}..{t1:.3f} s (it did "
+                         "not run, or the log holds no platform/pose for it)")
     line = line_vibration(pt[sel], poses[sel, :3], frequency)
     out.update({
         "measured_direction": line.direction,
