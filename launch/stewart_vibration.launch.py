@@ -2,7 +2,8 @@
 parameters as `stewart-vibration run` in the pip world).
 
     ros2 launch stewart_vibration stewart_vibration.launch.py \
-        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs] [foxglove:=true] [ui:=true]
+        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs] [foxglove:=true] [ui:=true] \
+        [tissue_config:=/path/to/tissue.yaml]
 
 Parameters come from share/stewart_vibration/config/suite_params.yaml (one
 file for both worlds); the node list from stewart_vibration.runtime.suite. DDS: like
@@ -30,6 +31,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import LifecycleNode, Node
 from launch_ros.event_handlers import OnStateTransition
 from launch_ros.events.lifecycle import ChangeState
+from launch_ros.parameter_descriptions import ParameterValue
 from lifecycle_msgs.msg import Transition
 
 from stewart_vibration.runtime.processes import DDS_PROFILE_ENV, dds_environment
@@ -45,8 +47,12 @@ def generate_launch_description():
         for name, value in dds_environment(os.environ.get(DDS_PROFILE_ENV), config_dir).items()
     ]
     namespace = LaunchConfiguration("namespace")
+    # soft tissue on the platform ('' = none): the emulator applies it, kinematics checks targets against it
+    tissue = ParameterValue(LaunchConfiguration("tissue_config"), value_type=str)
     overrides = {
-        "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor"), "autostart": False},
+        "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor"), "autostart": False,
+                              "tissue_config": tissue},
+        "kinematics": {"tissue_config": tissue},
         "mcap_recorder": {"output_dir": LaunchConfiguration("output_dir")},
     }
     nodes = []
@@ -82,6 +88,7 @@ def generate_launch_description():
             DeclareLaunchArgument("output_dir", default_value="runs"),
             DeclareLaunchArgument("foxglove", default_value="false"),
             DeclareLaunchArgument("ui", default_value="false"),
+            DeclareLaunchArgument("tissue_config", default_value=""),
             *dds,
             *nodes,
             *optional,

@@ -55,7 +55,15 @@ class RosTestClient:
         return bool(predicate())
 
     def wait_for_subscribers(self, topic: str, count: int = 1, timeout: float = 20.0) -> bool:
-        return self.spin_until(lambda: self.node.count_subscribers(topic) >= count, timeout)
+        """Until `count` subscribers exist -- and, when this client publishes the topic, are matched
+        to its publisher (the graph can list a reader before DDS has matched it: a message sent
+        then is lost)."""
+        def ready():
+            pub = self._publishers.get(topic)
+            if pub is not None:
+                return pub.get_subscription_count() >= count
+            return self.node.count_subscribers(topic) >= count
+        return self.spin_until(ready, timeout)
 
     def call(self, srv_type, name: str, request, timeout: float = 20.0):
         client = self.node.create_client(srv_type, name)

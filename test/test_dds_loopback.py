@@ -176,6 +176,7 @@ def _launch_actions(monkeypatch, share_dir: Path):
         "launch_ros.event_handlers": types.SimpleNamespace(OnStateTransition=record("on_transition")),
         "launch_ros.events": types.SimpleNamespace(),
         "launch_ros.events.lifecycle": types.SimpleNamespace(ChangeState=record("change_state")),
+        "launch_ros.parameter_descriptions": types.SimpleNamespace(ParameterValue=record("parameter_value")),
         "ament_index_python.packages": types.SimpleNamespace(get_package_share_directory=lambda _: str(share_dir)),
     }
     for name, module in stubs.items():

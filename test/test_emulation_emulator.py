@@ -165,3 +165,48 @@ def test_position_only_and_far_future_trajectories(robot):
     assert np.abs(a).max() <= robot.limits.strut_acceleration_max
     with pytest.raises(ActuatorLimitError, match="strut_acceleration_max"):  # 1 mm in 0.2 s, from rest
         emu.command_struts(LEG_NAMES, 0.0, [0.2], [home + 0.001], [np.zeros(6)])
+
+
+def test_estop_during_a_move_brings_the_struts_to_rest_within_the_acceleration_limit(robot):
+    """Issue 13: no joint beyond its limits, an e-stop included. Struts moving near full speed are brought to
+    rest by a controlled stop (holding the position at once, the old e-stop, stepped the velocity by ~18 mm/s
+    in one physics step); the simulated struts follow it without a step, and the force estimator's mirror
+    of the strut command makes the same stop."""
+    from stewart_vibration.emulation.strut_trajectory import build_trajectory
+    from stewart_vibration.emulation.vibration_status import EMERGENCY_STOP
+    from stewart_vibration.estimation import ForceEstimator
+
+    lim = robot.limits
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
+    home = inverse_kinematics(robot, robot.home_pose)
+    goal = home + np.array([0.01, -0.01, 0.01, -0.01, 0.01, -0.01])
+    duration = minimum_jerk_duration(home, goal, 0.9 * lim.strut_velocity_max, 0.5)
+    times = np.linspace(duration / 40, duration, 40)
+    pos, vel, acc = minimum_jerk(home, goal, duration, times)
+    emu.command_struts(LEG_NAMES, 0.0, times, pos, vel, acc)
+    estimator = ForceEstimator(robot)
+    zeros = np.zeros((1, 6))
+    estimator.estimate([0.0], home[None, :], zeros, zeros, zeros)
+    estimator.command_struts(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, pos, vel, acc), now=0.0)
+    while emu.time < 0.45 * duration:
+        emu.advance(PERIOD)
+    stop_time = emu.time
+    speed_before = np.abs(emu.struts.sample([stop_time])[1]).max()
+    assert speed_before > 0.8 * lim.strut_velocity_max  # a real stop from near full speed
+    emu.emergency_stop()
+    t, p, v, a = dense_commanded(emu, stop_time - 0.01, stop_time + 3.0)
+    assert np.abs(a).max() <= lim.strut_acceleration_max * (1 + 1e-6)
+    assert np.abs(np.diff(v, axis=0)).max() <= lim.strut_acceleration_max * 5e-4 * (1 + 1e-6)  # no velocity step
+    assert np.abs(v[-1]).max() == 0.0 and np.all((p >= lim.stroke_min) & (p <= lim.stroke_max))
+    travel = np.abs(p[-1] - emu.struts.sample([stop_time])[0][0]).max()
+    assert travel <= speed_before**2 / lim.strut_acceleration_max  # within twice the ideal braking distance
+    measured = []  # the simulated struts
+    while emu.time < stop_time + 1.0:
+        emu.advance(PERIOD)
+        measured.append(emu.joint_state()[2][:6])
+    assert np.abs(np.diff(measured, axis=0)).max() <= 5 * lim.strut_acceleration_max * PERIOD
+    estimator.apply_ramp(stop_time, EMERGENCY_STOP)
+    estimator.apply_ramp(stop_time, EMERGENCY_STOP)  # the status repeats at 10 Hz: mirrored once
+    mirrored = estimator.struts.sample(t)
+    for ours, theirs in zip(mirrored, (p, v, a)):
+        assert np.abs(ours - theirs).max() < 1e-12

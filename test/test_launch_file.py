@@ -62,3 +62,17 @@ def test_launch_file_configures_then_activates_the_managed_emulator(monkeypatch)
     assert on_transition[2]["goal_state"] == "inactive"
     (activate,) = on_transition[2]["entities"]
     assert activate[2]["event"][2]["transition_id"] == Transition.TRANSITION_ACTIVATE
+
+
+def test_launch_file_passes_the_tissue_to_the_emulator_and_kinematics(monkeypatch):
+    """tissue_config:=FILE reaches both nodes that use it, as a string ('' = none), like --tissue of the bring-up."""
+    from test_dds_loopback import _launch_actions
+
+    actions = _launch_actions(monkeypatch, ROOT)
+    assert ("arg", ("tissue_config",), {"default_value": ""}) in actions
+    nodes = {a[2]["name"]: a[2]["parameters"][-1] for a in actions if a[0] in ("node", "lifecycle_node")}
+    for name in ("hardware_emulator", "kinematics"):
+        kind, args, kwargs = nodes[name]["tissue_config"]
+        assert kind == "parameter_value" and args[0] == ("config", ("tissue_config",), {})
+        assert kwargs["value_type"] is str
+    assert "tissue_config" not in nodes["leg_force_estimator"]

@@ -130,9 +130,16 @@ def test_recorder_signal_finishes_file_with_every_message(ros_domain, tmp_path, 
     path = _mcap(tmp_path)
     run = RunReader(path)
     assert run.complete and run.profile == "ros2"
+    # /diagnostics also carries the recorder's own status (the file it writes, its counters)
+    statuses = [msg.status[0] for _raw, msg in run.decoded(["/diagnostics"])]
+    own = [st for st in statuses if st.name.startswith("mcap_recorder")]
+    assert own and len(statuses) - len(own) == sent["/diagnostics"]
+    assert {kv.key: kv.value for kv in own[-1].values}["path"] == str(path)  # a late UI finds the file here
+    assert own[-1].message == f"recording {path}"
+    own = len(own)
     for counts in (_counts_rosbags(path), _counts_mcap_ros2(path)):
         for topic in SUITE:
-            assert counts[topic] == sent[topic], (topic, counts, sent)
+            assert counts[topic] == sent[topic] + (own if topic == "/diagnostics" else 0), (topic, counts, sent)
         assert counts["/rosout"] == stats["per_topic"]["/rosout"]
     topics = {t.topic: t for t in run.topics()}
     js = topics["/legs/joint_states"]

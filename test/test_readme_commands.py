@@ -37,6 +37,9 @@ COPY_IGNORE = shutil.ignore_patterns(".git", ".venv", "runs", "build", "install"
 NEEDS_A_ROS_INSTALL = {
     "ros2 launch stewart_vibration stewart_vibration.launch.py real_time_factor:=1.0":
         "test_launch_file.py runs generate_launch_description; test_dds_loopback.py checks its DDS profile",
+    "ros2 launch stewart_vibration stewart_vibration.launch.py ui:=true":
+        "test_launch_file.py (optional nodes); the planning_ui executable runs from the colcon install in "
+        "test_ros_install_block_as_written",
     "ros2 bag info runs/latest": "test_mcap_bag_directory.py opens the run folder with rosbags' rosbag2 reader",
     "ros2 bag play runs/latest": "test_mcap_bag_directory.py (reader) and test_mcap_replay_clock.py (/clock)",
 }
@@ -126,8 +129,9 @@ class Workspace:
     def __init__(self, path: Path, domain: int, shim_bin: Path):
         self.path, self.domain = path, domain
         env = {k: v for k, v in os.environ.items() if not k.startswith(("FASTRTPS_", "FASTDDS_", "ROS_"))}
-        env.update(STEWART_VENV=sys.prefix, ROS_DOMAIN_ID=str(domain), ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
-                   PATH=f"{shim_bin}:{env['PATH']}", PYTHONUNBUFFERED="1")
+        # the copy borrows this venv: it must not re-point the venv's editable install at itself
+        env.update(STEWART_VENV=sys.prefix, STEWART_VENV_NO_INSTALL="1", ROS_DOMAIN_ID=str(domain),
+                   ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", PATH=f"{shim_bin}:{env['PATH']}", PYTHONUNBUFFERED="1")
         self.env = env
 
     def script(self, command: str, setup: str = "") -> list[str]:
@@ -186,6 +190,11 @@ class LineReader:
 
 @pytest.fixture(scope="module")
 def workspace(tmp_path_factory):
+    # bring the venv up to date for this checkout first (the copy may not install into it)
+    setup = subprocess.run(["bash", "-c", "source tools/env.sh"], cwd=ROOT, text=True, timeout=600,
+                           env=dict(os.environ, STEWART_VENV=sys.prefix), stdout=subprocess.PIPE,
+                           stderr=subprocess.STDOUT)
+    assert setup.returncode == 0, setup.stdout
     path = tmp_path_factory.mktemp("readme") / "stewart_vibration"
     shutil.copytree(ROOT, path, ignore=COPY_IGNORE, symlinks=True)
     shim_bin = path.parent / "shim_bin"
@@ -281,11 +290,13 @@ def test_ros_install_block_as_written(workspace):
     result = workspace.run(build, timeout=600, setup="set +u")
     assert result.returncode == 0, result.stdout[-4000:]
     assert (workspace.path / "install" / "stewart_vibration" / "share" / "stewart_vibration" / "config").is_dir()
-    for command in [c for c in lines if kind_of(c) == "ros2_run"]:
+    runs = commands_of("ros2_run")  # this block's and the other sections' (planning_ui ...)
+    assert set(c for c in lines if kind_of(c) == "ros2_run") < set(runs)
+    for command in runs:
         node = workspace.start(command, setup="source install/local_setup.bash")
         try:
             executable = shlex.split(command)[3]
-            ready = node.wait_for(r"(ready|active|recording|listening|serving)", timeout=60)
+            ready = node.wait_for(r"(ready|active|recording|listening|serving|planning UI at)", timeout=60)
             assert node.proc.poll() is None, f"{command} exited\n{node.text[-3000:]}"
             assert ready, f"{executable} never said it was ready\n{node.text[-3000:]}"
             assert "/install/stewart_vibration/" in node_command_line(node.proc.pid)

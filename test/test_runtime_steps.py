@@ -17,9 +17,11 @@ class ScriptedSuite:
     """A suite that answers at once: moves reach their target after 0.2 s of sim time (or stop 1 mm short when
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
-    def __init__(self, active_s=None, refuse=None, guard_trips=False):
+    def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
         self.vibration_status, self.planner_message = None, None
+        self.status_history = []
+        self.report_period_s, self._reported = report_period_s, float("-inf")
         self.active_s, self.refuse, self.guard_trips = active_s, refuse, guard_trips
         self.t0 = self.duration = None
         self.following = []
@@ -41,12 +43,16 @@ class ScriptedSuite:
         if self.target is not None:
             goal = self.target - (np.r_[0, 0, 1e-3, 0, 0, 0] if self.guard_trips else 0)
             self.pose = goal if self.clock - self.sent_at > 0.2 else self.pose
-        if self.t0 is not None:
+        if self.t0 is not None and self.clock - self._reported >= self.report_period_s - 1e-9:
+            # a report every report_period_s of sim time (the emulator reports at 10 Hz of wall time)
+            self._reported = self.clock
             end = self.t0 + self.active_s
             state = "pending" if self.clock < self.t0 else "running" if self.clock < end else "idle"
             since = self.t0 if state == "running" else end if state == "idle" else 0.0
-            self.vibration_status = SimpleNamespace(state=state, since=since, message=state, event="accepted",
-                                                    event_stamp=self.t0, reason="")
+            if not self.status_history or self.status_history[-1][:2] != (state, since):
+                self.status_history.append((state, since, ""))
+            self.vibration_status = SimpleNamespace(state=state, since=since, time=self.clock, message=state,
+                                                    event="accepted", event_stamp=self.t0, reason="")
 
     def send_target(self, pose):
         self.target, self.sent_at = np.asarray(pose, float), self.clock
@@ -104,3 +110,14 @@ def test_a_guarded_move_must_be_stopped_by_the_force_guard():
     assert record.guard_stops[0]["short_of_target_m"] == pytest.approx(1e-3)
     with pytest.raises(StepFailed, match="the force guard did not stop the move"):
         run(ScriptedSuite(guard_trips=False), [MoveStep("guarded", target, guarded=True)])
+
+
+def test_the_start_is_judged_from_a_report_from_t0_on():
+    """Faster than real time the emulator's reports (10 Hz of wall time) are sparse in sim time: at t0 + ramp the
+    newest one can still say 'pending'; the step waits for a report from t0 on and finds the start in the state
+    changes seen. A vibration that never began still fails."""
+    client = ScriptedSuite(report_period_s=0.45)  # reports at 0.9 (pending), 1.35 (running) around t0 = 1.01
+    record = run(client, [VibrateStep({"duration_s": 2.0})])
+    assert "failure" not in record.vibrations[0]
+    with pytest.raises(StepFailed, match="did not begin"):
+        run(ScriptedSuite(active_s=0.0, report_period_s=0.45), [VibrateStep({"duration_s": 2.0})])

@@ -264,8 +264,9 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
                          args) as (proc, client):
         windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
         clock = client.publisher("/clock", Clock)
+        poses = client.publisher("platform/pose_estimate", PoseStamped)
         assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-        client.publisher("platform/pose_estimate", PoseStamped).publish(pose_msg(paper_pose(robot)))
+        poses.publish(pose_msg(paper_pose(robot)))
         client.spin_for(0.2)
         response = trigger(client, "start")
         assert not response.success and "clock not running" in response.message, response.message

@@ -17,6 +17,12 @@ _stewart_env() {
   # reinstall also when the editable install's metadata is gone (e.g. a removed *.egg-info)
   if [ ! -f "$stamp" ] || [ "$(cat "$stamp")" != "$want" ] || \
      ! "$venv/bin/python" -c "import importlib.metadata as m; m.distribution('stewart-vibration')" 2>/dev/null; then
+    # a checkout that borrows another one's venv (STEWART_VENV_NO_INSTALL=1, e.g. the README test's copy)
+    # must never re-point that venv's editable install at itself
+    if [ "${STEWART_VENV_NO_INSTALL:-0}" = 1 ]; then
+      echo "[venv] $venv needs (re)installing for $repo, but STEWART_VENV_NO_INSTALL=1" >&2
+      return 1
+    fi
     echo "[venv] installing requirements (first run takes about a minute)" >&2
     "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$repo/requirements-dev.txt" >&2 || return 1
     "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$repo" >&2 \

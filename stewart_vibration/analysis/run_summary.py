@@ -165,6 +165,9 @@ def platform_vibration(signals: dict, t0: float, t1: float, frequency: float) ->
     """
     pt, poses = signals["pose"]
     sel = (pt >= t0) & (pt <= t1)
+    if sel.sum() < 4:  # it never ran (refused, aborted, interrupted) or the log lacks the ground truth
+        raise ValueError(f"only {int(sel.sum())} ground-truth poses in its steady part {t0:.3f}..{t1:.3f} s (it did "
+                         "not run, or the log holds no platform/pose for it)")
     line = line_vibration(pt[sel], poses[sel, :3], frequency)
     return {"direction": line.direction, "amplitude_m": line.amplitude, "off_axis_ratio": line.off_axis_ratio,
             "samples": int(sel.sum())}

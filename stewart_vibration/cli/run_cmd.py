@@ -22,6 +22,7 @@ import numpy as np
 from ..dynamics.tissue import load_tissue
 from ..robot import load_robot
 from ..runtime.processes import claim_ros_domain
+from ..runtime.run_folders import new_run_folder
 from ..runtime.scenario import load_scenario, resolve_tissue_path
 from ..runtime.suite import OPTIONAL_NODES, SUITE_NODES
 from .arguments import nonnegative_float, positive_float
@@ -36,8 +37,11 @@ def register(subparsers) -> None:
     cmd.add_argument("--duration", type=positive_float,
                      help="override every vibration's duration (s, incl. ramps)")
     cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
-                     help="sim seconds per wall second (default 1; 0 = as fast as the machine can)")
-    cmd.add_argument("--out", default="runs/latest", help="output directory (MCAP, logs, report)")
+                     help="sim seconds per wall second (default 1; 0 = the emulator as fast as it can: on 2 cores "
+                          "the other nodes keep up to about 2x, beyond that the run reports lost samples)")
+    cmd.add_argument("--out", default=None,
+                     help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
+                          "runs/latest pointing at it")
     cmd.add_argument("--domain-id", type=domain_id, default=None,
                      help="ROS_DOMAIN_ID, 0..101 (default: $ROS_DOMAIN_ID if set, else a free one)")
     cmd.add_argument("--namespace", default="/stewart", help="namespace of every node (default /stewart)")
@@ -97,7 +101,7 @@ def run(args) -> int:
     if unknown:
         _log(f"--respawn: unknown node(s) {sorted(unknown)}; known: {[n.name for n in SUITE_NODES]}")
         return 2
-    out = Path(args.out)
+    out = Path(args.out) if args.out else new_run_folder("runs")
     domain, _lock, source = _choose_domain(args.domain_id)
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,

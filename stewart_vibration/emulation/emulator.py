@@ -41,9 +41,10 @@ from .strut_trajectory import (
     TrajectoryFollower,
     build_trajectory,
     checked_command,
+    controlled_stop,
 )
 from .vibration_buffer import VibrationBuffer
-from .vibration_status import VibrationReport, VibrationStatusTracker
+from .vibration_status import EMERGENCY_STOP, VibrationReport, VibrationStatusTracker
 
 
 class HardwareEmulator:
@@ -129,12 +130,18 @@ class HardwareEmulator:
         return splice
 
     def emergency_stop(self) -> None:
-        """Ramp the vibration to zero and hold the strut lengths commanded now; latched until reset()."""
+        """Ramp the vibration to zero and bring the struts to rest within strut_acceleration_max (a controlled
+        stop from the state commanded now, see ``controlled_stop``), then hold; latched until reset()."""
         now = self.time
-        self.vibration.stop(now, "emergency stop")
-        self.struts.hold(self.struts.sample([now])[0][0])
+        self.vibration.stop(now, EMERGENCY_STOP)
         if not self.estopped:
-            self.status.safety_ramp(now, "emergency stop")
+            stop = controlled_stop(self.struts, now, self.robot.limits.strut_acceleration_max)
+            if stop is None:
+                self.struts.hold(self.struts.sample([now])[0][0])
+            else:
+                self.struts.replace(stop, now)
+        if not self.estopped:
+            self.status.safety_ramp(now, EMERGENCY_STOP)
         self.estopped = True
         self._changed()
 

@@ -279,3 +279,29 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
             raise ActuatorLimitError(
                 f"leg_{leg + 1}: {name.split('_')[1]} {values[leg]:.4g} {unit} exceeds {name} {limit:.4g} "
                 f"{unit}{why}", leg=leg + 1, limit_name=name, value=float(values[leg]), limit=limit)
+
+
+def controlled_stop(follower: TrajectoryFollower, at: float, acceleration_max: float) -> JointTrajectory | None:
+    """What an emergency stop commands the struts at ``at`` (s): from the state commanded there
+    (position, velocity, acceleration), one quintic segment to rest whose acceleration stays within
+    ``acceleration_max`` (m/s^2) -- a stop-category-2 stop, not a velocity step (leadscrew struts
+    cannot stop at once; holding the position would demand an unbounded acceleration).
+
+    The rest position is p0 + v0 T / 2 + a0 T^2 / 12 (the quintic's natural travel); the duration T
+    is the shortest on a 10 % grid from |v0| / acceleration_max whose sampled acceleration is within
+    the limit. Returns a trajectory with the absolute start ``at`` and one point, or None when the
+    struts are already at rest (the caller holds the position)."""
+    p, v, a = (x[0] for x in follower.sample(np.array([at])))
+    if np.abs(v).max() < 1e-9 and np.abs(a).max() < 1e-9:
+        return None
+    s = np.linspace(0.0, 1.0, 201)[:, None]
+    limit = max(acceleration_max, np.abs(a).max()) * (1 + 1e-9)  # the commanded state itself is within limits
+    duration = max(np.abs(v).max() / acceleration_max, 1e-3)
+    for _ in range(300):
+        end = p + v * duration / 2 + a * duration**2 / 12
+        _, _, acc = quintic_hermite(s, duration, p, v, a, end, np.zeros_like(p), np.zeros_like(p))
+        if np.abs(acc).max() <= limit:
+            break
+        duration *= 1.1
+    zeros = np.zeros((1, p.size))
+    return JointTrajectory(float(at), np.array([duration]), end[None, :], zeros, zeros.copy())

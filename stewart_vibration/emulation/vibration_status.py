@@ -19,6 +19,7 @@ import numpy as np
 from .vibration_buffer import BufferStatus
 
 OK, WARN, ERROR = "ok", "warn", "error"
+EMERGENCY_STOP = "emergency stop"  # the reason of the e-stop's safety ramp (ramp_reason)
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,8 @@ class VibrationStatusTracker:
             self._stopped_reason = self._stopped_reason or buffer.ramp_reason
         if estopped:
             state, level = "estopped", ERROR
-            reason = "emergency stop latched (vibration ramped to zero, pose held); call hardware_emulator/reset"
+            reason = ("emergency stop latched (vibration ramped to zero, struts stopped and held); "
+                      "call hardware_emulator/reset")
         elif buffer.state == "idle" and self._stopped_reason:
             state, level, reason = "stopped", WARN, self._stopped_reason
         elif buffer.state == "idle":

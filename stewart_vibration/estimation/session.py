@@ -20,8 +20,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
-from ..emulation.strut_trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
+from ..emulation.strut_trajectory import (
+    STEP_SPEED,
+    JointTrajectory,
+    TrajectoryFollower,
+    checked_command,
+    controlled_stop,
+)
 from ..emulation.vibration_buffer import VibrationBuffer
+from ..emulation.vibration_status import EMERGENCY_STOP
 from ..errors import InvalidInputError
 from ..kinematics import forward_kinematics, jacobian
 from ..robot import Robot
@@ -61,6 +68,7 @@ class ForceEstimator:
         self.errors = RunningForceError(rms_window_s)
         self._last_struts = None  # strut lengths of the newest state
         self.state_time: float | None = None  # stamp of the newest state (the emulator's clock), s
+        self._strut_stop: float | None = None  # time of the e-stop whose strut stop is mirrored
 
     # -- commands (mirrors of the emulator's) ----------------------------------------------
     def command_vibration(self, traj: JointTrajectory, now: float | None = None) -> None:
@@ -90,6 +98,11 @@ class ForceEstimator:
         predates the newest window (a stale report about an earlier vibration)."""
         if start is not None and start >= self.vibration.last_receive:
             self.vibration.stop(start, reason)
+        if start is not None and reason == EMERGENCY_STOP and self.struts is not None and start != self._strut_stop:
+            self._strut_stop = start  # the emulator's controlled stop of the struts, as it commands it
+            stop = controlled_stop(self.struts, start, self.robot.limits.strut_acceleration_max)
+            if stop is not None:
+                self.struts.replace(stop, start)
 
     # -- states ----------------------------------------------------------------------------
     def estimate(self, stamps, struts, vib, strut_rates, vib_rates, efforts=None) -> ForceEstimate:

@@ -27,8 +27,10 @@ from ..kinematics.rotations import (
 from ..robot import LEG_NAMES, VIB_NAMES
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
-# reader that stalls longer than depth / rate loses samples, so allow ~1 s of lag.
-STREAM_DEPTH = 500
+# reader that stalls longer than depth / rate loses samples. 3 s: on a 2-core machine shared with a
+# browser and a test run (load average 7-10) kinematics once stalled ~1.4 s and lost 196 states with
+# 1 s; the memory is ~0.5 MB per endpoint.
+STREAM_DEPTH = 1500
 
 BASE_FRAME = "base"
 

@@ -302,9 +302,11 @@ class HardwareEmulatorNode(LifecycleNode):
             self.emulator.emergency_stop()
             report = self.emulator.vibration_report()[0]
         self.publish_status(report)
-        self.get_logger().warning("emergency stop: vibration ramping to zero, pose held")
+        self.get_logger().warning("emergency stop: vibration ramping to zero, struts braking to rest (within "
+                                  "their acceleration limit), then held")
         self.diagnostics.set(ERROR, "emergency stop latched (call hardware_emulator/reset to clear)")
-        response.success, response.message = True, "vibration ramping to zero, pose held; reset to clear"
+        response.success, response.message = True, ("vibration ramping to zero, struts braking to rest and held; "
+                                                     "reset to clear")
         return response
 
     def on_reset(self, request, response):

@@ -10,7 +10,7 @@ a std_msgs/Header, else log_time. A writer thread does all MCAP work
 Parameters: output_dir (str, "runs"), file_pattern (str, "run_{stamp}.mcap";
 fields {stamp} local time YYYYmmdd_HHMMSS, {node}), record_on_start (bool,
 true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
-/clock, /diagnostics, /rosout), qos_depth (int, 1000), chunk_size (bytes,
+/clock, /diagnostics, /rosout), qos_depth (int, 1500), chunk_size (bytes,
 262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
 Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
 SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
@@ -39,6 +39,7 @@ from pathlib import Path
 
 import rclpy
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
@@ -46,7 +47,16 @@ from std_srvs.srv import Trigger
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
-from .common import declare_float, declare_read_only, float_param, make_executor, spin_until_stopped
+from .common import (
+    OK,
+    WARN,
+    Diagnostics,
+    declare_float,
+    declare_read_only,
+    float_param,
+    make_executor,
+    spin_until_stopped,
+)
 from .ros_graph import message_class, offered_profile, rclpy_profile
 
 SUITE_TOPICS = [
@@ -80,7 +90,7 @@ class McapRecorderNode(Node):
             description="name of the next file ({stamp}: local time, {node})"))
         declare_read_only(self, "record_on_start", True, "open a file at start (else on ~/start)")
         declare_read_only(self, "topics", [""], "topics to record (empty = the suite's)")
-        declare_read_only(self, "qos_depth", 1000, "history depth of the recording subscriptions")
+        declare_read_only(self, "qos_depth", 1500, "history depth of the recording subscriptions (3 s at 500 Hz)")
         self.declare_parameter("chunk_size", 256 * 1024, ParameterDescriptor(
             description="MCAP chunk size of the next file, bytes", integer_range=[
                 IntegerRange(from_value=1024, to_value=64 * 1024 * 1024, step=1)]))
@@ -98,9 +108,27 @@ class McapRecorderNode(Node):
         self.create_service(Trigger, "~/start", self._on_start)
         self.create_service(Trigger, "~/stop", self._on_stop)
         self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
+        # the file being written and its counters, for UIs that start after the "recording to" log line
+        self.diagnostics = Diagnostics(self, "mcap recorder")
+        self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self._last_file = ""
         self._discover()
         if self.get_parameter("record_on_start").value:
             self.start_recording()
+        self.report()
+
+    def report(self) -> None:
+        """/diagnostics: recording <path> (OK) or not recording, with the counters; WARN once messages dropped."""
+        writer = self._writer
+        if writer is None:
+            self.diagnostics.set(OK, "not recording", path="", last_file=self._last_file)
+            return
+        stats = writer.stats
+        level = WARN if stats.dropped else OK
+        message = f"recording {writer.path}" + (f"; {stats.dropped} messages dropped" if stats.dropped else "")
+        self.diagnostics.set(level, message, path=str(writer.path), last_file=self._last_file,
+                             received=stats.received, written=stats.written, dropped=stats.dropped,
+                             topics=len(self._known))
 
     # -- recording ------------------------------------------------------------------
     def _next_path(self) -> Path:
@@ -131,6 +159,7 @@ class McapRecorderNode(Node):
                 writer.add_topic(topic, type_name, qos_yaml, type_hash)
             self._writer = writer
             self.get_logger().info(f"recording to {writer.path}")
+            self.report()
         return self._writer.path
 
     def stop_recording(self) -> dict | None:
@@ -144,6 +173,8 @@ class McapRecorderNode(Node):
         files.append(writer.bag_file())
         metadata = write_metadata_yaml(folder, bag_metadata(files))
         self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
+        self._last_file = str(writer.path)
+        self.report()
         report = {
             "path": str(writer.path),
             "metadata_yaml": str(metadata),

@@ -10,7 +10,7 @@ reason comes from the kinematics node's /diagnostics), vibration_planner/set_par
 get_parameters and describe_parameters, vibration_planner/start and /stop, hardware_emulator/emergency_stop
 and /reset (Trigger); subscribes legs/joint_states, platform/pose (ground truth), platform/pose_estimate,
 legs/force_estimate (raw, best effort: a slow page never holds up a publisher), vibration/status,
-/diagnostics and /rosout (the recorder's "recording to <path>").
+/diagnostics (the recorder's status names the file it writes) and /rosout (its "recording to <path>").
 
 Commands from the page are checked here with the core's own checks before anything is sent (a move with
 ``kinematics.check_pose``, a start with the planner's settings check and the decomposition's limits) and
@@ -226,11 +226,22 @@ class PlanningUiNode(Node):
                 self._event(node, status.message, LEVELS.get(level, "ERROR"))
             if node == "vibration_planner":
                 self._follow_planner(values)
+            if node == "mcap_recorder":  # the file being written (also for a page opened after it started)
+                self._follow_recorder(values)
             move = self.move
             if node == "kinematics" and changed and move is not None and move["status"] == "moving" and \
                     status.message.startswith("rejected target pose"):
                 move["status"], move["reason"] = "rejected by kinematics", status.message
             self._resolve_waiters(node, status.message)
+
+    def _follow_recorder(self, values: dict) -> None:
+        path, last = values.get("path", ""), values.get("last_file", "")
+        current = {"path": path, "state": "recording"} if path else ({"path": last, "state": "finished"} if last
+                                                                      else None)
+        if current and (self.mcap is None or (self.mcap["path"], self.mcap["state"]) != (current["path"],
+                                                                                          current["state"])):
+            self.mcap = {**current, "seen": time.monotonic()}
+            self._list_report()
 
     def _on_rosout(self, msg: Log) -> None:
         if not msg.name.endswith("mcap_recorder"):

@@ -14,8 +14,11 @@ tail, so if no later window arrives the units ramp out smoothly on their own.
 
 States: idle, running, stopping, aborted (with the reason). start works from
 idle or aborted: it needs a recent pose estimate (pose_timeout_s) and, when the
-emulator's status is known, units at rest and no latched e-stop (otherwise it
-says why). t0 = start call + start_lead_s (node clock, sim time). The planner
+emulator's status is known, no latched e-stop and, if the status is recent
+(STATUS_STALE_S; older means this process was held up), units at rest
+(otherwise it says why; on a stale status the emulator's own window check rules).
+t0 = start call (sim clock, at least the fresh pose estimate's stamp) + start_lead_s
+(wall seconds: scaled to sim seconds by the sim clock's rate when it runs faster than real time). The planner
 aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN
 otherwise) and in its state -- when the emulator refuses one of its windows,
 e-stops, reports the units stopped or idle before the planned end, or when it
@@ -44,6 +47,7 @@ from ..errors import StewartError
 from ..kinematics.rotations import pose_from_position_quaternion
 from ..messages import cdr
 from ..robot import load_robot
+from ..runtime.sim_clock import ClockRate
 from ..vibration.settings import (
     DEFAULT_DIRECTION,
     DEFAULT_FRAME,
@@ -70,6 +74,7 @@ from .common import (
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
+STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")
 
@@ -98,11 +103,17 @@ class VibrationPlannerNode(Node):
         self.plan = None
         self.stream: VibrationStream | None = None
         self.run = None  # dict: settings, t0 (s), next_send (s)
-        self.pose_data = None  # raw PoseStamped bytes and their receive time (node clock, s)
+        self.pose_data = None  # raw PoseStamped bytes and their receive time (monotonic wall clock, s:
+        # the sim clock may be stale when this process resumes from a stall)
         self.emulator = None  # latest VibrationReport from vibration/status
+        self.emulator_received = 0.0  # when it arrived (monotonic wall clock, s)
         self.seen_event = 0
         self._pose_seen = 0
         self._last_tick = time.monotonic()
+        # leads are wall-clock margins (a window must reach the emulator in time): faster than real time
+        # they are scaled to as many more sim seconds
+        self.clock_rate = ClockRate()
+        self._last_rate_sample = 0.0
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
         self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
@@ -139,7 +150,7 @@ class VibrationPlannerNode(Node):
 
     def on_pose(self, data: bytes) -> None:
         """Keep the latest estimate (500 Hz: decoded only when a vibration starts)."""
-        self.pose_data = (data, self.now_s())
+        self.pose_data = (data, time.monotonic())
         self._pose_seen += 1
         if self._pose_seen % 50 == 1:  # the freshness watch needs no more than a few per second
             self.diagnostics.seen("platform/pose_estimate")
@@ -149,6 +160,7 @@ class VibrationPlannerNode(Node):
         level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
         report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
         self.emulator = report
+        self.emulator_received = time.monotonic()
         if self.state not in ("running", "stopping"):
             self.seen_event = report.event_seq
             return
@@ -198,7 +210,8 @@ class VibrationPlannerNode(Node):
         if emulator is not None and emulator.state == "estopped":
             return self._refuse(response, "emergency stop latched on the hardware emulator: call "
                                           "hardware_emulator/reset first")
-        if emulator is not None and emulator.state in BUSY_STATES:
+        status_age = time.monotonic() - self.emulator_received
+        if emulator is not None and emulator.state in BUSY_STATES and status_age <= STATUS_STALE_S:
             return self._refuse(response, f"the vibration units are not at rest ({emulator.message}); start again "
                                           f"when they are")
         if self.pose_data is None:
@@ -208,20 +221,24 @@ class VibrationPlannerNode(Node):
             return self._refuse(response, "clock not running (use_sim_time without /clock?)")
         s = self.settings()
         data, received = self.pose_data
-        age = now - received
+        age = time.monotonic() - received
         if age > s["pose_timeout_s"]:
-            return self._refuse(response, f"pose estimate is {age:.3f} s old (pose_timeout_s {s['pose_timeout_s']})")
+            return self._refuse(response, f"pose estimate is {age:.3f} s old (wall time; pose_timeout_s "
+                                          f"{s['pose_timeout_s']})")
         try:
-            _, _, position, quaternion = cdr.decode_pose_stamped(data)
+            pose_stamp, _, position, quaternion = cdr.decode_pose_stamped(data)
             pose = pose_from_position_quaternion(position, quaternion)
         except StewartError as exc:
             return self._refuse(response, f"pose estimate unusable: {exc}")
+        # just resumed from a stall, this process may not have taken the latest /clock yet: the
+        # fresh pose estimate's stamp (sim time) bounds the present from below
+        now = max(now, pose_stamp)
         try:
-            started = start_check(self.robot, pose, s)
+            started = start_check(self.robot, pose, s, self.clock_rate.wall_margin)  # wall s -> sim s
         except StewartError as exc:
             return self._refuse(response, start_refusal(exc, s))
         plan, stream, first = started.plan, started.stream, started.first
-        t0 = now + s["start_lead_s"]
+        t0 = now + started.start_lead
         duration = s["duration_s"] if s["duration_s"] > 0 else None
         self.plan, self.stream = plan, stream
         self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"]}
@@ -239,8 +256,11 @@ class VibrationPlannerNode(Node):
             f"gains k = {np.round(plan.gains, 6).tolist()}; "
             f"leg amplitudes um = {np.round(plan.leg_amplitudes * 1e6, 3).tolist()}; "
             f"leg phases rad = {np.round(plan.leg_phases, 4).tolist()}"
-            + ("" if emulator is not None else "; note: no vibration/status from the hardware emulator yet, "
-                                               "so the units' state is unconfirmed")
+            + ("; note: no vibration/status from the hardware emulator yet, so the units' state is unconfirmed"
+               if emulator is None else
+               f"; note: the last vibration/status is {status_age:.1f} s old (this process was held up?), so the "
+               f"units' state is unconfirmed; the hardware emulator checks the window" if status_age > STATUS_STALE_S
+               else "")
             + f"; settings: {json.dumps(ran)}"
         )
         self.get_logger().info(text)
@@ -276,6 +296,9 @@ class VibrationPlannerNode(Node):
     def tick(self) -> None:
         wall = time.monotonic()
         gap, self._last_tick = wall - self._last_tick, wall
+        if gap <= STALL_S and wall - self._last_rate_sample >= 0.05:
+            self._last_rate_sample = wall
+            self.clock_rate.add(wall, self.now_s())
         run = self.run
         if run is None:
             return

@@ -61,6 +61,7 @@ class SuiteClient(Protocol):
 
     clock: float | None  # latest /clock (sim s)
     vibration_status: Any  # latest emulation.vibration_status.VibrationReport, or None
+    status_history: list  # (state, since, reason) of every vibration/status state change seen
     planner_message: str | None  # message of the planner's latest /diagnostics status
 
     def spin_until(self, predicate, timeout: float, what: str) -> None: ...
@@ -214,8 +215,16 @@ class ScenarioSteps:
                 fail(reason)
 
         watch(t0 + ramp, "the vibration to begin")
+        # the emulator reports at 10 Hz of wall time: faster than real time the newest report may predate t0, so
+        # wait for one from t0 on and look for the start among the state changes seen (a short ramp-in can fall
+        # between two reports)
+        client.spin_until(lambda: failed() is not None or (client.vibration_status is not None and
+                                                            client.vibration_status.time >= t0), 10.0,
+                          "a vibration report from t0 on")
         report = client.vibration_status
-        if report is None or report.state not in ("ramping_in", "running"):
+        began = any(state in ("ramping_in", "running") and since >= t0 - 0.01
+                    for state, since, _reason in client.status_history)
+        if report is None or not began:
             fail(f"the vibration did not begin at t0 = {t0:.3f} s: the emulator reports "
                  f"{report.message if report else 'nothing (no vibration/status)'}")
         watch(t0 + duration, "the vibration to finish")

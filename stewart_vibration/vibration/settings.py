@@ -54,12 +54,15 @@ def parameters(robot: Robot) -> dict[str, Parameter]:
                                  "tail, s"),
         "window_period_s": Parameter(0.5, 0.01, 30.0, "period between streamed windows, s (< lookahead_s)"),
         "sample_period_s": Parameter(0.001, 1e-4, 0.05, "sample spacing in a window, s"),
-        "lead_s": Parameter(0.3, 0.0, 2.0, "streamed windows start this far ahead of now, s"),
-        "start_lead_s": Parameter(1.0, 0.0, 5.0, "the vibration starts (t0) this far after the start call, s "
-                                  "(>= lead_s)"),
+        "lead_s": Parameter(0.3, 0.0, 2.0, "streamed windows start this far ahead of now, s of wall time (more "
+                            "sim seconds when the sim clock runs faster than real time)"),
+        "start_lead_s": Parameter(1.0, 0.0, 5.0, "the vibration starts (t0) this far after the start call, s of "
+                                  "wall time (>= lead_s; more sim seconds when the sim clock runs faster than real "
+                                  "time)"),
         "max_lookahead_s": Parameter(5.0, 0.1, 30.0, "a finite vibration ending within this time is sent whole in "
                                      "one window, s (the emulator accepts windows reaching up to 30 s ahead)"),
-        "pose_timeout_s": Parameter(1.0, 0.01, 60.0, "start needs a pose estimate received within this time, s"),
+        "pose_timeout_s": Parameter(1.0, 0.01, 60.0, "start needs a pose estimate received within this time, s "
+                                    "of wall time"),
     }
 
 
@@ -150,28 +153,40 @@ def plan_vibration(robot: Robot, pose, s: dict, check_limits: bool = True, metho
         phase=s["phase_rad"], frame=s["frame"], method=method, check_limits=check_limits)
 
 
-def stream_settings(s: dict) -> StreamSettings:
-    """The streaming's timing from the settings (duration_s 0 = until stop)."""
+def same_seconds(seconds: float) -> float:
+    """A wall-time margin at real time: as many sim seconds."""
+    return seconds
+
+
+def stream_settings(s: dict, wall_margin=same_seconds) -> StreamSettings:
+    """The streaming's timing from the settings (duration_s 0 = until stop). ``wall_margin`` turns the
+    wall-time margins lead_s and start_lead_s into sim seconds (``runtime.sim_clock.ClockRate.wall_margin``
+    faster than real time): a finite vibration sent whole may reach that much further ahead."""
+    start_lead = wall_margin(s["start_lead_s"])
     return StreamSettings(duration=s["duration_s"] if s["duration_s"] > 0 else None, ramp_s=s["ramp_s"],
-                          sample_period_s=s["sample_period_s"], lookahead_s=s["lookahead_s"], lead_s=s["lead_s"],
-                          max_lookahead_s=s["max_lookahead_s"])
+                          sample_period_s=s["sample_period_s"], lookahead_s=s["lookahead_s"],
+                          lead_s=wall_margin(s["lead_s"]),
+                          max_lookahead_s=s["max_lookahead_s"] + start_lead - s["start_lead_s"])
 
 
 @dataclass(frozen=True)
 class StartPlan:
-    """What a start runs: the decomposition, its stream (the first window already taken) and that window."""
+    """What a start runs: the decomposition, its stream (the first window already taken), that window and
+    t0's lead over the start call (sim s)."""
 
     plan: VibrationDecomposition
     stream: VibrationStream
     first: VibrationWindow
+    start_lead: float
 
 
-def start_check(robot: Robot, pose, s: dict) -> StartPlan:
+def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds) -> StartPlan:
     """Everything the planner checks before it starts a vibration at ``pose`` with the settings ``s``.
 
     The settings (``settings_reason``), the decomposition with the unit's and the stroke limits, the first
     window (sent at the start call, start_lead_s before t0, ramp-in included) and, for a vibration that
-    is streamed, a stop window at full amplitude against the unit's limits.
+    is streamed, a stop window at full amplitude against the unit's limits. ``wall_margin`` turns the
+    wall-time leads into sim seconds (see ``stream_settings``).
 
     Returns:
         The StartPlan; its stream has sent the first window (times relative to t0).
@@ -183,16 +198,17 @@ def start_check(robot: Robot, pose, s: dict) -> StartPlan:
     if reason := settings_reason(robot, s):
         raise InvalidInputError(reason)
     plan = plan_vibration(robot, pose, s, check_limits=True)
-    stream = VibrationStream(robot, plan, stream_settings(s))
-    first = stream.next_window(-s["start_lead_s"])
+    start_lead = wall_margin(s["start_lead_s"])
+    stream = VibrationStream(robot, plan, stream_settings(s, wall_margin))
+    first = stream.next_window(-start_lead)
     check_command_limits(robot.vibration_unit, first.times, first.position, first.velocity, first.acceleration)
     if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
         probe = VibrationStream(robot, plan, stream.settings)
-        probe.next_window(-s["start_lead_s"])
+        probe.next_window(-start_lead)
         stop = probe.stop_window(s["ramp_s"])
         if stop is not None:
             check_command_limits(robot.vibration_unit, stop.times, stop.position, stop.velocity, stop.acceleration)
-    return StartPlan(plan, stream, first)
+    return StartPlan(plan, stream, first, start_lead)
 
 
 def start_refusal(exc: StewartError, s: dict) -> str:

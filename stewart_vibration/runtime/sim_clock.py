@@ -1,0 +1,49 @@
+"""How fast the simulation clock runs against the wall clock (pure): faster than real time
+(``real_time_factor`` > 1 or 0 = as fast as possible) a margin meant in wall time -- e.g. the time a
+command needs to reach the emulator -- is that many more sim seconds."""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+
+import numpy as np
+
+
+class ClockRate:
+    """d(sim)/d(wall) over the last ``window_s`` of wall time, from (wall, sim) samples in seconds: the
+    median of the rates between consecutive samples, so a jump of the clock (the first /clock after 0,
+    a skipped stretch) does not count.
+
+    1.0 until the samples span ``min_span_s`` of wall time with at least ``min_intervals`` intervals; a
+    clock that is not running (sim <= 0) is ignored, one that jumps back (a restarted simulation)
+    starts over."""
+
+    def __init__(self, window_s: float = 2.0, min_span_s: float = 0.3, min_intervals: int = 4):
+        self.window_s, self.min_span_s, self.min_intervals = window_s, min_span_s, min_intervals
+        self._samples: deque[tuple[float, float]] = deque()
+
+    def add(self, wall: float, sim: float) -> None:
+        if sim <= 0.0:
+            return
+        if self._samples and sim < self._samples[-1][1]:
+            self._samples.clear()
+        self._samples.append((wall, sim))
+        while wall - self._samples[0][0] > self.window_s:
+            self._samples.popleft()
+
+    def rate(self) -> float:
+        if len(self._samples) <= self.min_intervals or self._samples[-1][0] - self._samples[0][0] < self.min_span_s:
+            return 1.0
+        samples = np.array(self._samples)
+        walls, sims = np.diff(samples[:, 0]), np.diff(samples[:, 1])
+        keep = walls > 0
+        return float(np.median(sims[keep] / walls[keep])) if keep.any() else 1.0
+
+    def wall_margin(self, seconds: float, resolution: float = 0.01) -> float:
+        """``seconds`` of wall time in sim seconds, rounded up to ``resolution`` (never less than
+        ``seconds``: slower than real time the margin stays as configured)."""
+        rate = self.rate()
+        if rate <= 1.0:
+            return seconds
+        return math.ceil(seconds * rate / resolution - 1e-9) * resolution
