@@ -179,7 +179,9 @@ def test_recorder_sigkill_keeps_completed_chunks(ros_domain, tmp_path):
         # 8 s at 200 Hz: the observer may join a few seconds late on a loaded machine
         pub = _run_publisher(tmp_path, env, count=1600, rate=200, wait=False, topics="joint_states")
         # the publisher starts once the recorder is matched; the observer joins after that
-        assert wait_for(lambda: "subscribed /legs/joint_states" in rec.log_text(), 20), rec.log_text()
+        # the recorder can subscribe before it opens its file (start-up discovery, then record_on_start)
+        assert wait_for(lambda: "subscribed /legs/joint_states" in rec.log_text() and
+                        "recording to" in rec.log_text(), 20), rec.log_text()
         path = _mcap(tmp_path)
         client = RosTestClient("sigkill_observer")
         client.node.create_subscription(
