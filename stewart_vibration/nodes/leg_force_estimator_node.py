@@ -154,7 +154,7 @@ class LegForceEstimatorNode(Node):
         legs_at, vib_at = self.columns(batch.names)
         self.health.arrived(batch.stamps)
         if legs_at is None or vib_at is None:
-            self._reject("joint state", f"needs {LEG_NAMES + VIB_NAMES}, got names {list(batch.names)}")
+            self._reject("joint state", f"needs {list(LEG_NAMES + VIB_NAMES)}, got names {list(batch.names)}")
             return
         cols = np.concatenate([legs_at, vib_at])
         pos, vel = batch.position[:, cols], batch.velocity[:, cols]
