@@ -31,6 +31,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
+from ..interrupts import INTERRUPTS
 from ..processes import (
     DDS_PROFILE_ENV,
     NodeProcess,
@@ -52,6 +53,8 @@ class StepFailed(RuntimeError):
 
 
 CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT
+# planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
+NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
 SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
 
 
@@ -220,7 +223,8 @@ class SuiteRunner:
                     self.record.failures.append(f"{proc.name} exited with code {code} during --keep-running "
                                                 f"(log: {proc.log_path})")
                     self._dead.add(proc.name)
-            self.executor.spin_once(timeout_sec=0.5)
+            with INTERRUPTS.deferred():  # Ctrl-C must not land in rclpy's C++
+                self.executor.spin_once(timeout_sec=0.5)
 
     # -- helpers -----------------------------------------------------------------
     def spin_until(self, predicate, timeout: float, what: str) -> None:
@@ -231,7 +235,8 @@ class SuiteRunner:
                 raise StepFailed(f"{', '.join(dead)} died while waiting for {what} (see {self.record.log_dir})")
             if predicate():
                 return
-            self.executor.spin_once(timeout_sec=0.02)
+            with INTERRUPTS.deferred():
+                self.executor.spin_once(timeout_sec=0.02)
         raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
 
     def call(self, srv_type, name: str, request, timeout: float = 30.0):
@@ -352,7 +357,8 @@ class SuiteRunner:
 
         def tripped():
             v = values()
-            return v.get("state") == "tripped" and float(v.get("trip_time_s", -1.0)) >= start - 1e-6
+            return v.get("state") == "tripped" and v.get("trip_limit") in ("force", "moment") and \
+                float(v.get("trip_time_s", -1.0)) >= start - 1e-6  # not a pause for late estimates
 
         def reached():
             msg = self.latest.get("platform/pose")
@@ -397,6 +403,12 @@ class SuiteRunner:
         if refused:
             raise StepFailed(f"planner refused parameters: {'; '.join(refused)}")
         res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
+        deadline = time.monotonic() + 10.0
+        while not res.success and res.message.startswith(NOT_READY_YET) and time.monotonic() < deadline:
+            # a busy machine: the planner has no /clock or pose estimate yet -- not a reason to give up at once
+            end = time.monotonic() + 0.5
+            self.spin_until(lambda e=end: time.monotonic() >= e, 1.0, "a moment")
+            res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
         if not res.success:
             raise StepFailed(f"vibration start refused: {res.message}")
         ran = json.loads(res.message.rsplit("settings: ", 1)[1])
