@@ -305,6 +305,7 @@ def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, lim
         t, p, v, e, _ = (np.array(c) for c in zip(*new))
         res = est.estimate(t, p[:, :6], p[:, 6:], v[:, :6], v[:, 6:], e)
         guard.observe_states(t, p[:, :6])
+        assert guard.check_estimates(emu.time - lag) is None or guard.tripped  # estimates flow: never blind
         got = guard.observe(res.stamps, res.wrench, emu.time - lag, 0.02)
         if got is not None:
             trip = got
@@ -325,6 +326,69 @@ def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, lim
     guard.check_target(held, held + [0.001, 0, 0, 0, 0, 0])  # sideways
     assert guard.set_limits(force_limit=limit + 1.0) and not guard.tripped
     guard.check_target(held, held + [0, 0, 0.001, 0, 0, 0])
+
+
+@pytest.mark.parametrize("cut_at", [0.0, 0.3, 0.6])
+def test_guard_stops_a_move_whose_estimates_stop(robot, tissue, cut_at):
+    """The estimator falls silent at ``cut_at`` of a move (0: it never answered): the guard trips "estimates"
+    within max_estimate_age of the last estimate, the emulator accepts the stop and the struts come to rest
+    short of the target; without that check (max_estimate_age 0) the same move runs to its target."""
+    results = {}
+    for max_age in (0.3, 0.0):
+        emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), tissue=tissue)
+        est, guard = ForceEstimator(robot), ForceGuard(robot, 1e6, 0.0, max_estimate_age=max_age)
+        target = robot.home_pose + [0, 0, 0.010, 0, 0, 0]
+        start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, target)
+        duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+        times = np.linspace(duration / 50, duration, 50)
+        emu.advance(0.02)
+        _, pos, vel, eff = emu.joint_state()
+        first = est.estimate([emu.time], [pos[:6]], [pos[6:]], [vel[:6]], [vel[6:]], [eff[:6]])
+        t_start = emu.time
+        unheard = ForceGuard(robot, 1e6, 0.0, max_estimate_age=max_age)  # no estimator ever answered it
+        unheard.begin_move(t_start + 0.02, 1.0, np.zeros(6), np.ones(6) * 1e-3, robot.home_pose, robot.home_pose)
+        assert unheard.check_estimates(t_start + 0.5) is None  # unguarded (the node warns), not stopped
+        guard.observe(first.stamps, first.wrench, emu.time)  # the estimator is there: from now on it must keep up
+        emu.command_struts(LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
+        est.command_struts(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times,
+                                            *minimum_jerk(start, goal, duration, times)), now=emu.time)
+        guard.begin_move(t_start + 0.02, duration, start, goal, robot.home_pose, target)
+        cut, trip, last = t_start + cut_at * duration, None, None
+        while emu.time < t_start + duration + 0.5:
+            t, p, v, e = [], [], [], []
+            for _ in range(10):
+                emu.advance(0.002)
+                _, pos, vel, eff = emu.joint_state()
+                t.append(emu.time), p.append(pos), v.append(vel), e.append(eff[:6])
+            t, p, v, e = (np.array(c) for c in (t, p, v, e))
+            guard.observe_states(t, p[:, :6])
+            if cut_at > 0 and t[-1] <= cut:
+                res = est.estimate(t, p[:, :6], p[:, 6:], v[:, :6], v[:, 6:], e)
+                guard.observe(res.stamps, res.wrench, emu.time, 0.02)
+                last = t[-1]
+            got = guard.check_estimates(emu.time)
+            if got is not None:
+                trip = got
+                stop = trip.stop
+                assert stop is not None
+                # raises if the emulator would refuse it (limits, continuity)
+                emu.command_struts(LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)], [np.zeros(6)])
+        results[max_age] = (trip, last, emu.platform_pose(), guard.move.start_time if guard.move else None)
+        if max_age:  # a pause: once the stop is watched out and estimates are fresh again, the guard is as before
+            assert guard.tripped and not guard.blind_stop_over(emu.time)
+            later = emu.time + 1.0
+            guard.observe([later], [np.zeros(6)], later)
+            assert guard.blind_stop_over(later)
+            guard.resume_after_blind()
+            assert not guard.tripped and not guard.blocked
+    trip, last, held, move_start = results[0.3]  # the move's start as calibrated from the measured struts
+    assert trip is not None and trip.which == "estimates" and "no external-wrench estimate" in trip.detail
+    seen = move_start if last is None else max(last, move_start)
+    assert seen + 0.3 < trip.time <= seen + 0.3 + 0.02  # within one burst of the age limit
+    assert held[2] < target[2] - 1e-4  # stopped short of the target (near its end a stop has little left)
+    assert results[0.0][0] is None and abs(results[0.0][2][2] - target[2]) < 1e-5  # unwatched: it ran to the goal
+    print(f"estimates cut at {cut_at:.1f} of the move: tripped at {trip.time - t_start:.3f} s into it, held "
+          f"{(target[2] - held[2]) * 1e3:.2f} mm short of the target")
 
 
 def test_tissue_scenario_loads(robot):

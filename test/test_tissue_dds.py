@@ -258,6 +258,50 @@ def test_guard_stops_a_move_that_would_exceed_the_limit(robot, suite):
     assert all(p.alive() for p in procs), logs(procs)
 
 
+def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, suite):
+    """SIGSTOP the estimator early in a move: kinematics stops the struts within guard_max_estimate_age_s (trip
+    limit 'estimates'), the platform holds short of the target; SIGCONT: the guard re-arms and the same target is
+    reached without a new command."""
+    import os
+    import signal
+
+    procs, client, rec = suite
+    set_params(client, "kinematics", guard_max_estimate_age_s=0.2)
+    move_to(client, rec, robot.home_pose)
+    guard_before = len(rec["guard"])
+    target = robot.home_pose + np.array([0.0, 0.0, 0.004, 0.0, 0.0, 0.0])  # 4 mm: well below the force limit
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
+    estimator = next(p for p in procs if p.name == "estimator").popen.pid
+    assert client.spin_until(lambda: rec["truth"] and pose_from_msg(rec["truth"][-1].pose)[2] >
+                             robot.home_pose[2] + 0.2e-3, 20), logs(procs)
+    os.kill(estimator, signal.SIGSTOP)
+    try:
+        assert client.spin_until(lambda: any(guard_values(m).get("trip_limit") == "estimates"
+                                             for m in rec["guard"][guard_before:]), 10), logs(procs)
+        trip = next(guard_values(m) for m in rec["guard"][guard_before:]
+                    if guard_values(m).get("trip_limit") == "estimates")
+        assert client.spin_until(lambda: sim_now(rec) > float(trip["trip_time_s"]) + 1.5, 30)
+        held = pose_from_msg(rec["truth"][-1].pose)
+        print(f"estimator stopped: paused at {(held[2] - robot.home_pose[2]) * 1e3:.3f} mm of 4 mm")
+        assert held[2] < target[2] - 0.3e-3  # held short of the target while blind
+    finally:
+        os.kill(estimator, signal.SIGCONT)
+    since = [None]
+
+    def reached():
+        err = np.abs(pose_from_msg(rec["truth"][-1].pose) - target)
+        if err[:3].max() < 10e-6:
+            since[0] = since[0] or sim_now(rec)
+            return sim_now(rec) - since[0] > 0.5
+        return False
+
+    assert client.spin_until(reached, 30), logs(procs)  # resumed by itself: no new target was sent
+    assert guard_values(rec["guard"][-1])["state"] == "armed"
+    move_to(client, rec, robot.home_pose)
+    set_params(client, "kinematics", guard_max_estimate_age_s=0.5)
+    assert all(p.alive() for p in procs), logs(procs)
+
+
 def test_plan_path_refuses_a_path_that_would_overload_a_strut(robot, suite):
     procs, client, rec = suite
     diagnostics = rec["diagnostics"]

@@ -11,7 +11,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import time
@@ -21,6 +20,7 @@ import numpy as np
 
 from ..dynamics.tissue import load_tissue
 from ..robot import load_robot
+from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import claim_ros_domain
 from ..runtime.run_folders import new_run_folder
 from ..runtime.scenario import load_scenario, resolve_tissue_path
@@ -71,10 +71,6 @@ def _log(message: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {message}", flush=True)
 
 
-def _on_sigterm(signum, frame):
-    raise KeyboardInterrupt
-
-
 def _choose_domain(given: int | None):
     """(domain, lock or None, where it came from): --domain-id, $ROS_DOMAIN_ID, or a free one (locked)."""
     if given is not None:
@@ -106,7 +102,7 @@ def run(args) -> int:
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
                          out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue)
-    signal.signal(signal.SIGTERM, _on_sigterm)
+    INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None
     _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "

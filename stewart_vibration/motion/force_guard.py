@@ -28,6 +28,13 @@ the natural stopping point of the estimated departure (velocity falling as a cub
 sigma_f = sigma + T_s (sigma_dot / 2 + sigma_ddot T_s / 12)), so the stop follows the planned path. If
 the move would end before the stop could (sigma_f >= 1), no stop is sent: the move ends at its goal.
 
+Blind. The guard is only as good as its input: while a move is under way, a newest wrench estimate
+older than ``max_estimate_age`` (s of sim time) behind the newest joint state (the estimator late,
+stalled or gone) trips the guard too (limit "estimates"), with the same stop: no estimate, no motion.
+That trip is a pause: once the stop is over and estimates are fresh again, ``resume_after_blind``
+restores the guard as it was before it (the node then sends the interrupted target again).
+Until a first estimate has arrived at all (no estimator running) moves are unguarded; the node warns.
+
 Latch. After a trip the guard holds the direction of the move (pose space, rotations scaled by the
 robot's characteristic length): a target whose displacement from the current pose has a component along
 it is refused with the reason; other targets (back, sideways) are allowed and watched like any move (a
@@ -54,6 +61,7 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
+MAX_ESTIMATE_AGE_S = 0.5  # default: a move stops when the newest wrench estimate is older than this (s of sim time)
 _TAU = np.linspace(0.0, 1.0, 41)  # points per stop segment at which the limits are checked
 # quintic Hermite bases on _TAU for a segment of unit duration ending at rest (v1 = a1 = 0): velocity and
 # acceleration per unit of (p0 - p1), v0 and a0; a segment of duration h scales them by 1/h, h^0, h
@@ -141,8 +149,9 @@ class StopPlan:
 @dataclass(frozen=True)
 class GuardTrip:
     """A trip: time (s, stamp of the estimate), force and moment magnitudes then (N, N m), the predicted
-    ones at the end of the stop, which limit ("force" | "moment"), the stop (None: the move ends first),
-    the tripped move's goal pose and direction (pose space, unit)."""
+    ones at the end of the stop, which limit ("force" | "moment" | "estimates": none fresh enough), the stop
+    (None: the move ends first), the tripped move's goal pose and direction (pose space, unit), and for
+    "estimates" what was missing."""
 
     time: float
     force: float
@@ -153,14 +162,20 @@ class GuardTrip:
     stop: StopPlan | None
     goal_pose: np.ndarray
     direction: np.ndarray
+    detail: str = ""
 
 
 class ForceGuard:
     """See the module docstring. Limits in N and N m (0 = off); deceleration_scale: the fraction of
-    strut_acceleration_max a stop may use."""
+    strut_acceleration_max a stop may use; max_estimate_age: s of sim time a move goes on without a fresh
+    wrench estimate (0 = never stop for that)."""
 
-    def __init__(self, robot: Robot, force_limit: float, moment_limit: float, deceleration_scale: float = 0.8):
+    def __init__(self, robot: Robot, force_limit: float, moment_limit: float, deceleration_scale: float = 0.8,
+                 max_estimate_age: float = MAX_ESTIMATE_AGE_S):
         self.robot = robot
+        self.max_estimate_age = float(max_estimate_age)
+        self.newest_estimate = -np.inf  # stamp of the newest wrench estimate observed (s)
+        self._before_blind = None  # (trip, blocked, peak) before an "estimates" trip: restored when they return
         self.force_limit, self.moment_limit = float(force_limit), float(moment_limit)
         self.deceleration_scale = float(deceleration_scale)
         self.move: GuardedMove | None = None
@@ -168,6 +183,7 @@ class ForceGuard:
         self.blocked: list[np.ndarray] = []  # directions of every move stopped since the last reset
         self._stopping: GuardedMove | None = None  # the move the latest trip stopped
         self.peak = (0.0, 0.0)  # largest force and moment magnitudes estimated since the trip
+        self.last_wrench = np.zeros(6)  # the newest wrench estimate (N, N m): the load of an "estimates" trip
         self._state_t = np.zeros(0)
         self._state_sigma = np.zeros(0)
         self._stop_retries = 0
@@ -189,6 +205,7 @@ class ForceGuard:
         """Clear a latched trip; returns whether one was latched."""
         was = self.trip is not None
         self.trip, self.peak, self.blocked, self._stopping = None, (0.0, 0.0), [], None
+        self._before_blind = None
         return was
 
     @property
@@ -212,6 +229,8 @@ class ForceGuard:
                 limit_name="force_guard", value=along, limit=0.0)
 
     def _tripped_value(self, trip: GuardTrip) -> str:
+        if trip.which == "estimates":
+            return trip.detail
         if trip.which == "force":
             return f"{trip.force:.1f} N, predicted {trip.predicted_force:.1f} N > guard_force_n {self.force_limit:g} N"
         return (f"{trip.moment:.2f} N m, predicted {trip.predicted_moment:.2f} N m > guard_moment_nm "
@@ -249,6 +268,8 @@ class ForceGuard:
         wrenches = np.asarray(wrenches, float)
         if not len(wrenches):
             return None
+        self.last_wrench = wrenches[-1]
+        self.newest_estimate = max(self.newest_estimate, float(np.max(stamps)))
         move = self.move
         if move is None:
             return None
@@ -284,20 +305,63 @@ class ForceGuard:
             checks.append((which, now, predicted, limit, rising))
         for which, _now, predicted, limit, rising in checks:
             if rising and predicted > limit:
-                stop = self.plan_stop(newest_state_time)
                 values = {c[0]: c for c in checks}
                 f = values.get("force", (None, force[-1], force[-1]))
                 m = values.get("moment", (None, moment[-1], moment[-1]))
-                direction = pose_direction(self.robot, move.start_pose, move.goal_pose)
-                norm = np.linalg.norm(direction)
-                self.trip = GuardTrip(float(stamps[-1]), float(f[1]), float(m[1]), float(f[2]), float(m[2]), which,
-                                      stop, move.goal_pose.copy(), direction / norm if norm > 0 else direction)
-                self.blocked.append(self.trip.direction)
-                self._stopping = move
+                trip = self._trip(move, float(stamps[-1]), newest_state_time, (float(f[1]), float(m[1])),
+                                  (float(f[2]), float(m[2])), which)
                 self.peak = (float(force.max()), float(moment.max()))
-                self._stop_retries = 0
-                return self.trip
+                return trip
         return None
+
+    def check_estimates(self, newest_state_time: float) -> GuardTrip | None:
+        """Trip ("estimates") when a move is under way and the newest wrench estimate (or the move's start, if
+        none came since) lies more than ``max_estimate_age`` s behind ``newest_state_time`` (s, the emulator's
+        clock): the guard cannot see the load, so the struts stop. Returns a new trip or None."""
+        move = self.move
+        if move is None or self.max_estimate_age <= 0 or (self.trip is not None and move is self._stopping):
+            return None
+        if not np.isfinite(self.newest_estimate):  # no estimator has ever answered: unguarded (the node warns)
+            return None
+        if newest_state_time > move.end:  # the move is over: nothing left to stop
+            return None
+        seen = max(self.newest_estimate, move.start_time)
+        age = newest_state_time - seen
+        if age <= self.max_estimate_age:
+            return None
+        force, moment = float(np.linalg.norm(self.last_wrench[:3])), float(np.linalg.norm(self.last_wrench[3:]))
+        detail = (f"no external-wrench estimate for {age:.3f} s of sim time (newest {self.newest_estimate:.3f} s; "
+                  f"guard_max_estimate_age_s {self.max_estimate_age:g}): the guard could not see the load")
+        self._before_blind = (self.trip, list(self.blocked), self.peak)
+        return self._trip(move, float(newest_state_time), newest_state_time, (force, moment), (force, moment),
+                          "estimates", detail)
+
+    def blind_stop_over(self, newest_state_time: float) -> bool:
+        """An "estimates" trip whose stop is over (the guard watches no move) while the estimates are fresh
+        again (within half of ``max_estimate_age`` of ``newest_state_time``)."""
+        trip = self.trip
+        return (trip is not None and trip.which == "estimates" and self.move is None
+                and newest_state_time - self.newest_estimate <= 0.5 * self.max_estimate_age)
+
+    def resume_after_blind(self) -> None:
+        """End an "estimates" trip: the guard as it was before it (an earlier force trip stays latched)."""
+        if self.trip is not None and self.trip.which == "estimates" and self._before_blind is not None:
+            self.trip, self.blocked, self.peak = self._before_blind
+            self._before_blind = None
+
+    def _trip(self, move: GuardedMove, time: float, newest_state_time: float, load: tuple[float, float],
+              predicted: tuple[float, float], which: str, detail: str = "") -> GuardTrip:
+        """Latch a trip of ``move`` at ``time`` (s) with its stop plan; block the move's direction."""
+        stop = self.plan_stop(newest_state_time)
+        direction = pose_direction(self.robot, move.start_pose, move.goal_pose)
+        norm = np.linalg.norm(direction)
+        self.trip = GuardTrip(time, load[0], load[1], predicted[0], predicted[1], which, stop, move.goal_pose.copy(),
+                              direction / norm if norm > 0 else direction, detail)
+        self.blocked.append(self.trip.direction)
+        self._stopping = move
+        self.peak = load
+        self._stop_retries = 0
+        return self.trip
 
     def plan_stop(self, newest_state_time: float, later_s: float = 0.0, window_s: float | None = None
                   ) -> StopPlan | None:

@@ -22,6 +22,9 @@ Force guard (stewart_vibration.motion.force_guard): during a move the external-w
 struts are stopped smoothly along the planned path (a one-point trajectory within
 guard_deceleration_scale x strut_acceleration_max), the node holds there, reports ERROR and refuses
 targets further in that direction until kinematics/reset_guard or a new limit.
+A move also stops (limit "estimates") when the newest wrench estimate is older than
+``guard_max_estimate_age_s`` of sim time: the estimator is late, stalled or gone, the guard blind. That
+is a pause: once the stop is over and estimates are fresh again, the node sends the same target again.
 """
 
 from __future__ import annotations
@@ -47,7 +50,7 @@ from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.rotations import pose_to_position_quaternion
 from ..messages import cdr
 from ..messages.stream_health import StreamHealth
-from ..motion.force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.force_guard import MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import load_robot
@@ -75,7 +78,7 @@ from .common import (
 )
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale")
+GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale", "guard_max_estimate_age_s")
 
 
 class GuardedDiagnostics(Diagnostics):
@@ -123,12 +126,15 @@ class KinematicsNode(Node):
             "clears a trip)", 0.0, 500.0))
         declare_float(self, "guard_deceleration_scale", 0.8, float_param(
             "force guard: fraction of strut_acceleration_max a stop may use", 0.1, 1.0))
+        declare_float(self, "guard_max_estimate_age_s", MAX_ESTIMATE_AGE_S, float_param(
+            "force guard: a move stops when the newest external-wrench estimate is older than this, s of sim time "
+            "(the guard would be blind; 0 = off)", 0.0, 5.0))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
         param = self.get_parameter
         self.guard = ForceGuard(self.robot, param("guard_force_n").value, param("guard_moment_nm").value,
-                                param("guard_deceleration_scale").value)
+                                param("guard_deceleration_scale").value, param("guard_max_estimate_age_s").value)
         self.batch_period = period
         self.sim_time = bool(self.get_parameter("use_sim_time").value)
         self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
@@ -152,10 +158,14 @@ class KinematicsNode(Node):
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
         self.wrench_decoder_errors = 0
         self.wrench_batcher = RawBatcher(self, batch_size, period, self.process_wrenches)
-        self.wrench_sub = None  # platform/external_wrench_estimate, subscribed only while the guard watches a move
+        # subscribed for good: a subscription made when a move starts is blind until DDS has matched it
+        # (seconds on a busy machine: a guarded move once ran to its target unwatched)
+        self.create_subscription(WrenchStamped, "platform/external_wrench_estimate", self.wrench_batcher.add,
+                                 STREAM_DEPTH, raw=True)
         self.guard_pub = self.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
         self.emulator_rejections = 0  # the hardware emulator's count of refused commands (its /diagnostics)
         self.stop_sent_at = None  # wall time of the last stop sent (a refusal after it means: stop again)
+        self.last_target = None  # the PoseStamped of the latest move sent (resumed after a blind stop)
         self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
         self.create_service(Trigger, "kinematics/reset_guard", self.on_reset_guard)
         self.add_on_set_parameters_callback(self.on_set_parameters)
@@ -217,6 +227,9 @@ class KinematicsNode(Node):
         self.lengths, self.pose = legs[ok][-1], poses[-1]
         self.state_time = float(stamps[-1])
         self.guard.observe_states(stamps, legs)
+        blind = self.guard.check_estimates(self.emulator_now())
+        if blind is not None:
+            self.on_trip(blind)
         retry = self.guard.missed_stop(self.emulator_now())
         if retry is not None:
             self.get_logger().error("force guard: the struts ran past the commanded stop (refused or late?); "
@@ -226,10 +239,6 @@ class KinematicsNode(Node):
             self.diagnostics.set(OK, "tracking")
 
     def report(self) -> None:
-        if self.wrench_sub is not None and self.guard.move is None:  # the watch is over: no 500 Hz input idle
-            self.destroy_subscription(self.wrench_sub)
-            self.wrench_sub = None
-            self.wrench_batcher.pending, self.wrench_batcher.arrivals = [], []
         self.diagnostics.values.update(self.health.values("states"))
         if self.health.behind:
             p99 = self.health.lag_percentiles_ms()[1]
@@ -237,12 +246,6 @@ class KinematicsNode(Node):
         self.diagnostics.publish()
 
     # -- force guard -------------------------------------------------------
-    def watch_wrench(self) -> None:
-        """Subscribe to the external-wrench estimate (a move begins); ``report`` ends it once the guard is done."""
-        if self.wrench_sub is None:
-            self.wrench_sub = self.create_subscription(WrenchStamped, "platform/external_wrench_estimate",
-                                                       self.wrench_batcher.add, STREAM_DEPTH, raw=True)
-
     def process_wrenches(self, messages: list, arrivals: np.ndarray) -> None:
         """Wrench estimates: the guard's input (the newest only when it watches no move)."""
         if self.guard.move is None:
@@ -261,6 +264,12 @@ class KinematicsNode(Node):
             self.on_trip(trip)
         elif self.guard.tripped and was_watching and self.guard.move is None:
             self.publish_guard_status()  # the stop is over: its peak load
+        if self.guard.blind_stop_over(self.emulator_now()) and self.last_target is not None:
+            self.guard.resume_after_blind()
+            self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the move to "
+                                      f"{np.round(pose_from_msg(self.last_target.pose), 5).tolist()}")
+            self.publish_guard_status()
+            self.on_target_pose(self.last_target)
 
     def emulator_now(self, fallback: float = 0.0) -> float:
         """The emulator's time as best known here (s): on sim time the newer of /clock and the newest joint state
@@ -331,6 +340,8 @@ class KinematicsNode(Node):
         values = {p.name: float(p.value) for p in params if p.name in GUARD_PARAMS}
         if not values:
             return SetParametersResult(successful=True)
+        if "guard_max_estimate_age_s" in values:
+            self.guard.max_estimate_age = values["guard_max_estimate_age_s"]
         if "guard_deceleration_scale" in values:
             self.guard.deceleration_scale = values["guard_deceleration_scale"]
         cleared = self.guard.set_limits(values.get("guard_force_n"), values.get("guard_moment_nm"))
@@ -362,12 +373,19 @@ class KinematicsNode(Node):
         except StewartError as exc:
             reject(self, self.diagnostics, "target pose", f"path not feasible: {exc}")
             return
-        self.watch_wrench()
         self.traj_pub.publish(trajectory)
+        self.last_target = msg
         final = duration_seconds(trajectory.points[-1].time_from_start)
         start_time = self.emulator_now() + RECEIPT_DELAY_S
         self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target)
-        self.diagnostics.set(OK, "trajectory sent", last_target=np.round(target, 6).tolist(), last_duration_s=final)
+        if not np.isfinite(self.guard.newest_estimate) and (self.guard.force_limit > 0 or self.guard.moment_limit > 0):
+            self.diagnostics.set(WARN, "trajectory sent UNGUARDED: no platform/external_wrench_estimate received yet "
+                                 "(is leg_force_estimator running?)", last_target=np.round(target, 6).tolist(),
+                                 last_duration_s=final)
+            self.get_logger().warning("force guard: no external-wrench estimate received yet; this move is unguarded")
+        else:
+            self.diagnostics.set(OK, "trajectory sent", last_target=np.round(target, 6).tolist(),
+                                 last_duration_s=final)
         self.get_logger().info(f"trajectory to {np.round(target, 5).tolist()} over {final:.3f} s")
 
     def plan_trajectory(self, start_lengths, start_pose, goal_lengths, goal_pose) -> JointTrajectory:

@@ -24,11 +24,14 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
+from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
 from .common import make_executor, pose_from_msg, pose_stamped
 
+# planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
+NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -91,11 +94,13 @@ class SuiteClient:
                 raise StepFailed(f"{', '.join(dead)} died while waiting for {what} (see {self.log_dir})")
             if predicate():
                 return
-            self.executor.spin_once(timeout_sec=0.02)
+            with INTERRUPTS.deferred():  # Ctrl-C must not land in rclpy's C++
+                self.executor.spin_once(timeout_sec=0.02)
         raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
 
     def spin_once(self, timeout_s: float = 0.5) -> None:
-        self.executor.spin_once(timeout_sec=timeout_s)
+        with INTERRUPTS.deferred():
+            self.executor.spin_once(timeout_sec=timeout_s)
 
     def wait_sim(self, seconds: float, what: str) -> None:
         """Wait ``seconds`` of sim time."""
@@ -185,7 +190,13 @@ class SuiteClient:
         return [f"{p.name}: {r.reason}" for p, r in zip(params, res.results, strict=True) if not r.successful]
 
     def start_vibration(self) -> tuple[bool, str]:
+        """The planner's start; retried for up to 10 s while it only answers "not yet" (NOT_READY_YET)."""
         res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
+        deadline = time.monotonic() + 10.0
+        while not res.success and res.message.startswith(NOT_READY_YET) and time.monotonic() < deadline:
+            end = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
+            self.spin_until(lambda e=end: time.monotonic() >= e, 1.0, "a moment")
+            res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
         return res.success, res.message
 
     # -- the end --------------------------------------------------------------------------------------------
