@@ -65,7 +65,8 @@ class ScriptedSuite:
 
     def guard_status(self):
         tripped = self.guard_trips and self.target is not None and self.clock > self.sent_at
-        return ({"state": "tripped", "trip_limit": "force", "trip_time_s": str(self.sent_at)} if tripped else {}), "tripped: force"
+        values = {"state": "tripped", "trip_limit": "force", "trip_time_s": str(self.sent_at)} if tripped else {}
+        return values, "tripped: force"
 
     def set_planner_parameters(self, parameters):
         self.sent_parameters = dict(parameters)
