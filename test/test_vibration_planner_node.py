@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
@@ -219,9 +221,16 @@ def test_planner_follows_the_emulators_status(robot, planner):
     status.publish(emulator_status("idle", 0.0))
 
     def start():
-        poses.publish(pose_msg(paper_pose(robot)))
-        client.spin_for(0.2)
-        return trigger(client, "start")
+        """Publish a pose and start; while the planner has no pose yet (a first sample sent as DDS was still
+        matching waits for a heartbeat), publish again and retry for up to 5 s."""
+        deadline = time.monotonic() + 5.0
+        while True:
+            poses.publish(pose_msg(paper_pose(robot)))
+            client.spin_for(0.2)
+            response = trigger(client, "start")
+            if response.success or "no platform/pose_estimate" not in response.message or \
+                    time.monotonic() > deadline:
+                return response
 
     def t0_of(response):
         return float(response.message.split("t0 = ")[1].split(" s")[0])

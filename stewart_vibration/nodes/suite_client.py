@@ -159,6 +159,10 @@ class SuiteClient:
 
     # -- what the scenario's steps use (runtime.steps.SuiteClient) ------------------------------------------
     def send_target(self, pose) -> None:
+        """Publish a target pose once kinematics' subscription is matched to this publisher (a message sent
+        before DDS has matched them is lost: a run once waited 120 s for a move that was never received)."""
+        self.spin_until(lambda: self.target_pub.get_subscription_count() > 0, 30.0,
+                        "kinematics to subscribe to platform/target_pose")
         self.target_pub.publish(pose_stamped(pose, self.node.get_clock().now().to_msg()))
 
     def follow_ground_truth(self, on: bool) -> None:
