@@ -159,7 +159,10 @@ def test_long_stall_ramps_out_reports_and_restarts_without_reset(suite):
     assert ended and "commands ended" in ended[-1].reason, [r.message for _, r in suite.status[-5:]]
     os.kill(planner, signal.SIGCONT)
     assert suite.client.spin_until(lambda: suite.planner_says("aborted"), 10), suite.logs()
-    assert "held up" in suite.planner_says("aborted")[-1][1].message
+    # the reason: its own stall, or the emulator's refusal of the window it had queued before the stall
+    # (delivered on SIGCONT, too old) -- whichever the planner sees first; both name what happened
+    reason = suite.planner_says("aborted")[-1][1].message
+    assert "held up" in reason or ("refused a window" in reason and "before it arrived" in reason), reason
     stamps, vib = suite.vib(stopped_at - 0.5, stopped_at + 3.0)
     assert_no_step(stamps, vib, 60e-6)
     at_rest = stamps[np.abs(vib).max(axis=1) < 1e-9]
