@@ -27,6 +27,21 @@ def main_job(out: Path, domain: int, *extra: str) -> subprocess.Popen:
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
 
 
+def passing_summary(out: Path, domain: int, *extra: str) -> tuple[dict, str]:
+    """Run the main job to its end (400 s at most; killed otherwise); assert exit 0 and no missed bound or
+    failure; returns its summary.json and its output."""
+    proc = main_job(out, domain, *extra)
+    try:
+        stdout, _ = proc.communicate(timeout=400)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+    assert proc.returncode == 0, stdout[-4000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert not summary["bound_failures"] and summary["failure"] is None
+    return summary, stdout
+
+
 def processes_on_domain(domain: int) -> list[int]:
     """PIDs of live processes whose environment has ROS_DOMAIN_ID=domain (the suite's nodes)."""
     found = []
@@ -46,15 +61,7 @@ def processes_on_domain(domain: int) -> list[int]:
 
 def test_main_job_summary_within_bounds(tmp_path, ros_domain):
     out = tmp_path / "run"
-    proc = main_job(out, ros_domain, "--duration", "1.6", "--json")
-    try:
-        stdout, _ = proc.communicate(timeout=400)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 0, stdout[-4000:]
-    summary = json.loads((out / "summary.json").read_text())
-    assert not summary["bound_failures"] and summary["failure"] is None
+    summary, stdout = passing_summary(out, ros_domain, "--duration", "1.6", "--json")
     # issue 5's acceptance figures, from the emulator's ground truth and measured efforts
     for move in summary["moves"]:
         assert move["pose_error_m"] <= 10e-6 and move["pose_error_deg"] <= 0.01

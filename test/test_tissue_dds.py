@@ -332,22 +332,11 @@ def test_plan_path_refuses_a_path_that_would_overload_a_strut(robot, suite):
 def test_tissue_scenario_runs_within_its_bounds(tmp_path, ros_domain):
     """./tools/main --scenario config/scenario_tissue.yaml as a user runs it: every step done (the guarded move
     stopped by the guard), every figure within its bounds, the tissue figures and the report's plot there."""
-    import os
-    import signal
-
-    from test_main_job import main_job
+    from test_main_job import passing_summary
 
     out = tmp_path / "run"
     scenario = Path(__file__).resolve().parents[1] / "config" / "scenario_tissue.yaml"
-    proc = main_job(out, ros_domain, "--scenario", str(scenario), "--duration", "1.2")
-    try:
-        stdout, _ = proc.communicate(timeout=400)
-    finally:
-        if proc.poll() is None:
-            os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 0, stdout[-4000:]
-    summary = json.loads((out / "summary.json").read_text())
-    assert not summary["bound_failures"] and summary["failure"] is None
+    summary, stdout = passing_summary(out, ros_domain, "--scenario", str(scenario), "--duration", "1.2")
     tissue = summary["tissue"]
     assert tissue["moves_holds"]["relative_force"] <= 0.02 and tissue["vibration"]["rms_force_error_n"] <= 1.0
     (trip,) = tissue["guard"]
