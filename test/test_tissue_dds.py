@@ -298,7 +298,7 @@ def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, su
     assert client.spin_until(reached, 30), logs(procs)  # resumed by itself: no new target was sent
     assert guard_values(rec["guard"][-1])["state"] == "armed"
     move_to(client, rec, robot.home_pose)
-    set_params(client, "kinematics", guard_max_estimate_age_s=0.5)
+    set_params(client, "kinematics", guard_max_estimate_age_s=0.25)
     assert all(p.alive() for p in procs), logs(procs)
 
 
@@ -339,8 +339,9 @@ def test_tissue_scenario_runs_within_its_bounds(tmp_path, ros_domain):
     summary, stdout = passing_summary(out, ros_domain, "--scenario", str(scenario), "--duration", "1.2")
     tissue = summary["tissue"]
     assert tissue["moves_holds"]["relative_force"] <= 0.02 and tissue["vibration"]["rms_force_error_n"] <= 1.0
-    (trip,) = tissue["guard"]
-    assert trip["limit"] == "force" and trip["overshoot"] <= 0.10 and trip["peak_applied_force_n"] <= 1.1 * 200
+    (trip,) = [t for t in tissue["guard"] if t["limit"] != "estimates"]  # besides any pause while estimates lagged
+    assert trip["limit"] == "force" and trip["overshoot"] <= 0.10
+    assert all(t["peak_applied_force_n"] <= 1.1 * 200 for t in tissue["guard"])  # pauses included
     (stop,) = summary["guard_stops"]
     assert stop["short_of_target_m"] > 1e-3
     assert "force guard tripped" in stdout and "soft tissue" in stdout

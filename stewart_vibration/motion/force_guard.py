@@ -8,13 +8,15 @@ move's state is one number, its progress sigma = phi(s) in [0, 1] (sigma of meas
 projection of L - L0 on D). The move's start t0 in the emulator's clock is first estimated (newest joint
 state + ``RECEIPT_DELAY_S``) and then calibrated from the measured lengths once the struts move.
 
-Trip. For every wrench estimate during a move the guard predicts the load at the end of the stop it
-would command now: the force (and moment) magnitude is fitted against the progress over the last
-``FIT_WINDOW_S`` (quadratic: soft tissue stiffens with distraction) and extrapolated to the progress
-at which that stop would end (the travel until the emulator gets the command plus the braking
-distance). It trips when the predicted force exceeds ``force_limit`` (or the moment ``moment_limit``)
-and the load has risen above what it was at the move's start (a move that relieves a load that is
-already over the limit is not stopped). A limit of 0 switches that check off.
+Trip. For every batch of wrench estimates and of joint states during a move the guard predicts the load
+at the end of the stop it would command now: the force (and moment) magnitude is fitted against the
+progress over the last ``FIT_WINDOW_S`` of estimates (quadratic, continued as an exponential with the
+fit's local growth rate while the load rises: soft tissue stiffens with distraction) and extrapolated to
+the progress at which that stop would end (the travel until the emulator gets the command plus the
+braking distance). A state newer than the newest estimate moves that progress on, so estimates that lag
+do not delay the trip. It trips when the predicted force exceeds ``force_limit`` (or the moment
+``moment_limit``) and the load has risen above what it was at the move's start (a move that relieves a
+load that is already over the limit is not stopped). A limit of 0 switches that check off.
 
 Stop. A leg trajectory stamped 0 (now) with one point: the struts come to rest at L0 + D sigma_f after
 T_s. The emulator departs from the state it commands when the stop arrives, which lies on the move at a
@@ -32,7 +34,8 @@ Blind. The guard is only as good as its input: while a move is under way, a newe
 older than ``max_estimate_age`` (s of sim time) behind the newest joint state (the estimator late,
 stalled or gone) trips the guard too (limit "estimates"), with the same stop: no estimate, no motion.
 That trip is a pause: once the stop is over and estimates are fresh again, ``resume_after_blind``
-restores the guard as it was before it (the node then sends the interrupted target again).
+restores the guard as it was before it (the node then sends the interrupted target again) unless the
+load it could not see has passed a limit meanwhile: then the trip becomes a force (moment) trip.
 Until a first estimate has arrived at all (no estimator running) moves are unguarded; the node warns.
 
 Latch. After a trip the guard holds the direction of the move (pose space, rotations scaled by the
@@ -61,7 +64,7 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
-MAX_ESTIMATE_AGE_S = 0.5  # default: a move stops when the newest wrench estimate is older than this (s of sim time)
+MAX_ESTIMATE_AGE_S = 0.25  # default: a move pauses when the newest wrench estimate is this far (s) behind the states
 _TAU = np.linspace(0.0, 1.0, 41)  # points per stop segment at which the limits are checked
 # quintic Hermite bases on _TAU for a segment of unit duration ending at rest (v1 = a1 = 0): velocity and
 # acceleration per unit of (p0 - p1), v0 and a0; a segment of duration h scales them by 1/h, h^0, h
@@ -148,7 +151,8 @@ class StopPlan:
 
 @dataclass(frozen=True)
 class GuardTrip:
-    """A trip: time (s, stamp of the estimate), force and moment magnitudes then (N, N m), the predicted
+    """A trip: time (s, emulator clock: the newest estimate's stamp, or the newest state's when a state
+    update tripped it), force and moment magnitudes then (N, N m), the predicted
     ones at the end of the stop, which limit ("force" | "moment" | "estimates": none fresh enough), the stop
     (None: the move ends first), the tripped move's goal pose and direction (pose space, unit), and for
     "estimates" what was missing."""
@@ -291,8 +295,23 @@ class ForceGuard:
             return None
         sigma = np.interp(stamps, self._state_t, self._state_sigma)
         move.samples.extend(zip(stamps.tolist(), sigma.tolist(), force.tolist(), moment.tolist()))
-        recent = [row for row in move.samples if row[0] >= stamps[-1] - FIT_WINDOW_S]
-        move.samples = recent
+        move.samples = [row for row in move.samples if row[0] >= stamps[-1] - FIT_WINDOW_S]
+        trip = self.assess(newest_state_time, next_check_s, float(stamps[-1]))
+        if trip is not None:
+            self.peak = (max(self.peak[0], float(force.max())), max(self.peak[1], float(moment.max())))
+        return trip
+
+    def assess(self, newest_state_time: float, next_check_s: float = 0.0, time: float | None = None
+               ) -> GuardTrip | None:
+        """Trip now if a stop sent ``next_check_s`` s from now would end above a limit, by the load fitted
+        against the progress (the latest estimates) extrapolated to that stop's end. Called for every batch of
+        estimates and for every batch of joint states: the load is a function of where the struts are, so
+        a state that is newer than the newest estimate moves the prediction on (estimates that come late
+        do not delay the trip). ``time``: the trip's stamp (default ``newest_state_time``)."""
+        move = self.move
+        if move is None or move.baseline is None or not move.samples or \
+                (self.trip is not None and move is self._stopping):
+            return None
         later = self.plan_stop(newest_state_time, next_check_s)
         target = 1.0 if later is None else later.progress
         checks = []
@@ -300,17 +319,17 @@ class ForceGuard:
                                            ("moment", 3, self.moment_limit, move.baseline[1])):
             if limit <= 0:
                 continue
-            now, predicted = _predict(recent, column, target)
+            now, predicted = _predict(move.samples, column, target)
             rising = now > base + 0.01 * limit and predicted > now
             checks.append((which, now, predicted, limit, rising))
-        for which, _now, predicted, limit, rising in checks:
-            if rising and predicted > limit:
+        for which, _now, _predicted, limit, rising in checks:
+            if rising and _predicted > limit:
                 values = {c[0]: c for c in checks}
-                f = values.get("force", (None, force[-1], force[-1]))
-                m = values.get("moment", (None, moment[-1], moment[-1]))
-                trip = self._trip(move, float(stamps[-1]), newest_state_time, (float(f[1]), float(m[1])),
-                                  (float(f[2]), float(m[2])), which)
-                self.peak = (float(force.max()), float(moment.max()))
+                latest = move.samples[-1]
+                f = values.get("force", (None, latest[2], latest[2]))
+                m = values.get("moment", (None, latest[3], latest[3]))
+                trip = self._trip(move, newest_state_time if time is None else time, newest_state_time,
+                                  (float(f[1]), float(m[1])), (float(f[2]), float(m[2])), which)
                 return trip
         return None
 
@@ -343,11 +362,28 @@ class ForceGuard:
         return (trip is not None and trip.which == "estimates" and self.move is None
                 and newest_state_time - self.newest_estimate <= 0.5 * self.max_estimate_age)
 
-    def resume_after_blind(self) -> None:
-        """End an "estimates" trip: the guard as it was before it (an earlier force trip stays latched)."""
-        if self.trip is not None and self.trip.which == "estimates" and self._before_blind is not None:
-            self.trip, self.blocked, self.peak = self._before_blind
+    def resume_after_blind(self) -> bool:
+        """End an "estimates" trip. If the fresh load is within the limits the guard is as it was before it (an
+        earlier force trip stays latched) and True is returned: the node sends the interrupted target again.
+        If the load the guard could not see has passed a limit meanwhile, the trip becomes a force (moment)
+        trip, latched like any other: False, the struts stay where the stop held them."""
+        trip = self.trip
+        if trip is None or trip.which != "estimates" or self._before_blind is None:
+            return False
+        force, moment = float(np.linalg.norm(self.last_wrench[:3])), float(np.linalg.norm(self.last_wrench[3:]))
+        over = [(which, value, limit) for which, value, limit in (("force", force, self.force_limit),
+                                                                   ("moment", moment, self.moment_limit))
+                if 0 < limit <= value]
+        if over:
+            which, value, limit = over[0]
+            self.trip = replace(trip, which=which, force=force, moment=moment, predicted_force=force,
+                                predicted_moment=moment, time=self.newest_estimate,
+                                detail=f"found when estimates returned after a blind stop ({trip.detail})")
             self._before_blind = None
+            return False
+        self.trip, self.blocked, self.peak = self._before_blind
+        self._before_blind = None
+        return True
 
     def _trip(self, move: GuardedMove, time: float, newest_state_time: float, load: tuple[float, float],
               predicted: tuple[float, float], which: str, detail: str = "") -> GuardTrip:
@@ -463,7 +499,10 @@ class ForceGuard:
 def _predict(samples, column: int, target_progress: float) -> tuple[float, float]:
     """(latest value, predicted value at ``target_progress``) of column 2 (force) or 3 (moment) of the
     (t, sigma, |F|, |M|) samples: quadratic least squares in sigma around the latest progress (linear with
-    few samples or little spread; the latest value when the progress does not change)."""
+    few samples or little spread; the latest value when the progress does not change), extrapolated with the
+    fit's slope F' and curvature F'' at the latest progress as an exponential while the load rises
+    (F + F' (exp(r d) - 1) / r, r = F''/F', d the progress ahead): soft tissue stiffens with distraction, and
+    a quadratic under-predicts an exponential the further it looks ahead."""
     rows = np.asarray(samples, float)
     now = float(rows[-1, column])
     if len(rows) < MIN_FIT_SAMPLES:
@@ -475,8 +514,13 @@ def _predict(samples, column: int, target_progress: float) -> tuple[float, float
         return now, now
     degree = 2 if len(rows) >= 2 * MIN_FIT_SAMPLES and span > 0.2 * ahead else 1
     coef = np.polyfit(x / span, rows[:, column], degree)
-    return now, now + float(np.polyval(coef, ahead / span) - np.polyval(coef, 0.0))
-
+    slope, curvature, a = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0), ahead / span
+    if slope <= 0 or abs(curvature) < 1e-9 * slope:  # not rising here, or straight: the polynomial itself
+        return now, now + float(np.polyval(coef, a) - np.polyval(coef, 0.0))
+    # rising: continue with the local growth rate r = F''/F' (exponential stiffening keeps it): F' (e^{ra} - 1)/r,
+    # never below the quadratic (its Taylor series has the quadratic's terms and more of the same sign)
+    rate = curvature / slope
+    return now, now + slope * float(np.expm1(min(rate * a, 50.0))) / rate
 
 __all__ = [
     "ForceGuard",

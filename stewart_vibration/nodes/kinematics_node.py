@@ -14,17 +14,19 @@ batches of ``batch_size`` (the emulator's bursts) or every ``batch_period_s`` (w
 warm-started from the previous pose); wrench estimates likewise.
 
 Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
-forces it needs under that tissue model (motion_profiles.check_path_forces: quasi-static Newton-Euler +
+forces it needs under that tissue model (motion.paths.check_path_forces: quasi-static Newton-Euler +
 the tissue's elastic wrench), refused with the leg and the waypoint above strut_force_max_n.
 Force guard (stewart_vibration.motion.force_guard): during a move the external-wrench estimate is watched
-(subscribed only while a move runs: no 500 Hz input while the robot holds still); when the force
+(subscribed for good; between moves only the newest of each batch is decoded); when the force
 (moment) at the end of a stop commanded now would exceed ``guard_force_n`` (``guard_moment_nm``) the
 struts are stopped smoothly along the planned path (a one-point trajectory within
 guard_deceleration_scale x strut_acceleration_max), the node holds there, reports ERROR and refuses
 targets further in that direction until kinematics/reset_guard or a new limit.
-A move also stops (limit "estimates") when the newest wrench estimate is older than
-``guard_max_estimate_age_s`` of sim time: the estimator is late, stalled or gone, the guard blind. That
-is a pause: once the stop is over and estimates are fresh again, the node sends the same target again.
+The guard is asked on every batch of estimates and of states (the states move the prediction on). A
+move also stops (limit "estimates") when the newest wrench estimate is more than
+``guard_max_estimate_age_s`` behind the newest joint state: the estimator is late, stalled or gone, the
+guard blind. That is a pause: once the stop is over and estimates are fresh again, the node sends the same
+target again, unless the load passed a limit meanwhile (then the trip is a latched force trip).
 """
 
 from __future__ import annotations
@@ -127,8 +129,8 @@ class KinematicsNode(Node):
         declare_float(self, "guard_deceleration_scale", 0.8, float_param(
             "force guard: fraction of strut_acceleration_max a stop may use", 0.1, 1.0))
         declare_float(self, "guard_max_estimate_age_s", MAX_ESTIMATE_AGE_S, float_param(
-            "force guard: a move stops when the newest external-wrench estimate is older than this, s of sim time "
-            "(the guard would be blind; 0 = off)", 0.0, 5.0))
+            "force guard: a move pauses when the newest external-wrench estimate is this far behind the newest joint "
+            "state, s (the guard would be blind; 0 = off)", 0.0, 5.0))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
@@ -227,9 +229,13 @@ class KinematicsNode(Node):
         self.lengths, self.pose = legs[ok][-1], poses[-1]
         self.state_time = float(stamps[-1])
         self.guard.observe_states(stamps, legs)
-        blind = self.guard.check_estimates(self.emulator_now())
-        if blind is not None:
-            self.on_trip(blind)
+        # estimates already queued here are newer news than their absence: after a stall of this node the
+        # states are taken first, and judging the guard blind before reading them would stop for nothing
+        self.wrench_batcher.flush()
+        # blind = estimates behind the states this node has read (not /clock: a stall of this node delays both)
+        trip = self.guard.assess(self.emulator_now(), self.batch_period) or self.guard.check_estimates(self.state_time)
+        if trip is not None:
+            self.on_trip(trip)
         retry = self.guard.missed_stop(self.emulator_now())
         if retry is not None:
             self.get_logger().error("force guard: the struts ran past the commanded stop (refused or late?); "
@@ -264,12 +270,14 @@ class KinematicsNode(Node):
             self.on_trip(trip)
         elif self.guard.tripped and was_watching and self.guard.move is None:
             self.publish_guard_status()  # the stop is over: its peak load
-        if self.guard.blind_stop_over(self.emulator_now()) and self.last_target is not None:
-            self.guard.resume_after_blind()
-            self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the move to "
-                                      f"{np.round(pose_from_msg(self.last_target.pose), 5).tolist()}")
-            self.publish_guard_status()
-            self.on_target_pose(self.last_target)
+        if self.state_time is not None and self.guard.blind_stop_over(self.state_time) and self.last_target is not None:
+            if self.guard.resume_after_blind():
+                self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the "
+                                          f"move to {np.round(pose_from_msg(self.last_target.pose), 5).tolist()}")
+                self.publish_guard_status()
+                self.on_target_pose(self.last_target)
+            else:  # the load passed a limit while the guard could not see it: latched, held by the blind stop
+                self.on_trip(self.guard.trip, send_stop=False)
 
     def emulator_now(self, fallback: float = 0.0) -> float:
         """The emulator's time as best known here (s): on sim time the newer of /clock and the newest joint state
@@ -279,8 +287,9 @@ class KinematicsNode(Node):
             now = max(now, self.get_clock().now().nanoseconds * 1e-9)
         return now
 
-    def on_trip(self, trip) -> None:
-        if trip.stop is not None:
+    def on_trip(self, trip, send_stop: bool = True) -> None:
+        """Report a trip (ERROR, guard status) and send its stop (unless the struts are held already)."""
+        if send_stop and trip.stop is not None:
             self.send_stop(trip.stop)
         message = self.guard.message()
         self.get_logger().error(f"force guard {message}")
