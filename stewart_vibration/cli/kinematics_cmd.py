@@ -18,6 +18,7 @@ POSE_FIELDS = ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]
 
 
 def register(subparsers) -> None:
+    """Add the ``ik`` and ``fk`` subcommands to ``subparsers``."""
     ik = subparsers.add_parser("ik", help="inverse kinematics: pose -> six leg lengths")
     ik.add_argument("pose", nargs=6, type=finite_float, metavar="Q",
                     help="x y z (m) roll pitch yaw (rad, or deg with --deg); R = Rz(yaw) Ry(pitch) Rx(roll)")
@@ -36,6 +37,12 @@ def register(subparsers) -> None:
 
 
 def run_ik(args) -> int:
+    """``ik``: print a pose's six leg lengths (m), joint angles (deg) and condition number; exit 0.
+
+    The pose is x y z (m) roll pitch yaw (rad, deg with --deg), the platform in the base frame. Raises
+    ConfigError (robot file), InvalidInputError, StrokeLimitError, JointLimitError or another
+    UnreachablePoseError, and SingularPoseError, from ``check_pose``.
+    """
     robot = load_robot(args.robot)
     pose = np.array(args.pose)
     if args.deg:
@@ -55,6 +62,12 @@ def run_ik(args) -> int:
 
 
 def run_fk(args) -> int:
+    """``fk``: print the pose (m, rad; platform in the base frame) of six leg lengths (m), solved by Newton.
+
+    Returns 0, or 3 if Newton did not converge or found another assembly mode. Raises ConfigError
+    (robot file), InvalidInputError (a length <= 0, bad guess) and StrokeLimitError (a length outside
+    the stroke).
+    """
     robot = load_robot(args.robot)
     result = forward_kinematics(robot, np.array(args.lengths), guess=args.guess, tol=args.tol,
                                 max_iter=args.max_iter)

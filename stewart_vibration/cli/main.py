@@ -27,6 +27,7 @@ SUBCOMMAND_MODULES = [
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``stewart-vibration`` argparse parser with every subcommand of SUBCOMMAND_MODULES registered."""
     parser = argparse.ArgumentParser(
         prog="stewart-vibration",
         description="6-UPS tibia robot: kinematics, vibration and dynamics tools (SI units).",
@@ -39,6 +40,10 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run the command line ``argv`` (default: sys.argv); returns the exit code.
+
+    A StewartError or OSError prints one ``error: ...`` line and returns 2 instead of raising.
+    """
     parser = build_parser()
     args = parser.parse_args(argv)
     try:

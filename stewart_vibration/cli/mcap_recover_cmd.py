@@ -24,6 +24,7 @@ SUFFIX = ".recovered.mcap"
 
 
 def register(subparsers) -> None:
+    """Add the ``mcap-recover`` subcommand to ``subparsers``."""
     p = subparsers.add_parser(
         "mcap-recover",
         help="rebuild a complete, indexed rosbag2 MCAP (+ metadata.yaml) from a file cut by a crash",
@@ -76,6 +77,11 @@ def _output_file(src: Path, output: str | None) -> Path:
 
 
 def run(args) -> int:
+    """``mcap-recover``: rebuild IN into OUT (+ metadata.yaml) and print what was recovered and lost.
+
+    Returns 0 if IN was complete, 1 if it was cut or damaged. Raises McapFileError (IN missing, empty,
+    not an MCAP, ambiguous run folder, or OUT exists without --force) and OSError on unwritable files.
+    """
     src = _input_file(Path(args.input))
     out = _output_file(src, args.output)
     if out.exists() and not args.force:

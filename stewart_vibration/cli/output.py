@@ -21,6 +21,7 @@ def to_jsonable(value):
 
 
 def print_json(payload: dict) -> None:
+    """Print ``payload`` as indented JSON (numpy arrays and scalars converted by ``to_jsonable``)."""
     print(json.dumps(to_jsonable(payload), indent=2))
 
 

@@ -14,6 +14,7 @@ from .output import format_table, to_jsonable
 
 
 def register(subparsers) -> None:
+    """Add the ``paper`` subcommand to ``subparsers``."""
     cmd = subparsers.add_parser("paper", help="reproduce the paper's vibration figures (Fig. 7/8/9) corrected: "
                                               "PNG + JSON + markdown")
     cmd.add_argument("--out", required=True, help="output directory (created)")
@@ -58,6 +59,10 @@ def _markdown(headers, rows) -> str:
 
 
 def run(args) -> int:
+    """``paper``: write the Fig. 7/8/9 PNGs, vibration_paper.json and vibration_paper.md to ``--out``.
+
+    Returns 0. Raises ConfigError (robot file) and OSError if the output folder cannot be written.
+    """
     from . import paper_figures as figs  # matplotlib only for this command
 
     robot = load_robot(args.robot)

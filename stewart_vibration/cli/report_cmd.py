@@ -11,6 +11,7 @@ from ..analysis.run_report import write_report
 
 
 def register(subparsers) -> None:
+    """Add the ``report`` subcommand to ``subparsers``."""
     p = subparsers.add_parser("report", help="summary and plots of a recorded MCAP run")
     p.add_argument("mcap", metavar="RUN", help="the run's .mcap file or its folder (rosbag2 bag directory)")
     p.add_argument("--out", required=True, help="output directory (created)")
@@ -20,6 +21,10 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """``report``: write summary.json, summary.md and the PNG plots of a run to ``--out``; returns 0.
+
+    Raises McapFileError if RUN is missing, empty, not an MCAP, or truncated without --allow-truncated.
+    """
     summary = write_report(args.mcap, args.out, allow_truncated=args.allow_truncated)
     print(f"report: {summary['message_count']} messages, {len(summary['topics'])} topics; "
           f"wrote summary.json, summary.md and {len(summary['plots'])} plots to {args.out}")

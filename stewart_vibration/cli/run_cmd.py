@@ -30,6 +30,7 @@ from .output import to_jsonable
 
 
 def register(subparsers) -> None:
+    """Add the ``run`` subcommand (the main job) to ``subparsers``."""
     cmd = subparsers.add_parser("run", help="bring up the node suite in emulation and run a scenario (main job)")
     cmd.add_argument("--scenario", help="scenario YAML (default: config/scenario_paper.yaml)")
     cmd.add_argument("--tissue", help="soft-tissue YAML the emulator applies and kinematics checks against (e.g. "
@@ -83,6 +84,12 @@ def _choose_domain(given: int | None):
 
 
 def run(args) -> int:
+    """``run``: bring up the node suite, run the scenario, record the MCAP, report and print the summary.
+
+    Writes summary.json to the run folder. Returns 0 (all done, within bounds), 1 (a figure missed its
+    bound), 2 (a step failed, a problem, or an unknown --respawn node) or 130 (interrupted). Raises
+    ConfigError (a bad robot, scenario or tissue file) before anything starts.
+    """
     from ..nodes.suite_runner import RunOptions, StepFailed, SuiteRunner  # rclpy only here, lazily
 
     robot = load_robot(args.robot)

@@ -11,6 +11,7 @@ from .output import format_table, print_json
 
 
 def register(subparsers) -> None:
+    """Add the ``offline-scenario`` subcommand to ``subparsers``."""
     cmd = subparsers.add_parser(
         "offline-scenario",
         help="IK, FK and leg lengths at the paper's pose, computed offline (no ROS nodes)",
@@ -20,6 +21,11 @@ def register(subparsers) -> None:
 
 
 def run(args) -> int:
+    """``offline-scenario``: print IK at home and at the paper's pose and the FK round trip (m, rad, deg).
+
+    Returns 0, or 1 if FK did not converge (or, as text, found another assembly mode). Raises
+    ConfigError (robot file).
+    """
     robot = load_robot(args.robot)
     home, pose = robot.home_pose, paper_pose(robot)
     lengths_home = inverse_kinematics(robot, home)

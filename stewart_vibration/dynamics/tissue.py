@@ -84,6 +84,7 @@ class TissueModel:
 
     @property
     def rest_rotation(self) -> np.ndarray:
+        """The platform's rotation at the rest pose (3, 3): tissue frame -> base frame."""
         return self._rest
 
     @property

@@ -82,10 +82,12 @@ class HardwareEmulator:
 
     @property
     def time(self) -> float:
+        """Simulation time now (s, 0 at start)."""
         return self.sim.time
 
     @property
     def dt(self) -> float:
+        """The physics step (s)."""
         return float(self.sim.model.opt.timestep)
 
     # -- commands ----------------------------------------------------------------
@@ -247,6 +249,7 @@ class HardwareEmulator:
         return LEG_NAMES + VIB_NAMES, positions, velocities, efforts
 
     def platform_pose(self) -> np.ndarray:
+        """The platform's ground-truth pose (6,) [x, y, z, roll, pitch, yaw] (m, rad) in the base frame."""
         return self.sim.platform_pose()
 
     def vibration_report(self) -> tuple[VibrationReport, bool]:

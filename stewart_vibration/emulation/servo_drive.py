@@ -70,9 +70,11 @@ class ServoDrive:
 
     @property
     def dt(self) -> float:
+        """The physics step (s)."""
         return float(self.model.opt.timestep)
 
     def lengths(self) -> np.ndarray:
+        """Total hinge-to-hinge leg lengths (6,) at the current time (m)."""
         return self.data.qpos[self.slide_q].copy()
 
     def rates(self) -> np.ndarray:

@@ -106,6 +106,7 @@ class TrajectoryFollower:
 
     @property
     def active(self) -> JointTrajectory | None:
+        """The commanded trajectory (absolute start; it may still wait for its start), or None while holding."""
         return self._active
 
     def hold(self, positions) -> None:
@@ -138,6 +139,7 @@ class TrajectoryFollower:
         return self._active
 
     def finished(self, now: float) -> bool:
+        """True when nothing runs or ``now`` (s) is at or past the active trajectory's end."""
         return self._active is None or now >= self._active.end
 
     def sample(self, times):

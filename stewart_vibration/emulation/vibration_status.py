@@ -44,6 +44,7 @@ class VibrationReport:
 
     @property
     def message(self) -> str:
+        """The state and, if any, its reason as one line ("state: reason")."""
         return f"{self.state}: {self.reason}" if self.reason else self.state
 
     def as_values(self) -> dict[str, str]:
@@ -91,13 +92,16 @@ class VibrationStatusTracker:
         return self.report
 
     def accepted(self, now: float, stamp: float) -> VibrationReport:
+        """Record an accepted window (start ``stamp``, s) at ``now`` (s); clears the stop reason, returns the report."""
         self._stopped_reason = ""
         return self._event(now, "accepted", stamp, accepted=self.report.accepted + 1)
 
     def refused(self, now: float, stamp: float, reason: str) -> VibrationReport:
+        """Record a refused window (start ``stamp``, s) at ``now`` (s) and its ``reason``; returns the report."""
         return self._event(now, f"refused: {reason}", stamp, refused=self.report.refused + 1)
 
     def safety_ramp(self, now: float, reason: str) -> VibrationReport:
+        """Record a safety ramp to zero from ``now`` (s) for ``reason`` (e.g. the e-stop); returns the report."""
         self._stopped_reason = reason
         return self._event(now, f"ramp to zero: {reason}")
 

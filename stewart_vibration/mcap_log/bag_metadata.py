@@ -56,10 +56,12 @@ class BagFile:
 
     @property
     def message_count(self) -> int:
+        """Messages in this file, over all its topics."""
         return sum(t.message_count for t in self.topics)
 
     @property
     def duration_ns(self) -> int:
+        """Log time from the first to the last message (ns); 0 without messages."""
         return max(0, self.end_ns - self.start_ns) if self.message_count else 0
 
 

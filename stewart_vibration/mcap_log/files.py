@@ -53,10 +53,12 @@ class Layout:
 
     @property
     def chunks(self) -> int:
+        """Number of whole Chunk records."""
         return sum(1 for r in self.records if r[0] == CHUNK)
 
     @property
     def bytes_unread(self) -> int:
+        """Bytes after the last whole record (a cut record and anything after it)."""
         return self.size - self.good_end
 
 

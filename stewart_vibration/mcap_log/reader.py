@@ -121,6 +121,7 @@ class RunReader:
         return out
 
     def message_count(self) -> int:
+        """Number of messages in the file, all channels (the summary's statistics, or counted by the scan)."""
         return int(sum(self._counts.values()))
 
     def _raw(self, msg: Message) -> RawMessage:

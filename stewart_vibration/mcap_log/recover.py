@@ -34,6 +34,8 @@ _CHUNK_FIXED = struct.Struct("<QQQI")  # start, end, uncompressed size, crc
 
 @dataclass
 class TopicRecovered:
+    """One topic of the recovered file: its name, message type and messages recovered."""
+
     topic: str
     type_name: str
     messages: int = 0
@@ -54,6 +56,12 @@ class PartialChunk:
 
 @dataclass
 class RecoveryReport:
+    """What ``recover`` read from the input and wrote to the output (times: log time, ns).
+
+    ``output`` and ``metadata_yaml`` are None when not written; ``corrupt_chunks`` names the chunks
+    skipped as damaged.
+    """
+
     source: Path
     output: Path | None
     layout: Layout
@@ -72,18 +80,22 @@ class RecoveryReport:
 
     @property
     def messages(self) -> int:
+        """Messages recovered (written to the output, if any), over all topics."""
         return sum(t.messages for t in self.topics.values())
 
     @property
     def complete_input(self) -> bool:
+        """True when the input had its footer (it was closed, not cut)."""
         return self.layout.footer
 
     @property
     def data_lost(self) -> bool:
+        """True when part of the input was not recovered: cut, damaged chunks, orphaned or non-cdr messages."""
         return (not self.layout.footer or bool(self.corrupt_chunks) or self.orphan_messages > 0
                 or self.not_cdr_messages > 0 or self.layout.bytes_unread > 0)
 
     def as_dict(self) -> dict:
+        """The report as JSON-ready values (paths as strings, times in ns, sizes in bytes)."""
         p = self.partial_chunk
         return {
             "source": str(self.source),

@@ -29,6 +29,7 @@ class ReplayOptions:
         return run_start_ns + round(self.start_offset_s * 1e9)
 
     def wants(self, topic: str) -> bool:
+        """True when ``topic`` is replayed: in ``include`` (or no include list) and not in ``exclude``."""
         return (not self.include or topic in self.include) and topic not in self.exclude
 
 

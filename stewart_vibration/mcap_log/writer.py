@@ -91,6 +91,7 @@ class WriterStats:
 
     @property
     def backlog(self) -> int:
+        """Messages received but neither written nor dropped yet (still queued)."""
         return self.received - self.written - self.dropped
 
 
@@ -137,6 +138,7 @@ class BagFileWriter:
         self._topics[topic] = _Topic(topic, type_name, qos_yaml, type_hash, channel_id, has_header_first(type_name))
 
     def add_metadata(self, name: str, data: dict[str, str]) -> None:
+        """Add a metadata record ``name`` with string key/values ``data``."""
         self._writer.add_metadata(name, data)
 
     def add_attachment(self, a) -> None:
@@ -256,6 +258,7 @@ class McapRunWriter:
         return self._file.bag_file()
 
     def bag_metadata_yaml(self) -> str:
+        """rosbag2 BagMetadata (version 9) of the file so far, as ``ros2 bag`` embeds it."""
         return self._file.bag_metadata_yaml()
 
     # -- writer thread ----------------------------------------------------------------

@@ -9,6 +9,7 @@ from ..robot import LEG_NAMES, VIB_NAMES
 
 
 def stamp_s(header) -> float:
+    """A std_msgs/Header's stamp in seconds (sec + nanosec * 1e-9)."""
     return header.stamp.sec + header.stamp.nanosec * 1e-9
 
 

@@ -161,6 +161,7 @@ def stamp_parts(seconds: float) -> tuple[int, int]:
 
 
 def stamp_seconds(sec: int, nanosec: int) -> float:
+    """Seconds of a (sec, nanosec) time stamp."""
     return sec + nanosec * 1e-9
 
 
@@ -195,6 +196,8 @@ class JointStateEncoder:
         self.template = bytes(w.buf)
 
     def encode(self, stamp_s: float, position=None, velocity=None, effort=None) -> bytes:
+        """JointState bytes at ``stamp_s`` (s); position / velocity / effort [k] in ``names`` order (m, m/s, N
+        for the legs). A field not in ``fields`` is sent empty and its argument ignored."""
         buf = bytearray(self.template)
         _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
         n = len(self.names)
@@ -212,6 +215,7 @@ class JointStateDecoder:
         self._names = ()
 
     def decode(self, data) -> JointStateData:
+        """Decode one JointState's bytes; raises InvalidInputError on malformed data."""
         r = _Reader(data, "JointState")
         sec, nanosec = r.stamp()
         frame = r.string()
@@ -324,6 +328,7 @@ class PoseStampedEncoder:
         self.template = bytes(w.buf)
 
     def encode(self, stamp_s: float, position, quaternion) -> bytes:
+        """PoseStamped bytes at ``stamp_s`` (s): position (3,) m and quaternion (4,) [x, y, z, w], encoder's frame."""
         buf = bytearray(self.template)
         _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
         values = np.frombuffer(buf, dtype=_F8, count=7, offset=self.offset)
@@ -351,6 +356,7 @@ class WrenchStampedEncoder:
         self.template = bytes(w.buf)
 
     def encode(self, stamp_s: float, wrench) -> bytes:
+        """WrenchStamped bytes at ``stamp_s`` (s): wrench (6,) [force (N), torque (N m)] in the encoder's frame."""
         buf = bytearray(self.template)
         _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
         np.frombuffer(buf, dtype=_F8, count=6, offset=self.offset)[:] = wrench

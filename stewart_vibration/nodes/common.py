@@ -121,6 +121,7 @@ def float_param(description: str, low: float, high: float, step: float = 0.0,
 
 
 def int_param(description: str, low: int, high: int, read_only: bool = False) -> ParameterDescriptor:
+    """Descriptor of an integer parameter with an inclusive range (step 1)."""
     return ParameterDescriptor(
         description=description, read_only=read_only,
         integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
@@ -166,6 +167,7 @@ def declare_read_only(node, name: str, default, description: str):
 
 
 def text_param(description: str, read_only: bool = False) -> ParameterDescriptor:
+    """Descriptor of a parameter without a range (strings, lists, bools): its description, read-only or not."""
     return ParameterDescriptor(description=description, read_only=read_only)
 
 
@@ -316,15 +318,18 @@ class JointColumns:
 
 
 def duration_msg(seconds: float) -> DurationMsg:
+    """builtin_interfaces/Duration of ``seconds`` (s), rounded to the nanosecond."""
     sec, nanosec = divmod(int(round(seconds * 1e9)), 1_000_000_000)  # 0.9999999999 -> 1 s, not 0 s
     return DurationMsg(sec=sec, nanosec=nanosec)
 
 
 def duration_seconds(msg) -> float:
+    """Seconds of a builtin_interfaces/Duration."""
     return msg.sec + msg.nanosec * 1e-9
 
 
 def stamp_seconds(stamp) -> float:
+    """Seconds of a builtin_interfaces/Time stamp."""
     return stamp.sec + stamp.nanosec * 1e-9
 
 

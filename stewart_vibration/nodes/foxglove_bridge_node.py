@@ -83,6 +83,8 @@ class BridgedTopic:
 
 
 class FoxgloveBridgeNode(Node):
+    """Forwards the suite's topics raw to a foxglove-sdk WebSocket server and publishes the 3D scene."""
+
     def __init__(self, **kwargs):
         super().__init__("foxglove_bridge", **kwargs)
         port = self.declare_parameter("port", 8765, int_param(
@@ -279,6 +281,7 @@ def start_websocket_server(host: str, port: int, context: foxglove.Context):
 
 
 def main(args=None) -> int:
+    """Run the foxglove_bridge node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(FoxgloveBridgeNode, args)
 
 

@@ -476,6 +476,7 @@ class RejectionLog:
 
 
 def main(args=None) -> int:
+    """Run the hardware_emulator node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(HardwareEmulatorNode, args)
 
 

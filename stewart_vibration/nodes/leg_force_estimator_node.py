@@ -201,6 +201,7 @@ class LegForceEstimatorNode(Node):
 
 
 def main(args=None) -> int:
+    """Run the leg-force estimator node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(LegForceEstimatorNode, args)
 
 

@@ -237,6 +237,7 @@ class McapRecorderNode(Node):
 
 
 def main(args=None) -> int:
+    """Run the mcap_recorder node until SIGINT / SIGTERM, then finish the MCAP file; returns 0."""
     rclpy.init(args=args)
     stop = threading.Event()
     for signum in (signal.SIGINT, signal.SIGTERM):  # a flag only: a stop during start-up still finishes cleanly

@@ -165,6 +165,11 @@ def _report(node: McapReplayNode) -> dict:
 
 
 def main(args=None) -> int:
+    """Run the mcap_replay node until the replay is done (if the node exits when done) or SIGINT / SIGTERM.
+
+    Prints ``MCAP_REPLAY_DONE`` and the replay's JSON report at the end. Returns 0, 1 if the replay
+    failed, 2 if the node cannot start (bad parameter or unusable MCAP: one ``error:`` line).
+    """
     # The replay thread must get the GIL back within well under 1 ms of its due time.
     sys.setswitchinterval(1e-4)
     rclpy.init(args=args)

@@ -88,6 +88,7 @@ RUNNING_STATES = ("pending", "ramping_in", "running", "ramping_out")
 
 
 def level_of(status: DiagnosticStatus) -> int:
+    """The level of a DiagnosticStatus as an int (0 OK, 1 WARN, 2 ERROR, 3 STALE), given as bytes or int."""
     level = status.level
     return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
 
@@ -690,6 +691,7 @@ def _plain(value):
 
 
 def main(args=None) -> int:
+    """Run the planning_ui node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(PlanningUiNode, args)
 
 

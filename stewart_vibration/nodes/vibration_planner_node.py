@@ -335,6 +335,7 @@ class VibrationPlannerNode(Node):
 
 
 def main(args=None) -> int:
+    """Run the vibration planner node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(VibrationPlannerNode, args)
 
 

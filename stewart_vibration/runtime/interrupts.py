@@ -23,6 +23,7 @@ class DeferredInterrupts:
         self.pending: int | None = None  # the signal held back, if any
 
     def install(self, signals=(signal.SIGINT, signal.SIGTERM)) -> None:
+        """Handle ``signals`` here: KeyboardInterrupt at once, or at the end of a ``deferred()`` block."""
         for signum in signals:
             signal.signal(signum, self._handle)
 

@@ -129,6 +129,7 @@ class NodeProcess:
     command: tuple = field(repr=False, default=())  # (module, args, env) to start it again
 
     def alive(self) -> bool:
+        """True while the process has not exited."""
         return self.popen.poll() is None
 
     def restart(self) -> NodeProcess:
@@ -140,6 +141,7 @@ class NodeProcess:
         return start_python_module(self.name, module, list(args), env, self.log_path.parent, append=True)
 
     def log_text(self) -> str:
+        """The process's log so far ("" if the file cannot be read)."""
         try:
             return self.log_path.read_text(errors="replace")
         except OSError:

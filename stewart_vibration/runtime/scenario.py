@@ -47,6 +47,9 @@ DEFAULT_BOUNDS = {
 
 @dataclass(frozen=True)
 class MoveStep:
+    """A move_to / guarded_move_to step: ``name`` (home, paper, pose or guarded) and the target ``pose`` (6,)
+    [x, y, z, roll, pitch, yaw] (m, rad), platform in the base frame."""
+
     name: str
     pose: np.ndarray
     guarded: bool = False  # the force guard must stop this move (guarded_move_to)
@@ -62,6 +65,9 @@ class VibrateStep:
 
 @dataclass(frozen=True)
 class Scenario:
+    """A parsed scenario: its steps (MoveStep, VibrateStep) in order, the run summary's pass/fail ``bounds``
+    (DEFAULT_BOUNDS updated by the file), the file it came from and the tissue YAML, if any."""
+
     name: str
     steps: list
     bounds: dict = field(default_factory=lambda: dict(DEFAULT_BOUNDS))
@@ -70,6 +76,7 @@ class Scenario:
 
 
 def default_scenario_path() -> Path:
+    """scenario_paper.yaml in the config directory (``install.default_config_dir``; ConfigError if none)."""
     return default_config_dir() / "scenario_paper.yaml"
 
 

@@ -24,6 +24,7 @@ class ClockRate:
         self._samples: deque[tuple[float, float]] = deque()
 
     def add(self, wall: float, sim: float) -> None:
+        """Add a sample at ``wall`` and ``sim`` (s); ignored while sim <= 0, a sim time going back starts over."""
         if sim <= 0.0:
             return
         if self._samples and sim < self._samples[-1][1]:
@@ -33,6 +34,7 @@ class ClockRate:
             self._samples.popleft()
 
     def rate(self) -> float:
+        """The current d(sim)/d(wall): the median of the recent rates, 1.0 until enough samples."""
         if len(self._samples) <= self.min_intervals or self._samples[-1][0] - self._samples[0][0] < self.min_span_s:
             return 1.0
         samples = np.array(self._samples)

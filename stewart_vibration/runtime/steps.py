@@ -64,14 +64,29 @@ class SuiteClient(Protocol):
     status_history: list  # (state, since, reason) of every vibration/status state change seen
     planner_message: str | None  # message of the planner's latest /diagnostics status
 
-    def spin_until(self, predicate, timeout: float, what: str) -> None: ...
-    def wait_sim(self, seconds: float, what: str) -> None: ...
-    def send_target(self, pose) -> None: ...
-    def ground_truth(self) -> np.ndarray | None: ...
-    def follow_ground_truth(self, on: bool) -> None: ...
-    def guard_status(self) -> tuple[dict, str]: ...
-    def set_planner_parameters(self, parameters: dict) -> list[str]: ...
-    def start_vibration(self) -> tuple[bool, str]: ...
+    def spin_until(self, predicate, timeout: float, what: str) -> None:
+        """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s) waiting for ``what``, or if a node died."""
+
+    def wait_sim(self, seconds: float, what: str) -> None:
+        """Wait ``seconds`` of sim time; StepFailed if the clock stops or a node dies meanwhile."""
+
+    def send_target(self, pose) -> None:
+        """Publish a target pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), platform in the base frame."""
+
+    def ground_truth(self) -> np.ndarray | None:
+        """The latest ground-truth platform pose (6,) (m, rad, base frame); None if not followed or none yet."""
+
+    def follow_ground_truth(self, on: bool) -> None:
+        """Subscribe to the 500 Hz ground-truth platform/pose (``on``; only while a move settles) or stop."""
+
+    def guard_status(self) -> tuple[dict, str]:
+        """(key/value strings, message) of the latest kinematics/guard_status; ({}, "") before the first."""
+
+    def set_planner_parameters(self, parameters: dict) -> list[str]:
+        """Set the planner's parameters in one call; returns the refusals as "name: reason" (empty: all set)."""
+
+    def start_vibration(self) -> tuple[bool, str]:
+        """Call the planner's start: (success, its answer: the settings that ran, or why it refused)."""
 
 
 def ran_settings(start_answer: str) -> dict:
@@ -88,6 +103,7 @@ class ScenarioSteps:
         self.client, self.options, self.record = client, options, record
 
     def run(self, scenario: Scenario) -> RunRecord:
+        """Run the scenario's steps in order; returns the record. Raises StepFailed at a step that fails."""
         for index, step in enumerate(scenario.steps, start=1):
             label = f"step {index}/{len(scenario.steps)}"
             if isinstance(step, MoveStep):

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SuiteNode:
+    """One node of the suite: its ROS name, console script and ``python -m`` module."""
+
     name: str  # ROS node name (matches config/suite_params.yaml)
     executable: str  # console script (ros2 run stewart_vibration <executable>)
     module: str  # python -m module (pip world)

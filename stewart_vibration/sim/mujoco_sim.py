@@ -165,6 +165,7 @@ class StewartSim:
     # -- read-back -----------------------------------------------------------
     @property
     def time(self) -> float:
+        """Simulation time (s)."""
         return float(self.data.time)
 
     def leg_lengths(self, data=None) -> np.ndarray:

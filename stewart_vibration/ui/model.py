@@ -278,6 +278,7 @@ class RateLimiter:
         self.tokens, self.last = float(burst), None
 
     def allow(self, now: float) -> bool:
+        """Take a token at ``now`` (s) if one is left; True when the action is allowed."""
         if self.last is not None:
             self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
         self.last = now
@@ -309,6 +310,7 @@ class StreamBuffer:
         self.chunks: deque = deque()
 
     def add(self, stamps: np.ndarray, rows: np.ndarray) -> None:
+        """Append a batch: stamps [n] (s) and rows [n, k]; drops chunks older than ``keep_s`` before the latest."""
         if len(stamps):
             self.chunks.append((np.asarray(stamps, float), np.asarray(rows, float)))
             latest = self.chunks[-1][0][-1]
@@ -316,11 +318,13 @@ class StreamBuffer:
                 self.chunks.popleft()
 
     def arrays(self, width: int) -> tuple[np.ndarray, np.ndarray]:
+        """All kept stamps [n] (s) and rows [n, ``width``] in order (empty [0, width] arrays if none)."""
         if not self.chunks:
             return np.empty(0), np.empty((0, width))
         return np.concatenate([c[0] for c in self.chunks]), np.concatenate([c[1] for c in self.chunks])
 
     def span(self) -> tuple[float, float] | None:
+        """(first, last) kept stamp (s), or None if empty."""
         return (self.chunks[0][0][0], self.chunks[-1][0][-1]) if self.chunks else None
 
 

@@ -82,6 +82,7 @@ def request_token(path: str, headers) -> str | None:
 
 
 def token_ok(given: str | None, token: str) -> bool:
+    """True when ``given`` is the access ``token`` (constant-time comparison); False for None."""
     return given is not None and hmac.compare_digest(given.encode(), token.encode())
 
 
@@ -103,15 +104,18 @@ class UiServer:
 
     @property
     def url(self) -> str:
+        """The page's address, with the access token."""
         host = f"[{self.host}]" if ":" in self.host else self.host
         return f"http://{host}:{self.port}/?token={self.token}"
 
     # -- life cycle ---------------------------------------------------------------------
     def start(self) -> None:
+        """Start the server thread; returns once it serves (at most 10 s)."""
         self.thread.start()
         self._ready.wait(10.0)
 
     def stop(self) -> None:
+        """Stop the server and join its thread (at most 5 s)."""
         if self._stop is not None and self.thread.is_alive():
             self.loop.call_soon_threadsafe(self._stop.set)
             self.thread.join(5.0)

@@ -46,6 +46,7 @@ class MotionClassification:
     period: float | None
 
     def summary(self) -> str:
+        """One line: kind, principal direction (base frame), off-axis ratio, amplitude (um), rotation (urad)."""
         d = self.principal_direction
         return (f"{self.kind}: direction [{d[0]:+.4f}, {d[1]:+.4f}, {d[2]:+.4f}], "
                 f"off-axis {self.off_axis_ratio:.3g}, amplitude {self.translation_amplitude * 1e6:.4g} um, "

@@ -42,6 +42,7 @@ NAIVE_DIRECTIONS = {
 
 
 def classification_dict(cls) -> dict:
+    """A MotionClassification as a JSON-ready dict (amplitudes in m and rad, period in s)."""
     return {
         "kind": cls.kind, "principal_direction": cls.principal_direction, "off_axis_ratio": cls.off_axis_ratio,
         "planarity": cls.planarity, "translation_amplitude_m": cls.translation_amplitude,

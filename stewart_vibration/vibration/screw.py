@@ -43,10 +43,12 @@ class VibrationScrew:
 
     @property
     def rotational(self) -> bool:
+        """True for a rotation screw (non-zero ``axis``), False for a translation."""
         return bool(np.any(self.axis != 0.0))
 
     @property
     def unit(self) -> str:
+        """Unit of the screw's amplitude: "rad" for a rotation, "m" for a translation."""
         return "rad" if self.rotational else "m"
 
 

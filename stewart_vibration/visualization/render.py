@@ -176,6 +176,10 @@ def render_run(path, out, at_s: float | None = None, robot_config=None) -> dict:
 
 
 def main(argv=None) -> int:
+    """``python -m stewart_vibration.visualization.render RUN``: write the run's picture; returns the exit code.
+
+    0 written; 2 (one ``error:`` line) if the run cannot be read or the PNG cannot be written.
+    """
     parser = argparse.ArgumentParser(prog="python -m stewart_vibration.visualization.render",
                                      description="picture of a recorded run: the bridge's 3D scene + plots")
     parser.add_argument("run", help="a run's .mcap or its folder (e.g. runs/latest)")

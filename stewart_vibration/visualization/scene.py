@@ -76,6 +76,8 @@ class Cylinder:
 
 @dataclass(frozen=True)
 class Sphere:
+    """A sphere of ``diameter`` (m) centred at ``position`` (3,) m in its entity's frame."""
+
     position: np.ndarray
     diameter: float
     color: Color
@@ -108,6 +110,8 @@ class Arrow:
 
 @dataclass(frozen=True)
 class Entity:
+    """Primitives drawn in frame ``frame_id`` (positions in that frame, m), named ``id``."""
+
     id: str
     frame_id: str
     cylinders: tuple[Cylinder, ...] = ()
@@ -125,9 +129,11 @@ class Scene:
     entities: tuple[Entity, ...]
 
     def transform(self, child: str) -> FrameTransform:
+        """The transform of frame ``child`` (base -> child); StopIteration if the scene has none."""
         return next(t for t in self.transforms if t.child == child)
 
     def entity(self, entity_id: str) -> Entity | None:
+        """The entity ``entity_id``, or None if the scene has none."""
         return next((e for e in self.entities if e.id == entity_id), None)
 
     def to_base(self, frame_id: str, points) -> np.ndarray:
