@@ -61,8 +61,13 @@ COVERAGE = [
     ("vibration/*.py", VIBRATION_TESTS),
     ("estimation/motion.py", ["test_estimation.py"]),
     ("analysis/fits.py", ["test_analysis.py", "test_mcap_report.py"]),
-    ("motion/paths.py", ["test_motion_profiles.py"]),
+    ("motion/paths.py", ["test_motion_profiles.py", "test_tissue.py"]),
     ("motion/profiles.py", ["test_motion_profiles.py"]),
+    ("motion/force_guard.py", ["test_tissue.py"]),
+    ("dynamics/tissue.py", ["test_tissue.py"]),
+    ("emulation/vibration_buffer.py", ["test_emulation_vibration_buffer.py", "test_vibration_streaming.py"]),
+    ("emulation/strut_trajectory.py", ["test_hostile_inputs.py", "test_emulation_emulator.py"]),
+    ("estimation/session.py", ["test_estimation_session.py", "test_estimation.py"]),
 ]
 SWAPS = {"+": "-", "-": "+", "*": "/", "/": "*", "<": "<=", "<=": "<", ">": ">=", ">=": ">", "==": "!=",
          "!=": "==", "and": "or", "or": "and"}

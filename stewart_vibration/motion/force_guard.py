@@ -102,10 +102,12 @@ class GuardedMove:
 
     @property
     def delta(self) -> np.ndarray:
+        """Strut length change goal - start (6,), m: the move's line in leg space."""
         return self.goal_lengths - self.start_lengths
 
     @property
     def end(self) -> float:
+        """The move's end (s, emulator clock)."""
         return self.start_time + self.duration
 
     def progress(self, times):
@@ -214,6 +216,7 @@ class ForceGuard:
 
     @property
     def tripped(self) -> bool:
+        """Whether a trip is latched (until reset or new limits)."""
         return self.trip is not None
 
     # -- moves and targets ----------------------------------------------------------------------------
@@ -487,6 +490,7 @@ class ForceGuard:
         return values
 
     def message(self) -> str:
+        """One line for the log and /diagnostics: armed with its limits, or the trip, its stop and the latch."""
         trip = self.trip
         if trip is None:
             return (f"armed: guard_force_n {self.force_limit:g} N, guard_moment_nm {self.moment_limit:g} N m "

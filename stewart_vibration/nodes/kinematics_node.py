@@ -468,6 +468,7 @@ def unset_pose(msg: PoseStamped) -> bool:
 
 
 def main(args=None) -> int:
+    """Run the kinematics node until SIGINT / SIGTERM; returns the exit code (2: it cannot start)."""
     return run_node(KinematicsNode, args)
 
 
