@@ -23,6 +23,8 @@ from pathlib import Path
 
 import yaml
 
+from stewart_vibration.runtime.interrupts import INTERRUPTS
+
 WAIT_S = 30.0
 
 
@@ -101,7 +103,8 @@ def topic_echo(node, args: list[str]) -> int:
 
     node.create_subscription(msg_class, topic, show, 10)
     while rclpy.ok() and not (once and received):
-        rclpy.spin_once(node, timeout_sec=0.1)
+        with INTERRUPTS.deferred():  # Ctrl-C inside rclpy's C++ aborted or hung it (CI: 180 s, no exit)
+            rclpy.spin_once(node, timeout_sec=0.1)
     return 0
 
 
@@ -169,6 +172,7 @@ def main(argv: list[str]) -> int:
     from rclpy.signals import SignalHandlerOptions
 
     rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
+    INTERRUPTS.install()
     node = rclpy.create_node(f"ros2cli_shim_{os.getpid()}")
     try:
         return verb(node, argv[2:])

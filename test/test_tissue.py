@@ -24,7 +24,13 @@ from stewart_vibration.errors import ActuatorLimitError, ConfigError
 from stewart_vibration.estimation import ForceEstimator
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
-from stewart_vibration.motion.force_guard import RECEIPT_WINDOW_S, ForceGuard, _predict
+from stewart_vibration.motion.force_guard import (
+    LAG_MEMORY_S,
+    RECEIPT_WINDOW_S,
+    RESUME_FRESH_S,
+    ForceGuard,
+    _predict,
+)
 from stewart_vibration.motion.paths import check_path_forces, checked_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
@@ -396,7 +402,9 @@ def test_guard_stops_a_move_whose_estimates_stop(robot, tissue, cut_at):
             assert guard.tripped and not guard.blind_stop_over(emu.time)
             later = emu.time + 1.0
             guard.observe([later], [np.zeros(6)], later)
-            assert guard.blind_stop_over(later)
+            assert not guard.blind_stop_over(later)  # fresh, but not for RESUME_FRESH_S yet
+            guard.observe([later + RESUME_FRESH_S], [np.zeros(6)], later + RESUME_FRESH_S)
+            assert guard.blind_stop_over(later + RESUME_FRESH_S)
             guard.resume_after_blind()
             assert not guard.tripped and not guard.blocked
     trip, last, held, move_start = results[0.3]  # the move's start as calibrated from the measured struts
@@ -429,7 +437,8 @@ def test_prediction_follows_an_exponential_load_and_never_undercuts_the_quadrati
 
 @pytest.mark.parametrize("load, resumes", [(120.0, True), (250.0, False)])
 def test_a_blind_pause_resumes_only_below_the_limit(robot, load, resumes):
-    """After an "estimates" trip the fresh load decides: below guard_force_n the guard is as before (the node sends
+    """An "estimates" trip ends once the estimates have kept up for RESUME_FRESH_S (an estimator falling behind
+    again restarts that), and the fresh load decides: below guard_force_n the guard is as before (the node sends
     the target again); above it the trip is a latched force trip and the stopped direction stays refused."""
     guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
     start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
@@ -442,6 +451,13 @@ def test_a_blind_pause_resumes_only_below_the_limit(robot, load, resumes):
     assert not guard.blind_stop_over(0.3)  # the stop is not over yet
     later = blind.stop.receipt_time + blind.stop.duration + 1.0
     guard.observe([later], [[0.0, 0.0, load, 0.0, 0.0, 0.0]], later)
+    assert not guard.blind_stop_over(later)  # estimates fresh from now on; the pause ends after RESUME_FRESH_S of it
+    assert not guard.blind_stop_over(later + 0.2)  # 0.2 s behind again: the clock restarts
+    for t in (later + 0.3, later + 0.5, later + 0.79):
+        guard.observe([t], [[0.0, 0.0, load, 0.0, 0.0, 0.0]], t)
+        assert not guard.blind_stop_over(t)
+    later += 0.3 + RESUME_FRESH_S + 0.01
+    guard.observe([later], [[0.0, 0.0, load, 0.0, 0.0, 0.0]], later)
     assert guard.blind_stop_over(later)
     assert guard.resume_after_blind() is resumes
     held = robot.home_pose + [0, 0, 0.004, 0, 0, 0]
@@ -453,6 +469,26 @@ def test_a_blind_pause_resumes_only_below_the_limit(robot, load, resumes):
         with pytest.raises(ActuatorLimitError, match="reset_guard"):
             guard.check_target(held, held + [0, 0, 0.001, 0, 0, 0])
         assert not guard.blind_stop_over(later + 1.0) and not guard.resume_after_blind()
+
+
+def test_moves_slow_down_while_the_estimates_lag(robot):
+    """speed_limit = blind_travel / (largest lag of the newest estimate behind the states over LAG_MEMORY_S):
+    5 mm/s for 1.5 mm at 0.3 s of lag; back to fast once the lag has been small for LAG_MEMORY_S; no limit
+    before any estimate, with the guard off, or with blind_travel 0."""
+    guard = ForceGuard(robot, 200.0, 0.0, blind_travel=1.5e-3)
+    assert guard.speed_limit() == np.inf  # no estimator heard yet
+    guard.observe([10.0], [np.zeros(6)], 10.0)
+    guard.check_estimates(10.3)  # the newest estimate is 0.3 s behind the newest state
+    assert guard.estimate_lag == pytest.approx(0.3) and guard.speed_limit() == pytest.approx(5e-3)
+    for t in np.arange(10.32, 10.3 + LAG_MEMORY_S + 0.1, 0.02):  # then estimates keep up (20 ms behind)
+        guard.observe([t - 0.02], [np.zeros(6)], t)
+        guard.check_estimates(t)
+    assert guard.estimate_lag == pytest.approx(0.02) and guard.speed_limit() == pytest.approx(0.075)
+    assert ForceGuard(robot, 0.0, 0.0).speed_limit() == np.inf  # guard off
+    off = ForceGuard(robot, 200.0, 0.0, blind_travel=0.0)
+    off.observe([1.0], [np.zeros(6)], 1.0)
+    off.check_estimates(2.0)
+    assert off.speed_limit() == np.inf
 
 
 def test_tissue_scenario_loads(robot):

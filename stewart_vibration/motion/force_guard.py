@@ -33,10 +33,13 @@ the move would end before the stop could (sigma_f >= 1), no stop is sent: the mo
 Blind. The guard is only as good as its input: while a move is under way, a newest wrench estimate
 older than ``max_estimate_age`` (s of sim time) behind the newest joint state (the estimator late,
 stalled or gone) trips the guard too (limit "estimates"), with the same stop: no estimate, no motion.
-That trip is a pause: once the stop is over and estimates are fresh again, ``resume_after_blind``
+That trip is a pause: once the stop is over and estimates have kept up for ``RESUME_FRESH_S``, ``resume_after_blind``
 restores the guard as it was before it (the node then sends the interrupted target again) unless the
 load it could not see has passed a limit meanwhile: then the trip becomes a force (moment) trip.
 Until a first estimate has arrived at all (no estimator running) moves are unguarded; the node warns.
+Moves are slowed so that the struts cover at most ``blind_travel`` in the estimates' lag behind the states
+(the largest over the last ``LAG_MEMORY_S``, as ``speed_limit`` gives it): a busy machine, on which the
+guard sees late, gets slower moves rather than overshoot (after a blind pause the resumed move is slow).
 
 Latch. After a trip the guard holds the direction of the move (pose space, rotations scaled by the
 robot's characteristic length): a target whose displacement from the current pose has a component along
@@ -64,6 +67,9 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
+LAG_MEMORY_S = 3.0  # the estimates' lag behind the states is remembered this long (s of sim time)
+BLIND_TRAVEL_M = 1.5e-3  # default: moves are slowed so that the struts cover at most this in the estimates' lag
+RESUME_FRESH_S = 0.5  # a blind pause ends once estimates have kept up this long (s of sim time)
 MAX_ESTIMATE_AGE_S = 0.25  # default: a move pauses when the newest wrench estimate is this far (s) behind the states
 _TAU = np.linspace(0.0, 1.0, 41)  # points per stop segment at which the limits are checked
 # quintic Hermite bases on _TAU for a segment of unit duration ending at rest (v1 = a1 = 0): velocity and
@@ -177,11 +183,14 @@ class ForceGuard:
     wrench estimate (0 = never stop for that)."""
 
     def __init__(self, robot: Robot, force_limit: float, moment_limit: float, deceleration_scale: float = 0.8,
-                 max_estimate_age: float = MAX_ESTIMATE_AGE_S):
+                 max_estimate_age: float = MAX_ESTIMATE_AGE_S, blind_travel: float = BLIND_TRAVEL_M):
         self.robot = robot
+        self.blind_travel = float(blind_travel)
+        self._lags = np.zeros((0, 2))  # (newest state time, its lag behind it of the newest estimate), s
         self.max_estimate_age = float(max_estimate_age)
         self.newest_estimate = -np.inf  # stamp of the newest wrench estimate observed (s)
         self._before_blind = None  # (trip, blocked, peak) before an "estimates" trip: restored when they return
+        self._fresh_since = None  # since when (s) the estimates have kept up after an "estimates" trip
         self.force_limit, self.moment_limit = float(force_limit), float(moment_limit)
         self.deceleration_scale = float(deceleration_scale)
         self.move: GuardedMove | None = None
@@ -340,6 +349,9 @@ class ForceGuard:
         """Trip ("estimates") when a move is under way and the newest wrench estimate (or the move's start, if
         none came since) lies more than ``max_estimate_age`` s behind ``newest_state_time`` (s, the emulator's
         clock): the guard cannot see the load, so the struts stop. Returns a new trip or None."""
+        if np.isfinite(self.newest_estimate):
+            keep = self._lags[:, 0] >= newest_state_time - LAG_MEMORY_S
+            self._lags = np.vstack([self._lags[keep], [newest_state_time, newest_state_time - self.newest_estimate]])
         move = self.move
         if move is None or self.max_estimate_age <= 0 or (self.trip is not None and move is self._stopping):
             return None
@@ -355,15 +367,38 @@ class ForceGuard:
         detail = (f"no external-wrench estimate for {age:.3f} s of sim time (newest {self.newest_estimate:.3f} s; "
                   f"guard_max_estimate_age_s {self.max_estimate_age:g}): the guard could not see the load")
         self._before_blind = (self.trip, list(self.blocked), self.peak)
+        self._fresh_since = None
         return self._trip(move, float(newest_state_time), newest_state_time, (force, moment), (force, moment),
                           "estimates", detail)
 
+    @property
+    def estimate_lag(self) -> float:
+        """The largest lag (s) of the newest wrench estimate behind the newest state over the last LAG_MEMORY_S
+        (as ``check_estimates`` saw it); 0 before any."""
+        return float(self._lags[:, 1].max()) if len(self._lags) else 0.0
+
+    def speed_limit(self) -> float:
+        """Strut speed (m/s) for the next move such that the struts cover at most ``blind_travel`` m in the
+        estimates' lag: a busy machine makes the guard see late, so moves go slower (inf: no limit, when the
+        guard is off, no estimator was heard or ``blind_travel`` is 0)."""
+        if self.blind_travel <= 0 or not np.isfinite(self.newest_estimate) or \
+                (self.force_limit <= 0 and self.moment_limit <= 0):
+            return float("inf")
+        return self.blind_travel / max(self.estimate_lag, 1e-3)
+
     def blind_stop_over(self, newest_state_time: float) -> bool:
-        """An "estimates" trip whose stop is over (the guard watches no move) while the estimates are fresh
-        again (within half of ``max_estimate_age`` of ``newest_state_time``)."""
+        """An "estimates" trip whose stop is over (the guard watches no move) while the estimates have been
+        fresh again (within half of ``max_estimate_age`` of ``newest_state_time``, s) for ``RESUME_FRESH_S``:
+        an estimator that keeps falling behind does not get the move going again (CI: resumed into 0.4 s lag)."""
         trip = self.trip
-        return (trip is not None and trip.which == "estimates" and self.move is None
-                and newest_state_time - self.newest_estimate <= 0.5 * self.max_estimate_age)
+        if trip is None or trip.which != "estimates" or self.move is not None:
+            return False
+        if newest_state_time - self.newest_estimate > 0.5 * self.max_estimate_age:
+            self._fresh_since = None
+            return False
+        if self._fresh_since is None:
+            self._fresh_since = newest_state_time
+        return newest_state_time - self._fresh_since >= RESUME_FRESH_S
 
     def resume_after_blind(self) -> bool:
         """End an "estimates" trip. If the fresh load is within the limits the guard is as it was before it (an

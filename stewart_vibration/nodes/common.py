@@ -272,6 +272,16 @@ def named_values(names, values, wanted) -> np.ndarray | None:
     return np.array([values[index[name]] for name in wanted], dtype=float)
 
 
+def emulator_now(node, state_time: float | None, fallback: float = 0.0) -> float:
+    """The emulator's time as best known to ``node`` (s): on sim time the newer of /clock and the newest joint
+    state's stamp ``state_time`` (a node may lag behind its input under load; /clock arrives unbatched), else
+    ``state_time`` (``fallback`` before any state)."""
+    now = state_time if state_time is not None else fallback
+    if node.get_parameter("use_sim_time").value:
+        now = max(now, node.get_clock().now().nanoseconds * 1e-9)
+    return now
+
+
 class RawBatcher:
     """Raw messages queued by a subscription callback and handed to ``handler(messages, arrival_times)`` in
     batches: as soon as ``batch_size`` have queued (the emulator publishes its 500 Hz states in bursts of

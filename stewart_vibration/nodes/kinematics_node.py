@@ -52,7 +52,7 @@ from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.rotations import pose_to_position_quaternion
 from ..messages import cdr
 from ..messages.stream_health import StreamHealth
-from ..motion.force_guard import MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import load_robot
@@ -70,6 +70,7 @@ from .common import (
     declare_float,
     duration_msg,
     duration_seconds,
+    emulator_now,
     float_param,
     int_param,
     pose_from_msg,
@@ -80,7 +81,8 @@ from .common import (
 )
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale", "guard_max_estimate_age_s")
+GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale", "guard_max_estimate_age_s",
+                "guard_blind_travel_m")
 
 
 class GuardedDiagnostics(Diagnostics):
@@ -128,6 +130,9 @@ class KinematicsNode(Node):
             "clears a trip)", 0.0, 500.0))
         declare_float(self, "guard_deceleration_scale", 0.8, float_param(
             "force guard: fraction of strut_acceleration_max a stop may use", 0.1, 1.0))
+        declare_float(self, "guard_blind_travel_m", BLIND_TRAVEL_M, float_param(
+            "force guard: moves are slowed so that the struts cover at most this in the time the external-wrench "
+            "estimates lag behind the states (largest lag over the last 3 s), m (0 = never slowed)", 0.0, 0.05))
         declare_float(self, "guard_max_estimate_age_s", MAX_ESTIMATE_AGE_S, float_param(
             "force guard: a move pauses when the newest external-wrench estimate is this far behind the newest joint "
             "state, s (the guard would be blind; 0 = off)", 0.0, 5.0))
@@ -136,9 +141,9 @@ class KinematicsNode(Node):
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
         param = self.get_parameter
         self.guard = ForceGuard(self.robot, param("guard_force_n").value, param("guard_moment_nm").value,
-                                param("guard_deceleration_scale").value, param("guard_max_estimate_age_s").value)
+                                param("guard_deceleration_scale").value, param("guard_max_estimate_age_s").value,
+                                param("guard_blind_travel_m").value)
         self.batch_period = period
-        self.sim_time = bool(self.get_parameter("use_sim_time").value)
         self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
         self.diagnostics = GuardedDiagnostics(self, "kinematics")
         self.diagnostics.guard = self.guard
@@ -280,12 +285,8 @@ class KinematicsNode(Node):
                 self.on_trip(self.guard.trip, send_stop=False)
 
     def emulator_now(self, fallback: float = 0.0) -> float:
-        """The emulator's time as best known here (s): on sim time the newer of /clock and the newest joint state
-        (this node may lag behind its input under load; /clock arrives unbatched), else the newest state."""
-        now = self.state_time if self.state_time is not None else fallback
-        if self.sim_time:
-            now = max(now, self.get_clock().now().nanoseconds * 1e-9)
-        return now
+        """The emulator's time as best known here (s): see nodes.common.emulator_now."""
+        return emulator_now(self, self.state_time, fallback)
 
     def on_trip(self, trip, send_stop: bool = True) -> None:
         """Report a trip (ERROR, guard status) and send its stop (unless the struts are held already)."""
@@ -349,6 +350,8 @@ class KinematicsNode(Node):
         values = {p.name: float(p.value) for p in params if p.name in GUARD_PARAMS}
         if not values:
             return SetParametersResult(successful=True)
+        if "guard_blind_travel_m" in values:
+            self.guard.blind_travel = values["guard_blind_travel_m"]
         if "guard_max_estimate_age_s" in values:
             self.guard.max_estimate_age = values["guard_max_estimate_age_s"]
         if "guard_deceleration_scale" in values:
@@ -401,6 +404,12 @@ class KinematicsNode(Node):
         """Minimum-jerk leg trajectory, every sample checked through FK (stroke, joints, conditioning) and, with a
         tissue model, for the strut forces it needs (the waypoints are the trajectory's samples)."""
         speed = self.robot.limits.strut_velocity_max * self.get_parameter("speed_scale").value
+        guarded = self.guard.speed_limit()  # slower while the wrench estimates lag (busy machine)
+        if guarded < speed:
+            self.get_logger().warning(f"force guard: the wrench estimates lag {self.guard.estimate_lag:.3f} s behind "
+                                      f"the states; this move runs at {guarded * 1e3:.2f} mm/s (speed_scale gives "
+                                      f"{speed * 1e3:.2f}; guard_blind_travel_m {self.guard.blind_travel:g})")
+            speed = guarded
         duration = minimum_jerk_duration(start_lengths, goal_lengths, speed, self.get_parameter(
             "trajectory_min_duration_s").value)
         period = self.get_parameter("trajectory_sample_period_s").value

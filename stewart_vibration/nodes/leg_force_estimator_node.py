@@ -47,6 +47,7 @@ from .common import (
     JointColumns,
     RawBatcher,
     declare_float,
+    emulator_now,
     float_param,
     int_param,
     reject,
@@ -121,8 +122,9 @@ class LegForceEstimatorNode(Node):
         traj = self._trajectory(data, LEG_NAMES, "legs/joint_trajectory")
         if traj is None:
             return
-        try:
-            self.estimator.command_struts(traj)
+        try:  # from when the emulator takes it: /clock now, not the newest state this node has solved (stale under
+            # load: a stop mirrored from there broke the limits and was refused, CI)
+            self.estimator.command_struts(traj, now=emulator_now(self, self.estimator.state_time))
         except StewartError as exc:
             self._reject("legs/joint_trajectory", str(exc))
 
