@@ -31,9 +31,7 @@ summary.json) are ignored by bag readers.
 from __future__ import annotations
 
 import json
-import signal
 import sys
-import threading
 import time
 from pathlib import Path
 
@@ -51,6 +49,7 @@ from .common import (
     OK,
     WARN,
     Diagnostics,
+    StopFlag,
     declare_float,
     declare_read_only,
     float_param,
@@ -239,9 +238,7 @@ class McapRecorderNode(Node):
 def main(args=None) -> int:
     """Run the mcap_recorder node until SIGINT / SIGTERM, then finish the MCAP file; returns 0."""
     rclpy.init(args=args)
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):  # a flag only: a stop during start-up still finishes cleanly
-        signal.signal(signum, lambda *_: stop.set())
+    stop = StopFlag().install()  # a flag only: a stop during start-up still finishes cleanly
     node = McapRecorderNode()
     executor = make_executor()
     executor.add_node(node)

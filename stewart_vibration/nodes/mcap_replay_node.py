@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import itertools
 import json
-import signal
 import sys
 import threading
 import time
@@ -41,7 +40,7 @@ from ..errors import StewartError
 from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
 from ..mcap_log.reader import open_run
 from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
-from .common import declare_float, declare_read_only, float_param, make_executor
+from .common import StopFlag, declare_float, declare_read_only, float_param, make_executor
 from .ros_graph import message_class, rclpy_profile
 
 DEFAULT_CLOCK_RATE_HZ = 100.0
@@ -173,9 +172,7 @@ def main(args=None) -> int:
     # The replay thread must get the GIL back within well under 1 ms of its due time.
     sys.setswitchinterval(1e-4)
     rclpy.init(args=args)
-    stop = threading.Event()
-    for signum in (signal.SIGINT, signal.SIGTERM):  # only a flag: teardown happens in order below
-        signal.signal(signum, lambda *_: stop.set())
+    stop = StopFlag().install()  # a flag only: a stop during start-up still finishes cleanly
     try:
         node = McapReplayNode()
     except (StewartError, ValueError, rclpy.exceptions.ParameterException) as exc:
