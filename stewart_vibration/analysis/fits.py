@@ -8,6 +8,7 @@ phases, and the error of estimated against measured leg forces.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -119,7 +120,7 @@ def direction_error_deg(measured, expected) -> float:
     """Angle (deg) between two line directions, sign-free (a line has no sign)."""
     a = np.asarray(measured, dtype=float)
     b = np.asarray(expected, dtype=float)
-    cos = abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b))
+    cos = cast(float, abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b)))  # numpy types it floating
     return float(np.degrees(np.arccos(min(cos, 1.0))))
 
 

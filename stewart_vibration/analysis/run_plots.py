@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import cast
 
 import matplotlib
 
@@ -10,7 +11,7 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
-COLORS = plt.get_cmap("tab10").colors
+COLORS = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]  # tab10 is a ListedColormap
 
 
 def _legs_grid(title: str):
@@ -165,7 +166,8 @@ def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
         ax.legend(loc="best", fontsize=7)
         ax = axes[2, col]
         if we is not None:
-            common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(te, 6), return_indices=True)
+            # te: set with we (run_report.extract)
+            common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(cast(np.ndarray, te), 6), return_indices=True)
             err = np.linalg.norm(we[ie, first:first + 3] - wa[ia, first:first + 3], axis=1)
             ax.plot(common, err, color="tab:red", lw=0.8)
         ax.set_ylabel(f"|error| ({unit})")

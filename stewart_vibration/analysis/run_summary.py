@@ -14,6 +14,8 @@ trip (kinematics/guard_status) with the peak load it let through.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
@@ -40,7 +42,7 @@ STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate",
 def load_signals(mcap_path) -> dict:
     """Time series of a run (an MCAP path, a run folder or an open RunReader): ground-truth poses, joint
     states, force estimates (header-stamp times in s), the stream counts and the nodes' last diagnostics."""
-    wanted = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
+    wanted: dict[str, list[Any]] = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
               "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
               "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": []}
     reader = mcap_path if isinstance(mcap_path, RunReader) else RunReader(mcap_path)
@@ -78,7 +80,7 @@ def stream_counts(reader: RunReader) -> dict:
     """Messages per 500 Hz topic whose stamps lie in the span every one of them covers (from the last
     first stamp to the first last stamp: start-up and shut-down are not losses)."""
     names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
-    stamps = {key: [] for key in STREAM_TOPICS}
+    stamps: dict[str, list[int]] = {key: [] for key in STREAM_TOPICS}
     for raw in reader.messages(list(names)):
         stamps[names[raw.topic]].append(raw.publish_time)
     present = [np.asarray(v) for v in stamps.values() if v]
@@ -257,7 +259,7 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
     return out
 
 
-def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | np.floating:
+def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | float:
     """The axial forces [n, 6] (N) the applied tissue wrench (platform/tissue_wrench, ground truth) puts on the
     legs at the states ``times`` [n] (s), at the ground-truth poses; 0 without tissue. The leg-force figure
     compares the robot's model (legs/force_estimate: no external load) with the measured efforts minus this:
@@ -308,7 +310,7 @@ def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) 
         return float(np.sqrt((np.linalg.norm(rows[:, part], axis=1) ** 2).mean())) if len(rows) else float("nan")
 
     quiet = err[~in_vib]
-    out = {
+    out: dict[str, Any] = {
         "samples": int(t.size), "peak_force_n": peak_f, "peak_moment_nm": peak_m,
         "moves_holds": {"samples": int(len(quiet)), "rms_force_error_n": rms(quiet, slice(0, 3)),
                         "rms_moment_error_nm": rms(quiet, slice(3, 6))},

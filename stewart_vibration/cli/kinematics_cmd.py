@@ -7,6 +7,8 @@ or a singular one is a typed error (exit 2), never a printed result.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from ..kinematics import check_pose, condition_number, forward_kinematics, joint_angles
@@ -71,7 +73,7 @@ def run_fk(args) -> int:
     robot = load_robot(args.robot)
     result = forward_kinematics(robot, np.array(args.lengths), guess=args.guess, tol=args.tol,
                                 max_iter=args.max_iter)
-    payload = {"pose": dict(zip(POSE_FIELDS, result.pose)), "iterations": int(result.iterations),
+    payload: dict[str, Any] = {"pose": dict(zip(POSE_FIELDS, result.pose)), "iterations": int(result.iterations),
                "residual_m": float(result.residual), "converged": bool(result.converged),
                "assembly_ok": bool(result.assembly_ok)}
     if args.json:

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import json
 from pathlib import Path
+from typing import cast
 
 from ..mcap_log.bag_metadata import METADATA_FILE, read_metadata_yaml
 from ..mcap_log.files import McapFileError, read_layout
@@ -136,7 +137,7 @@ def _text(r: RecoveryReport, previous: list[str] | None) -> str:
     wrote = f"wrote: {r.output}"
     if r.metadata_yaml is not None:
         wrote += f" and {r.metadata_yaml} (the folder opens as a rosbag2 bag directory)"
-        if previous and previous != [r.output.name]:
+        if previous and previous != [cast(Path, r.output).name]:  # metadata is written only with an output
             wrote += f"; it replaces a {METADATA_FILE} that listed {', '.join(previous)}"
     lines.append(wrote)
     return "\n".join(lines)

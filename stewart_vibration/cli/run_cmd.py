@@ -212,7 +212,7 @@ def _print_views(runner, extra) -> None:
     for key in extra:
         node = OPTIONAL_NODES[key].name
         deadline = time.monotonic() + 20
-        lines = []
+        lines: list[str] = []
         while time.monotonic() < deadline and not lines:
             lines = runner.log_lines(node, "://")
             time.sleep(0.2)

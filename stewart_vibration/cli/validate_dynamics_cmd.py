@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -83,7 +84,7 @@ def run(args) -> int:
             raise InvalidInputError(f"{flag} {duration:g} s is shorter than 10 simulation steps "
                                     f"({10 * settings.timestep:g} s at timestep {settings.timestep:g} s)")
     sim = StewartSim(robot, settings)
-    report = {
+    report: dict[str, Any] = {
         "what": "MuJoCo forward simulation (generated 6-UPS model, U-joints, computed-force strut drive) "
                 "of the prescribed vibration; Newton-Euler forces evaluated on the simulated platform motion "
                 "and compared with the forces MuJoCo applied. Error = RMS(difference) / RMS(force).",

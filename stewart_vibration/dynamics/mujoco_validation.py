@@ -16,6 +16,7 @@ mass, world frame); the Newton-Euler side gets the same wrench as ``external_wre
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import mujoco
 import numpy as np
@@ -196,7 +197,7 @@ def closed_chain_forces(sim: StewartSim, qacc: np.ndarray, data=None):
     rhs = mass @ qacc + d.qfrc_bias - d.qfrc_passive
     lhs = np.hstack([sim.actuator_map, jac.T])
     sol, *_ = np.linalg.lstsq(lhs, rhs, rcond=None)
-    residual = np.linalg.norm(lhs @ sol - rhs) / max(np.linalg.norm(rhs), 1e-300)
+    residual = np.linalg.norm(lhs @ sol - rhs) / max(cast(float, np.linalg.norm(rhs)), 1e-300)
     return sol[:m.nu], sol[m.nu:], residual
 
 

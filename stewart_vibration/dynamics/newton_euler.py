@@ -26,6 +26,7 @@ The generated MuJoCo model makes the same choice (``Robot.leg_bodies``).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -217,7 +218,7 @@ def _run_blocks(block, robot: Robot, pose, twist, accel, external_wrench, reacti
             force[:, sl], rate[:, sl], parts = block(robot, p, pose[:, sl], twist[:, sl], accel[:, sl],
                                                      wrench[:, sl], reactions)
             if reactions:
-                for dst, src in zip(extra, parts):
+                for dst, src in zip(cast(list[np.ndarray], extra), parts):  # a list when reactions
                     dst[..., sl] = src
 
     map_row_ranges(run, n, min_rows=8 * CHUNK, align=CHUNK)  # blocks split over the cores

@@ -33,8 +33,9 @@ MuJoCo's ``xfrc_applied`` (force at the body's centre of mass, world frame).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 import yaml
@@ -71,6 +72,15 @@ class TissueModel:
     name: str = "tissue"
     source: str = ""
 
+    if TYPE_CHECKING:  # derived in __post_init__ (not fields at run time)
+        _rest: np.ndarray = field(init=False)
+        _rest_center: np.ndarray = field(init=False)
+        _rest_list: list[list[float]] = field(init=False)
+        _rest_center_list: list[float] = field(init=False)
+        _center_list: list[float] = field(init=False)
+        _stiffness_list: list[float] = field(init=False)
+        _damping_list: list[float] = field(init=False)
+
     def __post_init__(self):
         rest = rotation_from_rpy(self.rest_pose[3:])
         object.__setattr__(self, "_rest", rest)
@@ -105,7 +115,8 @@ class TissueModel:
         if self.stiffening == "exponential":
             grown = k * self.length_m * np.expm1(pos / self.length_m)
         elif self.stiffening == "piecewise_linear":
-            starts, slopes = self.breakpoints_m, self.slopes_n_m
+            # both set with this stiffening (load_tissue checks them)
+            starts, slopes = cast(np.ndarray, self.breakpoints_m), cast(np.ndarray, self.slopes_n_m)
             ends = np.append(starts[1:], np.inf)
             grown = sum(s * np.clip(pos - a, 0.0, b - a) for a, b, s in zip(starts, ends, slopes))
         else:
@@ -220,7 +231,7 @@ def wrench_about_point(wrench, arm) -> np.ndarray:
 
 
 def _number(tree: dict, key: str, source, minimum: float = 0.0, positive: bool = False) -> float:
-    value = tree.get(key) if isinstance(tree, dict) else None
+    value: Any = tree.get(key) if isinstance(tree, dict) else None  # float(None) raises TypeError: caught
     try:
         number = float(value)
     except (TypeError, ValueError):

@@ -53,6 +53,9 @@ class HardwareEmulator:
     Time is simulation time (s, starts at 0). Commands take effect from the next block.
     """
 
+    _refs: tuple[int, float, tuple[np.ndarray, ...]] | None
+    _planned: tuple[int, float, np.ndarray] | None
+
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
                  reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,

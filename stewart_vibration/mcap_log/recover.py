@@ -18,6 +18,7 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import cast
 
 from mcap.data_stream import ReadDataStream
 from mcap.records import Attachment, Channel, Chunk, Header, Message, Metadata, Schema
@@ -292,7 +293,8 @@ def recover(src: str | Path, out: str | Path | None, chunk_size: int = 256 * 102
             out_path.unlink(missing_ok=True)
         raise
     if write_metadata and bag_file is not None:
-        report.metadata_yaml = write_metadata_yaml(out_path.parent, bag_metadata([bag_file]))
+        # a bag file comes only from a writer, which exists only with an output path
+        report.metadata_yaml = write_metadata_yaml(cast(Path, out_path).parent, bag_metadata([bag_file]))
     return report
 
 

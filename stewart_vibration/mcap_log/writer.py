@@ -28,6 +28,7 @@ import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO, cast
 
 from mcap.writer import CompressionType, IndexType, Writer
 
@@ -112,7 +113,7 @@ class BagFileWriter:
         self._schemas: dict[str, int] = {}
         self._sink = _UnbufferedSink(self.path)
         self._writer = Writer(
-            self._sink,
+            cast(IO[bytes], self._sink),  # duck-typed: write, tell, flush
             chunk_size=int(chunk_size),
             compression=CompressionType.ZSTD if compression == "zstd" else CompressionType.NONE,
             index_types=IndexType.ALL,

@@ -29,6 +29,7 @@ def joint_arrays(messages, names=None) -> tuple[np.ndarray, dict]:
     """JointState messages -> (times [n], {position, velocity, effort: [n, k]}) in ``names`` order
     (default leg_1..6, vib_1..6); messages missing a name are skipped."""
     names = list(names or LEG_NAMES + VIB_NAMES)
+    cols: dict[str, list[list[float]]]
     times, cols = [], {"position": [], "velocity": [], "effort": []}
     for m in messages:
         index = {n: i for i, n in enumerate(m.name)}

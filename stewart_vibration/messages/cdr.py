@@ -10,6 +10,9 @@ count and the elements. Decoders check every length against the buffer and raise
 InvalidInputError on malformed data.
 """
 
+# The dtype builders append to three lists as one tuple statement per field (the tuple of Nones is discarded):
+# mypy: disable-error-code="func-returns-value"
+
 from __future__ import annotations
 
 import struct
@@ -301,6 +304,7 @@ def _stack_uniform(messages, first: JointStateData, counts):
             r.pad(8)
         offsets.append(r.pos)
         r.pos += 8 * n
+    formats: list[str | tuple[str, tuple[int]]]
     names, formats, offs = ["sec", "nanosec"], ["<i4", "<u4"], [4, 8]
     for field, count, offset, at in zip(("position", "velocity", "effort"), counts, offsets, count_at, strict=True):
         names.append(f"n_{field}"), formats.append("<u4"), offs.append(at)
@@ -397,6 +401,7 @@ _POINT_FIELDS = ("positions", "velocities", "accelerations", "effort")
 def _point_dtype(phase: int, counts: tuple) -> tuple[np.dtype, int]:
     """numpy dtype of one JointTrajectoryPoint starting at ``phase`` (payload offset mod 8: 0 or 4)
     with the given per-field counts; returns (dtype, size in bytes)."""
+    formats: list[str | tuple[str, tuple[int]]]
     names, formats, offsets = [], [], []
     o = phase
     for field, n in zip(_POINT_FIELDS, counts, strict=True):
@@ -487,10 +492,11 @@ def decode_joint_trajectory(data) -> TrajectoryData:
     count = r.u32()
     if count > len(r.data):
         raise InvalidInputError(f"JointTrajectory: {count} points cannot fit in {len(r.data)} bytes")
-    fields = {f: [] for f in _POINT_FIELDS}
+    fields: dict[str, list[np.ndarray]] = {f: [] for f in _POINT_FIELDS}
     times = np.empty(count)
     if count:
         start = r.pos
+        counts: list[int] | tuple[int, ...]  # a list while read, then a tuple
         counts = []
         probe = r.pos
         for _ in _POINT_FIELDS:  # counts of the first point

@@ -25,7 +25,7 @@ class StreamHealth:
         self.lost = 0
         self.rejected = 0
         self.period = np.inf
-        self._last_stamp = None
+        self._last_stamp: float | None = None
         self._lags: deque = deque(maxlen=LAG_WINDOW)
 
     def arrived(self, stamps) -> None:

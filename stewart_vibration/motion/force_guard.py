@@ -182,6 +182,10 @@ class ForceGuard:
     strut_acceleration_max a stop may use; max_estimate_age: s of sim time a move goes on without a fresh
     wrench estimate (0 = never stop for that)."""
 
+    _before_blind: tuple[GuardTrip | None, list[np.ndarray], tuple[float, float]] | None
+    _fresh_since: float | None
+    _delays: list[float]
+
     def __init__(self, robot: Robot, force_limit: float, moment_limit: float, deceleration_scale: float = 0.8,
                  max_estimate_age: float = MAX_ESTIMATE_AGE_S, blind_travel: float = BLIND_TRAVEL_M):
         self.robot = robot

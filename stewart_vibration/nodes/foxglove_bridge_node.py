@@ -32,7 +32,9 @@ from __future__ import annotations
 import ipaddress
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import foxglove
 import numpy as np
@@ -60,6 +62,10 @@ from .common import VIB_NAMES, declare_float, declare_read_only, float_param, in
 from .mcap_recorder_node import SUITE_TOPICS
 from .ros_graph import message_class, offered_profile, rclpy_profile
 
+if TYPE_CHECKING:
+    from rclpy.qos import QoSProfile
+    from rclpy.subscription import Subscription
+
 # vibration/status states in which a vibration is planned or under way (emulation.vibration_status)
 VIBRATING_STATES = frozenset({"pending", "ramping_in", "running", "ramping_out"})
 SUBSCRIPTION_DEPTH = 100  # history of the forwarding subscriptions (0.2 s of a 500 Hz stream)
@@ -74,11 +80,11 @@ class BridgedTopic:
 
     name: str
     msg_type: type
-    qos: object  # rclpy QoSProfile
+    qos: QoSProfile
     channel: foxglove.Channel | None = None
     stamped: bool = False  # the type starts with a std_msgs/Header
-    scene_input: object = None  # callable(bytes) or None
-    subscription: object = None
+    scene_input: Callable[[bytes], None] | None = None
+    subscription: Subscription | None = None
     forwarding: bool = False
 
 
@@ -193,7 +199,8 @@ class FoxgloveBridgeNode(Node):
         def forward(data: bytes) -> None:
             if entry.forwarding:
                 stamp = header_stamp_ns(data) if stamped else None
-                channel.log(data, log_time=stamp if stamp is not None else clock.now().nanoseconds)
+                channel.log(  # type: ignore[union-attr]  # forwarding is set only with a channel
+                    data, log_time=stamp if stamp is not None else clock.now().nanoseconds)
             if scene_input is not None:
                 scene_input(data)
         return forward

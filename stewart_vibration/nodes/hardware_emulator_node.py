@@ -24,6 +24,7 @@ from __future__ import annotations
 import threading
 import time
 import traceback
+from typing import cast
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
@@ -199,13 +200,14 @@ class HardwareEmulatorNode(LifecycleNode):
         return super().on_activate(state)
 
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
-        with self.lock:
+        with self.lock:  # the emulator exists: deactivate comes only from active (configured)
             self.active = False
-            now = self.emulator.time
-            self.emulator.vibration.stop(now, "deactivated")
-            self.emulator.struts.hold(self.emulator.struts.sample([now])[0][0])
-            self.emulator.status.safety_ramp(now, "deactivated")
-            self.emulator._changed()
+            now = cast(HardwareEmulator, self.emulator).time
+            cast(HardwareEmulator, self.emulator).vibration.stop(now, "deactivated")
+            cast(HardwareEmulator, self.emulator).struts.hold(
+                cast(HardwareEmulator, self.emulator).struts.sample([now])[0][0])
+            cast(HardwareEmulator, self.emulator).status.safety_ramp(now, "deactivated")
+            cast(HardwareEmulator, self.emulator)._changed()
         self.diagnostics.set(WARN, "inactive: robot held (vibration ramped out, struts holding); commands refused")
         return super().on_deactivate(state)
 
@@ -248,12 +250,12 @@ class HardwareEmulatorNode(LifecycleNode):
                 if p.name == "real_time_factor":
                     self.real_time_factor = float(p.value)
                     self._pace_reset = True
-                elif p.name == "watchdog_s":
-                    self.emulator.vibration.watchdog_s = float(p.value)
+                elif p.name == "watchdog_s":  # here and below the emulator exists (see the continue above)
+                    cast(HardwareEmulator, self.emulator).vibration.watchdog_s = float(p.value)
                 elif p.name == "vibration_ramp_s":
-                    self.emulator.vibration.ramp_s = float(p.value)
+                    cast(HardwareEmulator, self.emulator).vibration.ramp_s = float(p.value)
                 elif p.name == "max_lookahead_s":
-                    self.emulator.vibration.max_lookahead_s = float(p.value)
+                    cast(HardwareEmulator, self.emulator).vibration.max_lookahead_s = float(p.value)
         return SetParametersResult(successful=True)
 
     # -- commands (executor thread) ------------------------------------------------------
@@ -264,9 +266,10 @@ class HardwareEmulatorNode(LifecycleNode):
             return
         try:
             traj = cdr.decode_joint_trajectory(data)
-            with self.lock:
-                self.emulator.command_struts(traj.names, traj.stamp, traj.times, traj.positions, traj.velocities,
-                                             traj.accelerations)
+            with self.lock:  # not refused: the emulator exists
+                cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
+                                                                     traj.positions, traj.velocities,
+                                                                     traj.accelerations)
         except StewartError as exc:
             self.rejections.add("leg trajectory", str(exc))
             return
@@ -284,14 +287,15 @@ class HardwareEmulatorNode(LifecycleNode):
             self.rejections.add("vibration command", str(exc))
             return
         try:
-            with self.lock:
-                self.emulator.command_vibration(traj.names, traj.stamp, traj.times, traj.positions, traj.velocities,
-                                                traj.accelerations)
-                report = self.emulator.status.report
+            with self.lock:  # not refused: the emulator exists
+                cast(HardwareEmulator, self.emulator).command_vibration(traj.names, traj.stamp, traj.times,
+                                                                        traj.positions, traj.velocities,
+                                                                        traj.accelerations)
+                report = cast(HardwareEmulator, self.emulator).status.report
         except StewartError as exc:
             self.rejections.add("vibration command", str(exc))
             with self.lock:
-                report = self.emulator.status.report
+                report = cast(HardwareEmulator, self.emulator).status.report
         self.publish_status(report)
 
     def on_emergency_stop(self, request, response):
@@ -367,7 +371,7 @@ class HardwareEmulatorNode(LifecycleNode):
             self.diagnostics.set(ERROR, f"{text}; the robot is held where it was (restart the emulator)")
 
     def _physics(self) -> None:
-        emulator, period = self.emulator, self.period
+        emulator, period = cast(HardwareEmulator, self.emulator), self.period  # physics runs only while configured
         wall0, sim0, cycle = time.monotonic(), emulator.time, 0
         self._pace_reset = False
         self.publish_state(*self._read_state())
@@ -424,13 +428,13 @@ class HardwareEmulatorNode(LifecycleNode):
         """robot_markers, all in frame base (no /tf needed; the recorder records them, so a run's MCAP shows
         the robot in Foxglove's 3D panel): the legs (base hinge -> platform hinge), the platform and base
         hinge polygons, and every hinge as a sphere."""
-        robot = self.emulator.robot
+        robot = cast(HardwareEmulator, self.emulator).robot  # called from the physics loop: configured
         position, quaternion = pose[:2]
         rot = rotation_from_quaternion(quaternion)
         tips = position + robot.platform_hinges @ rot.T
         sec, nanosec = cdr.stamp_parts(now)
 
-        def marker(ns, marker_id, kind, width, rgb, points):
+        def marker(ns, marker_id, kind, width, rgb: tuple[float, float, float], points):
             m = Marker(ns=ns, id=marker_id, type=kind, action=Marker.ADD)
             m.header.frame_id = BASE_FRAME
             m.header.stamp.sec, m.header.stamp.nanosec = sec, nanosec
@@ -461,7 +465,7 @@ class RejectionLog:
     def __init__(self, node: HardwareEmulatorNode, period_s: float = 1.0):
         self.node, self.period_s = node, period_s
         self.count = 0
-        self._last_log = {}
+        self._last_log: dict[tuple[str, str], float] = {}
 
     def add(self, what: str, reason: str) -> None:
         self.count += 1

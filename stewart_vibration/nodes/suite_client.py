@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
@@ -29,6 +30,11 @@ from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environm
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
 from .common import make_executor, pose_from_msg, pose_stamped
+
+if TYPE_CHECKING:
+    from rclpy.subscription import Subscription
+
+    from ..emulation.vibration_status import VibrationReport
 
 # planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
 NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
@@ -54,11 +60,12 @@ class SuiteClient:
         self.latest: dict = {}
         # depth 1: the runner only needs the latest sample and must not fall behind the suite
         self.node.create_subscription(Clock, "/clock", self._on_clock, 1)
-        self.readiness_subs = [
-            self.node.create_subscription(kind, topic, lambda m, t=topic: self.latest.__setitem__(t, m), 1)
+        self.readiness_subs = [  # the ignore: mypy cannot type the lambda's bound default (t=topic)
+            self.node.create_subscription(kind, topic,
+                                          lambda m, t=topic: self.latest.__setitem__(t, m), 1)  # type: ignore[misc]
             for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState))]
         self.target_pub = self.node.create_publisher(PoseStamped, "platform/target_pose", 10)
-        self.vibration_status = None  # latest VibrationReport of the emulator
+        self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
         self.planner_message: str | None = None  # message of the planner's latest /diagnostics status
         self.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, STATUS_QOS)
@@ -66,7 +73,7 @@ class SuiteClient:
         self._guard = None  # latest kinematics/guard_status
         self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status",
                                       lambda m: setattr(self, "_guard", m), STATUS_QOS)
-        self._ground_truth_sub = None
+        self._ground_truth_sub: Subscription | None = None
 
     # -- callbacks --------------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
@@ -105,9 +112,9 @@ class SuiteClient:
     def wait_sim(self, seconds: float, what: str) -> None:
         """Wait ``seconds`` of sim time."""
         self.spin_until(lambda: self.clock is not None, 30, "/clock")
-        end = self.clock + seconds
+        end = cast(float, self.clock) + seconds  # the clock runs (waited for above)
         rtf = max(self.real_time_factor, 0.05)
-        self.spin_until(lambda: self.clock >= end, seconds / rtf + 60, what)
+        self.spin_until(lambda: cast(float, self.clock) >= end, seconds / rtf + 60, what)
 
     def call(self, srv_type, name: str, request, timeout: float = 30.0):
         """Call service ``name`` and return its answer; StepFailed if it is not up or does not answer."""

@@ -11,6 +11,7 @@ from __future__ import annotations
 import glob
 import os
 from pathlib import Path
+from typing import cast
 
 from ..runtime.bringup import SuiteProcesses
 from ..runtime.scenario import Scenario
@@ -35,20 +36,21 @@ class SuiteRunner:
         self.client = SuiteClient(opts.namespace, opts.domain_id, opts.real_time_factor, self.processes.dead,
                                   self.record.log_dir)
 
+    # wait_ready, run, call and supervise come after start, which creates the client
     def wait_ready(self) -> None:
-        self.client.wait_ready(self.options.progress)
+        cast(SuiteClient, self.client).wait_ready(self.options.progress)
 
     def run(self, scenario: Scenario) -> RunRecord:
-        return ScenarioSteps(self.client, self.options, self.record).run(scenario)
+        return ScenarioSteps(cast(SuiteClient, self.client), self.options, self.record).run(scenario)
 
     def call(self, srv_type, name: str, request, timeout: float = 30.0):
-        return self.client.call(srv_type, name, request, timeout)
+        return cast(SuiteClient, self.client).call(srv_type, name, request, timeout)
 
     def log_lines(self, node: str, marker: str) -> list[str]:
         return self.processes.log_lines(node, marker)
 
     def supervise(self, respawn: set[str]) -> None:
-        self.processes.supervise(respawn, idle=self.client.spin_once)
+        self.processes.supervise(respawn, idle=cast(SuiteClient, self.client).spin_once)
 
     def stop(self) -> None:
         """Stop the recorder (finishes the MCAP), then every process; close the client."""

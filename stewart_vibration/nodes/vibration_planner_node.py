@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import json
 import time
+from typing import cast
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
@@ -175,7 +176,7 @@ class VibrationPlannerNode(Node):
         elif report.state == "stopped" and report.since >= t0:
             self.abort(f"the vibration units stopped: {report.reason}", WARN)
         elif report.state == "idle" and report.since > t0:
-            end = self.stream.planned_end
+            end = cast(VibrationStream, self.stream).planned_end  # running or stopping: a stream is set
             if self.state == "running" and (end is None or report.since < t0 + end - 0.05):
                 self.abort(f"the vibration units went idle at {report.since:.3f} s, before the planned end "
                            f"({'until stop' if end is None else f'{t0 + end:.3f} s'}): {report.reason}", WARN)
@@ -309,16 +310,18 @@ class VibrationPlannerNode(Node):
             return
         now = self.now_s()
         rel = now - run["t0"]
-        end = self.stream.planned_end if self.state == "running" else self.stream.rest_at
-        if self.stream.finished and end is not None and rel >= end:
+        # a run has its stream (both set by start)
+        end = cast(VibrationStream, self.stream).planned_end if self.state == "running" else \
+            cast(VibrationStream, self.stream).rest_at
+        if cast(VibrationStream, self.stream).finished and end is not None and rel >= end:
             self.state, self.run = "idle", None
             self._report(OK, "idle")
             return
-        if self.stream.finished or now < run["next_send"]:
+        if cast(VibrationStream, self.stream).finished or now < run["next_send"]:
             return
         run["next_send"] = now + run["settings"]["window_period_s"]
         try:
-            window = self.stream.next_window(rel)
+            window = cast(VibrationStream, self.stream).next_window(rel)
         except StreamInterrupted as exc:
             self.abort(str(exc), WARN)
             return
@@ -329,7 +332,7 @@ class VibrationPlannerNode(Node):
         started = time.perf_counter()
         self.pub.publish(cdr.encode_joint_trajectory(VIB_NAMES, self.run["t0"], window.times, window.position,
                                                      window.velocity, window.acceleration))
-        self.diagnostics.values.update(windows_sent=str(self.stream.windows_sent),
+        self.diagnostics.values.update(windows_sent=str(cast(VibrationStream, self.stream).windows_sent),
                                        last_window_points=str(len(window.times)),
                                        last_window_encode_ms=f"{(time.perf_counter() - started) * 1e3:.2f}")
 

@@ -15,8 +15,10 @@ import subprocess
 import sys
 import tempfile
 import time
+from collections.abc import MutableMapping
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import IO
 
 from ..errors import ConfigError
 from ..install import find_config_file, prepend_interpreter_prefix
@@ -71,7 +73,7 @@ def dds_environment(choice: str | None = None, config_dir: str | os.PathLike | N
     return env
 
 
-def apply_environment(env: dict, changes: dict) -> dict:
+def apply_environment(env: MutableMapping[str, str], changes: dict) -> MutableMapping[str, str]:
     """``env`` with ``changes`` applied in place (a None value removes the variable); returns env."""
     for key, value in changes.items():
         if value is None:
@@ -125,7 +127,7 @@ class NodeProcess:
     name: str
     popen: subprocess.Popen
     log_path: Path
-    _log_file: object = field(repr=False, default=None)
+    _log_file: IO[str] | None = field(repr=False, default=None)
     command: tuple = field(repr=False, default=())  # (module, args, env) to start it again
 
     def alive(self) -> bool:

@@ -89,7 +89,7 @@ def load_scenario(robot: Robot, path=None, vibration_duration: float | None = No
         raise ConfigError(f"cannot read scenario {path}: {exc}") from None
     if not isinstance(tree, dict) or not isinstance(tree.get("steps"), list) or not tree["steps"]:
         raise ConfigError(f"scenario {path}: needs a non-empty 'steps' list")
-    steps = []
+    steps: list[MoveStep | VibrateStep] = []
     for index, step in enumerate(tree["steps"]):
         if not isinstance(step, dict) or len(step) != 1:
             raise ConfigError(f"scenario {path}: step {index} must be one of move_to / guarded_move_to / vibrate")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol
+from typing import Any, Protocol, cast
 
 import numpy as np
 
@@ -116,7 +116,7 @@ class ScenarioSteps:
     def move_to(self, step: MoveStep, label: str) -> None:
         """Send the target; wait until it settles (or, for a guarded move, until the force guard stops it)."""
         self.options.progress(f"{label}: move to {step.name} {np.round(step.pose, 5).tolist()}")
-        start = self.client.clock
+        start = cast(float, self.client.clock)  # the clock runs (the suite was ready)
         # the 500 Hz ground truth only while a move settles: the runner must not load the machine
         self.client.follow_ground_truth(True)
         try:
@@ -148,7 +148,8 @@ class ScenarioSteps:
             "name": step.name, "target": step.pose.tolist(), "time": client.clock,
             "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
         })
-        opts.progress(f"{label}: settled at {step.name} in {client.clock - start:.2f} s sim; ground-truth error "
+        opts.progress(f"{label}: settled at {step.name} in {cast(float, client.clock) - start:.2f} s sim; "
+                      "ground-truth error "
                       f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
 
     def _guarded(self, step: MoveStep, label: str, start: float) -> None:
@@ -170,6 +171,8 @@ class ScenarioSteps:
         if not tripped():
             raise StepFailed(f"the force guard did not stop the move to {np.round(step.pose, 5).tolist()}: the "
                              "platform reached the target")
+        last: list[np.ndarray | None]
+        still: list[float | None]
         last, still = [None], [None]
 
         def at_rest():
@@ -182,7 +185,7 @@ class ScenarioSteps:
             return client.clock - still[0] >= SETTLE_HOLD_S
 
         client.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
-        held = last[0]
+        held = cast(np.ndarray, last[0])  # at rest: at_rest kept a pose
         values, message = client.guard_status()
         record = {"target": step.pose.tolist(), "time": client.clock, "guard": values, "stopped_pose": held.tolist(),
                   "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3]))}
@@ -227,7 +230,7 @@ class ScenarioSteps:
 
         def watch(until: float, what: str) -> None:
             client.spin_until(lambda: failed() is not None or (client.clock is not None and client.clock >= until),
-                              (until - client.clock) / rtf + 60, what)
+                              (until - cast(float, client.clock)) / rtf + 60, what)
             if reason := failed():
                 fail(reason)
 

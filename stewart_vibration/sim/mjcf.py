@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import yaml
@@ -84,7 +85,7 @@ def load_simulation_settings(path=None, **overrides) -> SimulationSettings:
     unknown = set(tree) - set(_YAML_KEYS)
     if unknown:
         raise ConfigError(f"simulation config {path}: unknown keys {sorted(unknown)}")
-    values = {_YAML_KEYS[k]: (tuple(v) if isinstance(v, list) else v) for k, v in tree.items()}
+    values: dict[str, Any] = {_YAML_KEYS[k]: (tuple(v) if isinstance(v, list) else v) for k, v in tree.items()}
     values.update(overrides)
     settings = SimulationSettings(**values)
     if not settings.timestep > 0 or len(settings.solimp) != 5:

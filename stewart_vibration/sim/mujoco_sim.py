@@ -46,6 +46,7 @@ class StewartSim:
                  gain_interval: int = 1):
         self.robot = robot
         self.gain_interval = max(1, int(gain_interval))
+        self._gain: np.ndarray | None
         self._gain, self._gain_age = None, 0
         self.settings = settings or SimulationSettings()
         self.base_joint = base_joint

@@ -23,6 +23,7 @@ import json
 import math
 import re
 from collections import deque
+from typing import Any
 
 import numpy as np
 
@@ -216,7 +217,7 @@ def vibration_preview(robot: Robot, pose, settings: dict, ranges=None) -> dict:
     settings, the decomposition's limits, the first streamed window with its ramp, a stop window) after the
     planner's declared ``ranges`` {name: (low, high)}."""
     unit = robot.vibration_unit
-    out = {"feasible": False, "reason": None, "limits": {
+    out: dict[str, Any] = {"feasible": False, "reason": None, "limits": {
         "acceleration_max_g": unit.acceleration_max / STANDARD_GRAVITY, "amplitude_max_um": unit.amplitude_max * 1e6,
         "velocity_max_mm_s": unit.velocity_max * 1e3, "frequency_band_hz": [unit.frequency_min, unit.frequency_max]}}
     s = settings
@@ -275,6 +276,7 @@ class RateLimiter:
 
     def __init__(self, rate: float, burst: float):
         self.rate, self.burst = float(rate), float(burst)
+        self.last: float | None
         self.tokens, self.last = float(burst), None
 
     def allow(self, now: float) -> bool:

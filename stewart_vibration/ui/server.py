@@ -25,12 +25,14 @@ import asyncio
 import errno
 import hmac
 import json
+import logging
 import socket
 import threading
 import time
 from http import HTTPStatus
 from http.cookies import SimpleCookie
 from pathlib import Path
+from typing import cast
 from urllib.parse import parse_qs, urlsplit
 
 from websockets.asyncio.server import serve
@@ -99,7 +101,7 @@ class UiServer:
         self.loop = asyncio.new_event_loop()
         self.thread = threading.Thread(target=self._run, name="planning_ui_server", daemon=True)
         self._ready = threading.Event()
-        self._stop = None
+        self._stop: asyncio.Event | None = None
         self.frames_sent = self.frames_skipped = 0
 
     @property
@@ -128,7 +130,7 @@ class UiServer:
         self._stop = asyncio.Event()
         async with serve(self._handler, sock=self.sock, process_request=self._process_request,
                          max_size=MAX_MESSAGE, compression=None, server_header="stewart_vibration planning_ui",
-                         ping_interval=20, ping_timeout=20, logger=_QuietLogger()):
+                         ping_interval=20, ping_timeout=20, logger=cast(logging.Logger, _QuietLogger())):
             self._ready.set()
             await self._stop.wait()
 

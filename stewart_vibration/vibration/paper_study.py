@@ -9,6 +9,8 @@ paper's naive sum vs J^-1. Pure numpy; plotting lives in the CLI.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING, cast
+
 import numpy as np
 
 from ..paper import (
@@ -22,6 +24,9 @@ from ..paper import (
 from ..robot import Robot
 from .decompose import decompose_vibration
 from .superpose import axis_angle, superpose_vibration
+
+if TYPE_CHECKING:
+    from .classify import MotionClassification
 
 FIG7_AMPLITUDE_M = 20e-6
 FIG7_FREQUENCY_HZ = 5.0
@@ -68,7 +73,8 @@ def decomposition_case(robot: Robot, amplitude, acceleration_g, frequency, phase
                                frequency=frequency, phase=phase, duration=periods / frequency)
     one = decompose_vibration(robot, pose, amplitude=amplitude, acceleration_g=acceleration_g,
                               frequency=frequency, phase=phase, samples_per_period=512)
-    spectrum = np.fft.rfft(one.exact_signals, axis=0) / one.times.size
+    # exact_signals and classification_exact below: set by the default method "exact"
+    spectrum = np.fft.rfft(cast(np.ndarray, one.exact_signals), axis=0) / one.times.size
     k, a, l0 = plan.gains, plan.amplitude, plan.nominal_lengths
     predicted = (1 - k**2) * plan.delta[:, None] ** 2 / (2 * l0)
     diff = plan.exact_signals - plan.linear_signals
@@ -80,9 +86,10 @@ def decomposition_case(robot: Robot, amplitude, acceleration_g, frequency, phase
         "predicted_second_harmonic_ratio": (1 - k**2) * a / (4 * l0 * np.abs(k)),
         "second_order_residual_ratio": float(np.abs(diff - predicted).max() / np.abs(predicted).max()),
         "roundtrip_angle_linear_rad": axis_angle(roundtrip.classification_linear.principal_direction, plan.direction),
-        "roundtrip_angle_exact_rad": axis_angle(roundtrip.classification_exact.principal_direction, plan.direction),
+        "roundtrip_angle_exact_rad": axis_angle(
+            cast("MotionClassification", roundtrip.classification_exact).principal_direction, plan.direction),
         "roundtrip_rotation_linear_rad": float(np.abs(roundtrip.linear[:, 3:]).max()),
-        "roundtrip_rotation_exact_rad": roundtrip.classification_exact.rotation_amplitude,
+        "roundtrip_rotation_exact_rad": cast("MotionClassification", roundtrip.classification_exact).rotation_amplitude,
     }
 
 

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -200,7 +201,7 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds) -> StartP
     plan = plan_vibration(robot, pose, s, check_limits=True)
     start_lead = wall_margin(s["start_lead_s"])
     stream = VibrationStream(robot, plan, stream_settings(s, wall_margin))
-    first = stream.next_window(-start_lead)
+    first = cast(VibrationWindow, stream.next_window(-start_lead))  # a new stream always has a first window
     check_command_limits(robot.vibration_unit, first.times, first.position, first.velocity, first.acceleration)
     if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
         probe = VibrationStream(robot, plan, stream.settings)

@@ -126,6 +126,7 @@ class VibrationStream:
             window = self._sample(self._grid(start, end), None, final=True)
             self.tail_start = None
         else:
+            tail: float | None
             tail = self._ceil(start + s.lookahead_s)
             if end is not None and tail + s.ramp_s >= end:
                 window = self._sample(self._grid(start, end), None, final=True)

@@ -31,7 +31,7 @@ from ..messages import cdr  # noqa: E402
 from ..robot import VIB_NAMES, load_robot  # noqa: E402
 from .scene import Scene, SceneBuilder, vibration_direction_from_window  # noqa: E402
 
-COLORS = plt.get_cmap("tab10").colors
+COLORS = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]  # tab10 is a ListedColormap
 ZOOM_S = 0.12  # the plots show this much of the run around the chosen instant
 
 
