@@ -18,6 +18,7 @@ from stewart_vibration.mcap_log import (
     has_header_first,
     parse_qos_profiles,
 )
+from stewart_vibration.mcap_log.files import McapFileError
 from stewart_vibration.mcap_log.replay_schedule import ReplayOptions, schedule
 from stewart_vibration.messages.cdr import header_stamp_ns
 
@@ -180,3 +181,20 @@ def test_schedule_rate_offset_and_filters():
     assert out[0][0] == pytest.approx(0.01) and out[-1][0] == pytest.approx(0.07)
     with pytest.raises(ValueError):
         ReplayOptions(rate=0.0)
+
+
+def test_decoding_a_schema_that_is_not_ros2msg_says_so(tmp_path):
+    """A channel whose schema is ros2idl (mcap_ros2 decodes ros2msg only) gets McapFileError naming the topic and
+    the encoding, not a TypeError from deep inside."""
+    from mcap.writer import Writer
+
+    path = tmp_path / "idl.mcap"
+    with open(path, "wb") as f:
+        writer = Writer(f)
+        writer.start(profile="ros2", library="test")
+        schema = writer.register_schema("std_msgs/msg/String", "ros2idl", b"module std_msgs { };")
+        channel = writer.register_channel("/idl", "cdr", schema)
+        writer.add_message(channel, log_time=1, data=b"\x00\x01\x00\x00\x01\x00\x00\x00\x00", publish_time=1)
+        writer.finish()
+    with pytest.raises(McapFileError, match=r"/idl \[std_msgs/msg/String\].*'ros2idl'"):
+        list(RunReader(path).decoded())

@@ -30,7 +30,7 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
-COPY_IGNORE = shutil.ignore_patterns(".git", ".venv", "runs", "build", "install", "log", "__pycache__",
+COPY_IGNORE = shutil.ignore_patterns(".git", ".venv", ".mypy_cache", "runs", "build", "install", "log", "__pycache__",
                                      "*.egg-info", ".pytest_cache", ".ruff_cache", "paper_figures", "report", "dyn")
 # Lines this machine cannot run (launch and rosbag2 are not on PyPI), each with the test that checks what it
 # relies on.

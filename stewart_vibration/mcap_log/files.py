@@ -30,7 +30,7 @@ _RECORD_HEAD = struct.Struct("<BQ")
 
 class McapFileError(StewartError, ValueError):
     """An MCAP input that cannot be used as asked; ``kind``: missing, unreadable, empty, not_mcap,
-    truncated, bad_bag. ``bytes_read`` / ``size``: for truncated files, the whole-record prefix."""
+    truncated, bad_bag, unsupported_schema. ``bytes_read`` / ``size``: for truncated files, the whole-record prefix."""
 
     def __init__(self, message: str, *, path, kind: str, bytes_read: int | None = None, size: int | None = None):
         super().__init__(message)

@@ -19,7 +19,7 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-from .files import check_readable, resolve_mcap, truncated_error
+from .files import McapFileError, check_readable, resolve_mcap, truncated_error
 
 
 @dataclass(frozen=True)
@@ -152,15 +152,19 @@ class RunReader:
         from mcap_ros2.decoder import DecoderFactory
 
         factory = DecoderFactory()
-        decoders: dict[str, Callable[[bytes], Any] | None] = {}
+        decoders: dict[str, Callable[[bytes], Any]] = {}
         by_type = {s.name: s for s in self.schemas.values()}
         for raw in self.messages(topics):
             dec = decoders.get(raw.type_name)
             if dec is None:
-                dec = factory.decoder_for("cdr", by_type[raw.type_name])
+                schema = by_type[raw.type_name]
+                dec = factory.decoder_for("cdr", schema)
+                if dec is None:  # mcap_ros2 decodes ros2msg schemas only
+                    raise McapFileError(f"{self.path}: {raw.topic} [{raw.type_name}]: schema encoding "
+                                        f"{schema.encoding!r} cannot be decoded here (ros2msg only)",
+                                        path=self.path, kind="unsupported_schema")
                 decoders[raw.type_name] = dec
-            # TODO(review): decoder_for gives None for a schema that is not ros2msg (e.g. ros2idl): TypeError here
-            yield raw, dec(raw.data)  # type: ignore[misc]
+            yield raw, dec(raw.data)
 
 
 def open_run(path: str | Path, allow_truncated: bool = False) -> RunReader:
