@@ -67,6 +67,7 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
+MAX_GROWTH_EXPONENT = 2.0  # the exponential continuation of the fit grows at most e^2 - 1 times its slope / rate
 LAG_MEMORY_S = 3.0  # the estimates' lag behind the states is remembered this long (s of sim time)
 BLIND_TRAVEL_M = 1.5e-3  # default: moves are slowed so that the struts cover at most this in the estimates' lag
 RESUME_FRESH_S = 0.5  # a blind pause ends once estimates have kept up this long (s of sim time)
@@ -561,9 +562,11 @@ def _predict(samples, column: int, target_progress: float) -> tuple[float, float
     if slope <= 0 or abs(curvature) < 1e-9 * slope:  # not rising here, or straight: the polynomial itself
         return now, now + float(np.polyval(coef, a) - np.polyval(coef, 0.0))
     # rising: continue with the local growth rate r = F''/F' (exponential stiffening keeps it): F' (e^{ra} - 1)/r,
-    # never below the quadratic (its Taylor series has the quadratic's terms and more of the same sign)
+    # never below the quadratic (its Taylor series has the quadratic's terms and more of the same sign). r a is
+    # capped: on a load that is mostly noise (no tissue) r is noise over noise, and e^{ra} predicted 600 N from 2 N
     rate = curvature / slope
-    return now, now + slope * float(np.expm1(min(rate * a, 50.0))) / rate
+    quadratic = float(np.polyval(coef, a) - np.polyval(coef, 0.0))
+    return now, now + max(quadratic, slope * float(np.expm1(min(rate * a, MAX_GROWTH_EXPONENT))) / rate)
 
 __all__ = [
     "ForceGuard",
