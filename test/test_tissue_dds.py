@@ -72,8 +72,9 @@ def suite(tmp_path_factory):
         client.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", rec["guard"].append, STATUS_QOS)
         poses = []
         ready = client.node.create_subscription(PoseStamped, "platform/pose_estimate", poses.append, 1)
-        assert client.spin_until(lambda: rec["estimate"] and rec["applied"] and rec["guard"] and poses and
-                                 client.node.count_subscribers("platform/target_pose") > 0, 90), logs(procs)
+        assert client.spin_until(lambda: rec["clock"] and rec["estimate"] and rec["applied"] and rec["guard"] and
+                                 poses and client.node.count_subscribers("platform/target_pose") > 0, 90), \
+            logs(procs)  # /clock too: the tests read the sim time from it (CI: IndexError when it came last)
         client.node.destroy_subscription(ready)
         yield procs, client, rec
     finally:
