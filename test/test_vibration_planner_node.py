@@ -52,6 +52,19 @@ def trigger(client, name):
     return client.call(Trigger, f"vibration_planner/{name}", Trigger.Request())
 
 
+def start_with_pose(client, poses, pose, timeout_s: float = 10.0):
+    """Publish a pose estimate and call start; while the planner has no pose yet (a first sample sent as DDS was
+    still matching waits for a heartbeat: CI), publish again and retry for up to ``timeout_s``. Any other answer
+    (success or another refusal) is returned at once."""
+    deadline = time.monotonic() + timeout_s
+    while True:
+        poses.publish(pose_msg(pose))
+        client.spin_for(0.2)
+        response = trigger(client, "start")
+        if response.success or "no platform/pose_estimate" not in response.message or time.monotonic() > deadline:
+            return response
+
+
 def independent_gains(robot, pose):
     """k_i = n_i . u, u = platform z axis, from the hinge points (not the package's decomposition)."""
     rot = rotation_from_rpy(pose[3:])
@@ -138,10 +151,7 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     poses = client.publisher("platform/pose_estimate", PoseStamped)
     pose = paper_pose(robot)
     assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-    poses.publish(pose_msg(pose))
-    client.spin_for(0.3)
-
-    response = trigger(client, "start")
+    response = start_with_pose(client, poses, pose)
     assert response.success, response.message
     assert all(k in response.message for k in ("gains k", "leg amplitudes um", "settings: {"))
     again = trigger(client, "start")
@@ -221,16 +231,7 @@ def test_planner_follows_the_emulators_status(robot, planner):
     status.publish(emulator_status("idle", 0.0))
 
     def start():
-        """Publish a pose and start; while the planner has no pose yet (a first sample sent as DDS was still
-        matching waits for a heartbeat), publish again and retry for up to 5 s."""
-        deadline = time.monotonic() + 5.0
-        while True:
-            poses.publish(pose_msg(paper_pose(robot)))
-            client.spin_for(0.2)
-            response = trigger(client, "start")
-            if response.success or "no platform/pose_estimate" not in response.message or \
-                    time.monotonic() > deadline:
-                return response
+        return start_with_pose(client, poses, paper_pose(robot))
 
     def t0_of(response):
         return float(response.message.split("t0 = ")[1].split(" s")[0])
