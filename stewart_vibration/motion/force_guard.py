@@ -67,6 +67,7 @@ STATE_HISTORY_S = 2.0  # measured progress kept for the estimates (which lag the
 MAX_STOP_RETRIES = 3
 STOP_DURATIONS_S = (0.05, 5.0)  # shortest and longest stop (s)
 STOP_RESOLUTION_S = 0.01
+MAX_EXTRAPOLATION = 5.0  # the fit is extrapolated at most this many times its own span of progress
 MAX_GROWTH_EXPONENT = 2.0  # the exponential continuation of the fit grows at most e^2 - 1 times its slope / rate
 LAG_MEMORY_S = 3.0  # the estimates' lag behind the states is remembered this long (s of sim time)
 BLIND_TRAVEL_M = 1.5e-3  # default: moves are slowed so that the struts cover at most this in the estimates' lag
@@ -558,7 +559,10 @@ def _predict(samples, column: int, target_progress: float) -> tuple[float, float
         return now, now
     degree = 2 if len(rows) >= 2 * MIN_FIT_SAMPLES and span > 0.2 * ahead else 1
     coef = np.polyfit(x / span, rows[:, column], degree)
-    slope, curvature, a = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0), ahead / span
+    # a: how far ahead, in spans of the fitted progress; capped: a trend seen over a sliver of progress (a fast
+    # move's first estimates, model error of a few N) extrapolated 100 spans ahead predicted 1.5 kN (CI)
+    a = min(ahead / span, MAX_EXTRAPOLATION)
+    slope, curvature = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0)
     if slope <= 0 or abs(curvature) < 1e-9 * slope:  # not rising here, or straight: the polynomial itself
         return now, now + float(np.polyval(coef, a) - np.polyval(coef, 0.0))
     # rising: continue with the local growth rate r = F''/F' (exponential stiffening keeps it): F' (e^{ra} - 1)/r,
