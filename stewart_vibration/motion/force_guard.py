@@ -340,8 +340,8 @@ class ForceGuard:
             now, predicted = _predict(move.samples, column, target)
             rising = now > base + 0.01 * limit and predicted > now
             checks.append((which, now, predicted, limit, rising))
-        for which, _now, _predicted, limit, rising in checks:
-            if rising and _predicted > limit:
+        for which, _now, predicted, limit, rising in checks:
+            if rising and predicted > limit:
                 values = {c[0]: c for c in checks}
                 latest = move.samples[-1]
                 f = values.get("force", (None, latest[2], latest[2]))
@@ -415,11 +415,10 @@ class ForceGuard:
         if trip is None or trip.which != "estimates" or self._before_blind is None:
             return False
         force, moment = float(np.linalg.norm(self.last_wrench[:3])), float(np.linalg.norm(self.last_wrench[3:]))
-        over = [(which, value, limit) for which, value, limit in (("force", force, self.force_limit),
-                                                                   ("moment", moment, self.moment_limit))
-                if 0 < limit <= value]
-        if over:
-            which, value, limit = over[0]
+        which = next((name for name, value, limit in (("force", force, self.force_limit),
+                                                      ("moment", moment, self.moment_limit))
+                      if 0 < limit <= value), None)
+        if which is not None:
             self.trip = replace(trip, which=which, force=force, moment=moment, predicted_force=force,
                                 predicted_moment=moment, time=self.newest_estimate,
                                 detail=f"found when estimates returned after a blind stop ({trip.detail})")
@@ -563,14 +562,14 @@ def _predict(samples, column: int, target_progress: float) -> tuple[float, float
     # move's first estimates, model error of a few N) extrapolated 100 spans ahead predicted 1.5 kN (CI)
     a = min(ahead / span, MAX_EXTRAPOLATION)
     slope, curvature = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0)
+    polynomial = float(np.polyval(coef, a) - np.polyval(coef, 0.0))
     if slope <= 0 or abs(curvature) < 1e-9 * slope:  # not rising here, or straight: the polynomial itself
-        return now, now + float(np.polyval(coef, a) - np.polyval(coef, 0.0))
+        return now, now + polynomial
     # rising: continue with the local growth rate r = F''/F' (exponential stiffening keeps it): F' (e^{ra} - 1)/r,
     # never below the quadratic (its Taylor series has the quadratic's terms and more of the same sign). r a is
     # capped: on a load that is mostly noise (no tissue) r is noise over noise, and e^{ra} predicted 600 N from 2 N
     rate = curvature / slope
-    quadratic = float(np.polyval(coef, a) - np.polyval(coef, 0.0))
-    return now, now + max(quadratic, slope * float(np.expm1(min(rate * a, MAX_GROWTH_EXPONENT))) / rate)
+    return now, now + max(polynomial, slope * float(np.expm1(min(rate * a, MAX_GROWTH_EXPONENT))) / rate)
 
 __all__ = [
     "ForceGuard",

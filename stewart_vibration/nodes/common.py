@@ -299,8 +299,9 @@ def emulator_now(node, state_time: float | None, fallback: float = 0.0) -> float
     state's stamp ``state_time`` (a node may lag behind its input under load; /clock arrives unbatched), else
     ``state_time`` (``fallback`` before any state)."""
     now = state_time if state_time is not None else fallback
-    if node.get_parameter("use_sim_time").value:
-        now = max(now, node.get_clock().now().nanoseconds * 1e-9)
+    clock = node.get_clock()
+    if clock.ros_time_is_active:  # use_sim_time: the clock follows /clock (no parameter lookup per call)
+        now = max(now, clock.now().nanoseconds * 1e-9)
     return now
 
 

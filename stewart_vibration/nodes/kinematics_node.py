@@ -237,11 +237,12 @@ class KinematicsNode(Node):
         # estimates already queued here are newer news than their absence: after a stall of this node the
         # states are taken first, and judging the guard blind before reading them would stop for nothing
         self.wrench_batcher.flush()
+        now = self.emulator_now()
         # blind = estimates behind the states this node has read (not /clock: a stall of this node delays both)
-        trip = self.guard.assess(self.emulator_now(), self.batch_period) or self.guard.check_estimates(self.state_time)
+        trip = self.guard.assess(now, self.batch_period) or self.guard.check_estimates(self.state_time)
         if trip is not None:
             self.on_trip(trip)
-        retry = self.guard.missed_stop(self.emulator_now())
+        retry = self.guard.missed_stop(now)
         if retry is not None:
             self.get_logger().error("force guard: the struts ran past the commanded stop (refused or late?); "
                                     f"stopping again over {retry.duration:.2f} s")
