@@ -19,20 +19,15 @@ import tempfile
 import time
 from pathlib import Path
 
-HOG = "while True: pass"
+from load_runs import cpu_hogs, summarise
 
 
 def one_run(out: Path, hogs: int, timeout_s: float = 900.0) -> dict:
-    hog_procs = [subprocess.Popen([sys.executable, "-c", HOG]) for _ in range(hogs)]
-    try:
+    with cpu_hogs(hogs):
         started = time.monotonic()
         result = subprocess.run([sys.executable, "-m", "stewart_vibration", "run", "--out", str(out)],
                                 capture_output=True, text=True, timeout=timeout_s)
         wall = time.monotonic() - started
-    finally:
-        for hog in hog_procs:
-            hog.kill()
-            hog.wait()
     summary_path = out / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     vib = (summary.get("vibrations") or [{}])[0]
@@ -77,12 +72,7 @@ def main() -> int:
                       f"{fmt(r['worst_ratio'], 100, 2)} %  lost {r['lost']}  ({r['wall_s']:.0f} s wall)", flush=True)
                 if not r["passed"]:
                     print(f"        {r['failure']}\n{r['tail']}", flush=True)
-    passed = sum(r["passed"] for r in rows)
-    if args.json:
-        print(json.dumps({"hogs": args.hogs, "runs": rows, "passed": passed}, indent=2))
-    else:
-        print(f"{passed} of {len(rows)} runs passed every bound with {args.hogs} CPU hogs beside the suite")
-    return 0 if passed == len(rows) else 1
+    return summarise(rows, "passed", args.hogs, args.json, "passed every bound")
 
 
 if __name__ == "__main__":

@@ -53,6 +53,25 @@ def test_joint_state_batches_match_one_by_one_and_split_on_layout_changes():
                           np.array([stamp_of(m.header) for m in single]))
 
 
+
+def test_malformed_joint_states_are_dropped_alone_with_their_arrivals():
+    enc = cdr.JointStateEncoder(NAMES)
+    good = [enc.encode(1 + 0.002 * i, *RNG.normal(size=(3, 12))) for i in range(10)]
+    truncated, garbage = good[0][:30], b"\x00\x01\x00\x00" + bytes(7)
+    messages = good[:3] + [truncated] + good[3:8] + [garbage] + good[8:]
+    arrivals = np.arange(len(messages)) * 10.0  # one distinct arrival time per message
+    reasons: list[str] = []
+    batches, kept = cdr.decode_joint_states_dropping_malformed(messages, on_malformed=reasons.append)
+    assert len(reasons) == 2 and all("truncated" in r or "JointState" in r for r in reasons), reasons
+    assert kept.tolist() == [0, 1, 2, 4, 5, 6, 7, 8, 10, 11]
+    rows = np.concatenate([b.position for b in batches])
+    single = [deserialize_message(m, JointState) for m in good]  # rclpy's reading, message by message
+    assert np.array_equal(rows, np.array([m.position for m in single]))
+    assert np.array_equal(np.concatenate([b.stamps for b in batches]), [stamp_of(m.header) for m in single])
+    assert np.array_equal(arrivals[kept], [0, 10, 20, 40, 50, 60, 70, 80, 100, 110])
+    clean, all_kept = cdr.decode_joint_states_dropping_malformed(good)
+    assert all_kept.tolist() == list(range(10)) and sum(len(b.stamps) for b in clean) == 10
+
 def test_pose_wrench_clock_round_trip():
     msg = deserialize_message(cdr.PoseStampedEncoder("base").encode(3.25, [1, 2, 3], [0.1, 0.2, 0.3, 0.9]),
                               PoseStamped)

@@ -16,6 +16,7 @@ InvalidInputError on malformed data.
 from __future__ import annotations
 
 import struct
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -273,6 +274,30 @@ def decode_joint_states(messages, decoder: JointStateDecoder | None = None) -> l
         i = j
     return batches
 
+
+
+def decode_joint_states_dropping_malformed(messages, decoder: JointStateDecoder | None = None,
+                                           on_malformed: Callable[[str], None] | None = None
+                                           ) -> tuple[list[JointStateBatch], np.ndarray]:
+    """decode_joint_states that drops only the malformed messages, each reported to ``on_malformed(reason)``.
+
+    Returns the batches and the indices (into ``messages``) of the messages they hold, in order, so a
+    caller can pick the matching arrival times: ``arrivals[kept]`` lines up row for row with the batches.
+    """
+    decoder = decoder or JointStateDecoder()
+    try:
+        return decode_joint_states(messages, decoder), np.arange(len(messages))
+    except InvalidInputError:
+        pass
+    kept = []
+    for i, data in enumerate(messages):  # find the malformed ones, then decode the rest together again
+        try:
+            decoder.decode(data)
+            kept.append(i)
+        except InvalidInputError as exc:
+            if on_malformed is not None:
+                on_malformed(str(exc))
+    return decode_joint_states([messages[i] for i in kept], decoder), np.array(kept, dtype=int)
 
 def _padded(values: np.ndarray, k: int) -> np.ndarray:
     return values if values.size == k else np.full(k, np.nan)

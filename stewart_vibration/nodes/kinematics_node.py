@@ -185,17 +185,17 @@ class KinematicsNode(Node):
     def process(self, messages: list, arrivals: np.ndarray) -> None:
         """Solve FK for a batch of states (one batch per layout) and publish one estimate each."""
         self.diagnostics.seen("legs/joint_states")
-        try:
-            batches = cdr.decode_joint_states(messages, self.decoder)
-        except StewartError as exc:
-            reject(self, self.diagnostics, "joint states", str(exc))
-            self.health.rejected += len(messages)
-            return
+        batches, kept = cdr.decode_joint_states_dropping_malformed(messages, self.decoder, self._malformed)
+        arrivals = arrivals[kept]
         first = 0
         for batch in batches:
             n = len(batch.stamps)
             self._solve(batch, arrivals[first:first + n])
             first += n
+
+    def _malformed(self, reason: str) -> None:
+        reject(self, self.diagnostics, "joint state", reason)
+        self.health.rejected += 1
 
     def _solve(self, batch, arrivals) -> None:
         self.health.arrived(batch.stamps)

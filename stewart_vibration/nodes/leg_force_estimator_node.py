@@ -136,16 +136,9 @@ class LegForceEstimatorNode(Node):
     def process(self, messages: list, arrivals: np.ndarray) -> None:
         """Modelled forces for a batch of states; one force and one wrench message per state."""
         self.diagnostics.seen("legs/joint_states")
-        try:
-            batches = cdr.decode_joint_states(messages, self.decoder)
-        except StewartError:
-            batches = []
-            for data in messages:  # find and drop only the malformed ones
-                try:
-                    batches += cdr.decode_joint_states([data], self.decoder)
-                except StewartError as exc:
-                    self._reject("joint state", str(exc))
-            arrivals = arrivals[:sum(len(b.stamps) for b in batches)]
+        batches, kept = cdr.decode_joint_states_dropping_malformed(
+            messages, self.decoder, lambda reason: self._reject("joint state", reason))
+        arrivals = arrivals[kept]
         first = 0
         for batch in batches:
             n = len(batch.stamps)

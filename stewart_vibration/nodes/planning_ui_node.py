@@ -283,10 +283,7 @@ class PlanningUiNode(Node):
                 pass
 
     def _decode_joints(self, messages) -> None:
-        try:
-            batches = cdr.decode_joint_states(messages, self.decoder)
-        except StewartError:
-            return
+        batches, _ = cdr.decode_joint_states_dropping_malformed(messages, self.decoder)
         for batch in batches:
             legs, vib = self.columns(batch.names)
             if legs is None or vib is None:
@@ -300,10 +297,7 @@ class PlanningUiNode(Node):
                 self.plots["joints"].append([batch.stamps[i], *(rows[i, 6:12] * 1e6), *rows[i, 12:18]])
 
     def _decode_forces(self, messages) -> None:
-        try:
-            batches = cdr.decode_joint_states(messages, self.force_decoder)
-        except StewartError:
-            return
+        batches, _ = cdr.decode_joint_states_dropping_malformed(messages, self.force_decoder)
         for batch in batches:
             legs, _ = self.columns(batch.names)
             if legs is None:
