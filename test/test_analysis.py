@@ -96,3 +96,4 @@ def test_dominant_sinusoid_resolves_frequency_far_below_the_fft_bin(frequency):
 
 def test_dominant_sinusoid_of_too_few_samples_is_zero():
     assert dominant_sinusoid([0.0, 1.0], [1.0, 2.0]) == (0.0, 0.0)
+

@@ -190,6 +190,8 @@ def test_friction_adds_on_top(robot):
     forces = leg_forces(robot, samp.pose, samp.twist, samp.accel, friction=fric)
     rates = strut_rates(robot, samp.pose, samp.twist)
     assert np.allclose(forces - base, 2.0 * np.sign(rates) + 30.0 * rates, rtol=0, atol=1e-12)
+    coulomb_only = leg_forces(robot, samp.pose, samp.twist, samp.accel, friction=Friction(coulomb=2.0))
+    assert np.allclose(coulomb_only - base, 2.0 * np.sign(rates), rtol=0, atol=1e-12)  # viscous 0 by default
 
 
 def test_external_wrench_sign_and_batch_shapes(robot):

@@ -43,8 +43,10 @@ def test_passes_through_points(kind):
         assert np.allclose(a[:-1], acc[:-1], atol=1e-10)
     p_before, _, _ = follower.sample([10.0])
     assert np.allclose(p_before, 0.17)  # departs from the held state
-    p_after, v_after, _ = follower.sample([20.0])
-    assert np.allclose(p_after, pos[-1])
+    p_after, v_after, a_after = follower.sample([20.0])  # after the last point, the last point holds
+    assert np.array_equal(p_after[0], pos[-1])
+    assert np.array_equal(v_after[0], vel[-1] if vel is not None else np.zeros(6))
+    assert np.array_equal(a_after[0], acc[-1] if acc is not None else np.zeros(6))
     if kind != "linear":
         fd_check(follower, 10.0, 11.7, 10.0 + times)
 

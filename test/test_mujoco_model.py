@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import mujoco
 import numpy as np
 import pytest
@@ -106,3 +108,18 @@ def test_static_equilibrium_holds_under_newton_euler_forces(robot):
         sim.step(forces)
     assert np.abs(sim.platform_pose() - pose).max() < 1e-9
     assert np.allclose(sim.actuator_forces(), forces)
+
+
+@pytest.mark.parametrize("gravity", [[0.0, -9.81, 0.0], [4.0, -5.0, -7.0]])
+def test_static_forces_hold_the_robot_under_tilted_gravity(robot, gravity):
+    """A leg on its side (gravity across the base frame, e.g. a patient lying laterally): the static forces
+    from leg_forces, with the gravity of robot.yaml replaced, hold MuJoCo's robot still."""
+    tilted = dataclasses.replace(robot, gravity=np.array(gravity))
+    sim = StewartSim(tilted)
+    pose = paper_pose(tilted)
+    sim.reset(pose)
+    forces = leg_forces(tilted, pose, np.zeros(6), np.zeros(6))
+    assert np.abs(forces - leg_forces(robot, pose, np.zeros(6), np.zeros(6))).max() > 1.0  # gravity matters
+    for _ in range(200):
+        sim.step(forces)
+    assert np.abs(sim.platform_pose() - pose).max() < 1e-9

@@ -18,6 +18,7 @@ from stewart_vibration.kinematics.rotations import (
     rpy_from_rotation,
     so3_exp,
     so3_log,
+    wrap_angle,
 )
 
 angle = st.floats(-3.0, 3.0)
@@ -81,3 +82,12 @@ def test_so3_exp_and_log():
     for phi in phis:
         assert np.allclose(so3_exp(phi), rodrigues(phi), atol=1e-13)
     assert np.allclose(so3_log(so3_exp(phis)), phis, atol=1e-10)
+
+
+def test_wrap_is_the_angle_of_the_unit_phasor_in_minus_pi_to_pi():
+    angles = np.random.default_rng(5).uniform(-20, 20, 1000)
+    wrapped = wrap_angle(angles)
+    assert np.allclose(wrapped, np.angle(np.exp(1j * angles)), rtol=0, atol=1e-12)  # same direction
+    assert (wrapped > -np.pi).all() and (wrapped <= np.pi).all()
+    assert np.allclose(wrap_angle(np.array([np.pi, -np.pi, 3 * np.pi, 0.0, -0.5])), [np.pi, np.pi, np.pi, 0.0, -0.5],
+                       rtol=0, atol=1e-12)  # the half-open end: -pi is pi

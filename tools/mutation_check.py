@@ -53,7 +53,7 @@ COVERAGE = [
     ("kinematics/jacobian.py", ["test_kinematics.py", "test_dynamics_kinematics.py"]),
     ("kinematics/fk_scalar.py", ["test_kinematics.py"]),
     ("kinematics/legs.py", ["test_dynamics_kinematics.py", "test_estimation.py", "test_dynamics_forces.py"]),
-    ("dynamics/newton_euler.py", ["test_dynamics_forces.py", "test_estimation.py"]),
+    ("dynamics/newton_euler.py", ["test_dynamics_forces.py", "test_estimation.py", "test_mujoco_model.py"]),
     ("kinematics/rotations.py", ["test_rotations.py", "test_kinematics.py", "test_dynamics_kinematics.py"]),
     ("vibration/paper_study.py", ["test_vibration_paper_cli.py"]),
     ("vibration/streaming.py", ["test_vibration_streaming.py"]),

@@ -13,6 +13,7 @@ from typing import cast
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..kinematics.rotations import wrap_angle
 
 
 @dataclass(frozen=True)
@@ -88,11 +89,6 @@ def dominant_sinusoid(times, signal) -> tuple[float, float]:
     return float(fit_sinusoid(t, x, freq).amplitude), float(freq)
 
 
-def wrap(angle):
-    """Angle(s) wrapped to (-pi, pi]."""
-    return (np.asarray(angle) + np.pi) % (2 * np.pi) - np.pi
-
-
 @dataclass(frozen=True)
 class LineVibration:
     """Principal direction (unit, base frame), amplitude (m), off-axis ratio of a vibration."""
@@ -127,7 +123,7 @@ def direction_error_deg(measured, expected) -> float:
 def leg_phase_offsets_deg(fit: SinusoidFit, reference_leg: int | None = None) -> np.ndarray:
     """Each leg's phase relative to the reference leg (largest amplitude by default), deg in (-180, 180]."""
     ref = int(np.argmax(fit.amplitude)) if reference_leg is None else reference_leg
-    return np.degrees(wrap(fit.phase - fit.phase[ref]))
+    return np.degrees(wrap_angle(fit.phase - fit.phase[ref]))
 
 
 def phase_error_to_0_or_pi_deg(offsets_deg) -> np.ndarray:

@@ -19,6 +19,7 @@ from typing import Any
 import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
+from ..kinematics.rotations import wrap_angle
 from ..mcap_log.reader import RunReader
 from ..messages.arrays import joint_arrays, pose_array, stamp_s
 from ..robot import LEG_NAMES, Robot
@@ -235,8 +236,8 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
     first, second = fit_sinusoid(jt[sel][half], hinge[half], frequency), fit_sinusoid(jt[sel][~half], hinge[~half],
                                                                                       frequency)
     dt_halves = 0.5 * (t1 - t0)
-    leg_freq = frequency + np.angle(np.exp(1j * (second.phase - first.phase))) / (2 * np.pi * dt_halves)
-    expected_offsets = np.degrees(np.angle(np.exp(1j * (plan.leg_phases - plan.leg_phases[np.argmax(fit.amplitude)]))))
+    leg_freq = frequency + wrap_angle(second.phase - first.phase) / (2 * np.pi * dt_halves)
+    expected_offsets = np.degrees(wrap_angle(plan.leg_phases - plan.leg_phases[np.argmax(fit.amplitude)]))
     out.update({
         "leg_amplitude_m": fit.amplitude,
         "leg_amplitude_expected_m": plan.leg_amplitudes,
@@ -244,7 +245,7 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
         "leg_phase_deg": offsets,
         "leg_phase_expected_deg": expected_offsets,
         "leg_phase_error_deg": phase_error_to_0_or_pi_deg(offsets),
-        "leg_phase_sign_ok": bool(np.all(np.abs(np.angle(np.exp(1j * np.radians(offsets - expected_offsets))))
+        "leg_phase_sign_ok": bool(np.all(np.abs(wrap_angle(np.radians(offsets - expected_offsets)))
                                          < np.radians(90))),
         "leg_frequency_hz": leg_freq,
         "leg_frequency_spread_hz": float(np.ptp(leg_freq)),

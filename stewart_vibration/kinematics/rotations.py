@@ -14,6 +14,10 @@ from ..errors import InvalidInputError
 from ..input_checks import as_batch
 
 
+def wrap_angle(angle):
+    """Angle(s) (rad) wrapped to (-pi, pi]: pi stays pi, -pi becomes pi."""
+    return np.pi - (np.pi - np.asarray(angle)) % (2 * np.pi)
+
 def rpy_matrix_entries(sr, sp, sy, cr, cp, cy, out=None):
     """The nine entries of R = Rz(yaw) Ry(pitch) Rx(roll), row-major, from the sines and cosines of
     roll, pitch and yaw: the one place the roll-pitch-yaw formula (paper eq. 3) is written.

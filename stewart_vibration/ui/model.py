@@ -29,7 +29,7 @@ import numpy as np
 
 from ..errors import InvalidInputError, StewartError
 from ..kinematics import check_pose, condition_number, inverse_kinematics, joint_angles
-from ..kinematics.rotations import rotation_from_rpy
+from ..kinematics.rotations import rotation_from_rpy, wrap_angle
 from ..robot import STANDARD_GRAVITY, Robot
 from ..vibration.settings import (
     VIBRATION_KEYS,
@@ -165,7 +165,7 @@ def platform_points(robot: Robot, pose) -> np.ndarray:
 def pose_error(pose, target) -> tuple[float, float]:
     """(max |position error| m, max |angle error| rad) of ``pose`` against ``target`` (angles wrapped)."""
     err = np.asarray(pose, float) - np.asarray(target, float)
-    angles = np.angle(np.exp(1j * err[3:]))
+    angles = wrap_angle(err[3:])
     return float(np.abs(err[:3]).max()), float(np.abs(angles).max())
 
 
