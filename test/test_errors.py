@@ -14,6 +14,7 @@ from stewart_vibration import (
     StrokeLimitError,
     UnreachablePoseError,
     check_pose,
+    condition_number,
     forward_kinematics,
     inverse_kinematics,
     jacobian,
@@ -107,6 +108,15 @@ def test_near_singular_pose(robot):
     with pytest.raises(SingularPoseError, match="condition number"):
         check_pose(strict, strict.home_pose)
     assert check_pose(robot, robot.home_pose).shape == (6,)
+    # in a batch, the error names the first sample over the limit and its value
+    poses = robot.home_pose + np.array([[0, 0, 0, 0, 0, 0], [0.01, 0, 0, 0.1, 0, 0], [0, 0, 0, 0, 0, 0.05],
+                                        [-0.01, 0.01, 0, 0, -0.1, 0]])
+    cond = condition_number(robot, poses)
+    ranked = np.sort(cond)
+    tree["limits"]["condition_number_max"] = float(0.5 * (ranked[-1] + ranked[-2]))
+    with pytest.raises(SingularPoseError) as info:
+        check_pose(robot_from_dict(tree), poses)
+    assert info.value.sample == int(np.argmax(cond)) != 0 and info.value.value == pytest.approx(cond.max())
 
 
 def test_fk_bad_lengths(robot):

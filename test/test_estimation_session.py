@@ -10,6 +10,7 @@ import pytest
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.estimation import ForceEstimator
+from stewart_vibration.kinematics import inverse_kinematics
 from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration import decompose_vibration
@@ -77,3 +78,51 @@ def test_model_matches_the_emulator_through_the_estop(robot, run):
     ignoring.command_vibration(run["traj"], now=0.0)
     wrong = ignoring.estimate(t, struts, vib, strut_rates, vib_rates, eff)
     assert (np.abs(wrong.forces - eff)[after].max(axis=0) / amplitude).max() > 0.3
+
+
+def test_pose_is_where_strut_plus_vibration_unit_puts_the_platform(robot):
+    """The leg length is strut + vibration unit: the estimated pose is the pose whose IK gives that sum."""
+    target = robot.home_pose + np.array([0.004, -0.003, 0.002, 0.02, -0.01, 0.03])
+    lengths = inverse_kinematics(robot, target)
+    vib = np.array([80e-6, -80e-6, 40e-6, -40e-6, 20e-6, -20e-6])
+    est = ForceEstimator(robot).estimate([0.0], (lengths - vib)[None], vib[None], np.zeros((1, 6)),
+                                         np.zeros((1, 6)))
+    assert est.ok.all() and np.abs(est.pose[0] - target).max() < 1e-10
+    # the same for rates: only the leg's total rate moves the platform (velocity terms of the forces)
+    rates, vib_rates = np.full((1, 6), 0.05) * [1, -1, 2, -2, 1, 1], np.full((1, 6), 0.04)
+    split = ForceEstimator(robot).estimate([0.0], lengths[None] - vib, vib[None], rates - vib_rates, vib_rates)
+    whole = ForceEstimator(robot).estimate([0.0], lengths[None], np.zeros((1, 6)), rates, np.zeros((1, 6)))
+    still = ForceEstimator(robot).estimate([0.0], lengths[None], np.zeros((1, 6)), np.zeros((1, 6)),
+                                           np.zeros((1, 6)))
+    assert np.abs(split.forces - whole.forces).max() < 1e-9
+    assert np.abs(whole.forces - still.forces).max() > 1e-3  # the rates do change the forces
+
+
+@pytest.mark.parametrize("end_speed_steps", [0.5, 2.0])
+def test_mirror_takes_a_move_ending_in_motion_as_a_200_hz_emulator_does(robot, end_speed_steps):
+    """A move may end moving by at most the velocity step the emulator's physics step allows; the estimator's
+    mirror allows what the coarsest emulator (200 Hz physics) allows: the same verdict as that emulator."""
+    from stewart_vibration.emulation.strut_trajectory import STEP_SPEED
+    from stewart_vibration.errors import StewartError
+    from stewart_vibration.robot import LEG_NAMES
+
+    home = inverse_kinematics(robot, robot.home_pose)
+    end_speed = end_speed_steps * STEP_SPEED * robot.limits.strut_acceleration_max / 200
+    times = np.array([0.5, 1.0])
+    pos = np.vstack([home + 0.0005, home + 0.001])
+    vel = np.vstack([np.full(6, 0.001), np.full(6, end_speed)])
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 200))
+    mirror = ForceEstimator(robot)
+    zeros = np.zeros((1, 6))
+    mirror.estimate([0.0], home[None, :], zeros, zeros, zeros)
+    verdicts = []
+    for command in (lambda: emu.command_struts(LEG_NAMES, 0.0, times, pos, vel),
+                    lambda: mirror.command_struts(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, pos, vel),
+                                                  now=0.0)):
+        try:
+            command()
+            verdicts.append("taken")
+        except StewartError as exc:
+            verdicts.append(f"refused: {exc}")
+    expected = "taken" if end_speed_steps < 1 else "refused"
+    assert [v.split(":")[0] for v in verdicts] == [expected, expected], verdicts  # emulator, mirror

@@ -14,6 +14,7 @@ from stewart_vibration import (
     forward_kinematics,
     inverse_kinematics,
     jacobian,
+    joint_angles,
     load_robot,
 )
 from stewart_vibration.install import default_config_dir
@@ -35,6 +36,22 @@ def ref_geometry():
     """Hinge points rebuilt from the YAML file itself, not from the library."""
     return config_hinges(default_config_dir() / "robot.yaml")
 
+
+
+def test_joint_angles_match_per_leg_reference(robot, ref_geometry):
+    """Universal angle: leg axis against the base z axis; spherical: against the platform z axis R e_z
+    (one leg at a time, hinges from the YAML text, the rotation from elementary rotations)."""
+    base, plat = ref_geometry
+    poses = random_workspace_poses(robot, 40, seed=4)
+    universal, spherical = joint_angles(robot, poses)
+    assert universal.shape == spherical.shape == (40, 6)
+    for k, q in enumerate(poses):
+        rot = reference_rotation(*q[3:])
+        for i in range(6):
+            axis = q[:3] + rot @ plat[i] - base[i]
+            axis = axis / np.linalg.norm(axis)
+            assert universal[k, i] == pytest.approx(np.arccos(axis[2]), abs=1e-12)
+            assert spherical[k, i] == pytest.approx(np.arccos(axis @ rot[:, 2]), abs=1e-12)
 
 def test_ik_matches_per_leg_reference(robot, ref_geometry):
     base, plat = ref_geometry
