@@ -210,6 +210,8 @@ def test_status_follows_the_vibration(buffer):
     buffer.add(window(stamp, 0.0, 1.2, tail=1.0), now=9.0)
     states = {t: buffer.status(stamp + t).state for t in (-0.5, 0.05, 0.5, 1.05, 1.5)}
     assert states == {-0.5: "pending", 0.05: "ramping_in", 0.5: "running", 1.05: "ramping_out", 1.5: "idle"}
+    long_after = buffer.status(stamp + 10.0)  # no sample within the span on either side
+    assert long_after.state == "idle" and not long_after.amplitude.any()
     amplitude = buffer.status(stamp + 0.5).amplitude
     np.testing.assert_allclose(amplitude, A * np.abs(GAINS), rtol=0.02)
     buffer.stop(stamp + 0.6, "emergency stop")
