@@ -29,6 +29,8 @@ SIM = ["--ros-args", "-p", "use_sim_time:=true"]
 F = 35.0
 STATUS_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
+NOT_READY = ("clock not running", "no platform/pose_estimate received yet")  # the planner's refusals while it starts
+
 
 class Suite:
     """Emulator + kinematics + planner processes and a client that records what a user can see."""
@@ -77,8 +79,13 @@ class Suite:
                                                         for k, v in params.items()])
             assert all(r.successful for r in self.client.call(SetParameters, "vibration_planner/set_parameters",
                                                              request).results)
-        response = self.client.call(Trigger, "vibration_planner/start", Trigger.Request())
-        return response
+        deadline = time.monotonic() + 15.0
+        while True:  # a planner still starting up (no /clock or pose yet under load: CI with a hog) is retried
+            response = self.client.call(Trigger, "vibration_planner/start", Trigger.Request())
+            if response.success or not any(reason in response.message for reason in NOT_READY) or \
+                    time.monotonic() > deadline:
+                return response
+            self.client.spin_for(0.2)
 
     def vib(self, t0: float, t1: float):
         """(stamps, vib_1..6) of the joint states in [t0, t1] (sim s)."""
