@@ -26,7 +26,7 @@ VIB_NAMES = tuple(f"vib_{i}" for i in range(1, 7))  # joint names of the vibrati
 T = TypeVar("T")
 
 
-def _read_only(value):
+def read_only_array(value):
     """A read-only float copy of an array field (frozen dataclasses must not be changed through their arrays)."""
     arr = np.array(value, dtype=float)
     arr.flags.writeable = False
@@ -43,7 +43,7 @@ class RigidBody:
 
     def __post_init__(self):
         for name in ("com", "inertia"):
-            object.__setattr__(self, name, _read_only(getattr(self, name)))
+            object.__setattr__(self, name, read_only_array(getattr(self, name)))
 
 
 @dataclass(frozen=True)
@@ -137,7 +137,7 @@ class Robot:
     def __post_init__(self):
         for f in fields(self):
             if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity"):
-                object.__setattr__(self, f.name, _read_only(getattr(self, f.name)))
+                object.__setattr__(self, f.name, read_only_array(getattr(self, f.name)))
 
     @property
     def moving_body(self) -> RigidBody:

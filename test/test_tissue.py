@@ -525,3 +525,12 @@ def test_tissue_scenario_loads(robot):
     assert len(guarded) == 1 and guarded[0].pose[2] > robot.home_pose[2] + 0.01
     assert scenario.bounds["guard_overshoot"] == 0.10 and scenario.bounds["wrench_error_vibration_n"] == 1.0
     assert load_scenario(robot).tissue is None  # the main scenario: no tissue unless asked (--tissue)
+
+
+def test_robot_and_tissue_cannot_be_changed_through_their_arrays(robot, tissue):
+    """Frozen models: writing into an array field raises (the tissue's plain-float copies, used by the
+    single-state path, would otherwise disagree with the arrays)."""
+    for array in (robot.base_hinges, robot.platform_hinges, robot.home_pose, robot.gravity, tissue.rest_pose,
+                  tissue.center, tissue.stiffness, tissue.damping):
+        with pytest.raises(ValueError, match="read-only"):
+            array[0] = 1.0

@@ -45,7 +45,7 @@ from ..input_checks import as_batch
 from ..install import default_config_dir
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..paper import paper_pose
-from ..robot import Robot
+from ..robot import Robot, read_only_array
 
 STIFFENING_TYPES = ("none", "exponential", "piecewise_linear")
 _KEYS = {"name", "note", "rest_pose", "center_m", "axial", "lateral", "torsional", "bending", "preload_n",
@@ -82,6 +82,9 @@ class TissueModel:
         _damping_list: list[float] = field(init=False)
 
     def __post_init__(self):
+        for name in ("rest_pose", "center", "stiffness", "damping", "breakpoints_m", "slopes_n_m"):
+            if getattr(self, name) is not None:  # read-only: the plain-float copies below must stay in step
+                object.__setattr__(self, name, read_only_array(getattr(self, name)))
         rest = rotation_from_rpy(self.rest_pose[3:])
         object.__setattr__(self, "_rest", rest)
         object.__setattr__(self, "_rest_center", self.rest_pose[:3] + rest @ self.center)

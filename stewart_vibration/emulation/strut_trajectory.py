@@ -17,7 +17,8 @@ from typing import cast
 
 import numpy as np
 
-from ..errors import ActuatorLimitError, InvalidInputError, StrokeLimitError
+from ..errors import ActuatorLimitError, InvalidInputError
+from ..kinematics.limits import check_stroke
 from ..splines import cubic_hermite, quintic_hermite, spline_extremes
 
 
@@ -273,12 +274,7 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
         knots_t, knots_p, knots_v, knots_a, position_bounds=(lim.stroke_min, lim.stroke_max),
         velocity_bound=lim.strut_velocity_max, acceleration_bound=lim.strut_acceleration_max)
     why = f" (it started {late_by:.3f} s ago: the motion departs from the commanded state now)" if late else ""
-    for bad, value, limit, word in ((low < lim.stroke_min, low, lim.stroke_min, "below"),
-                                    (high > lim.stroke_max, high, lim.stroke_max, "above")):
-        if bad.any():
-            leg = int(np.argmax(bad))
-            raise StrokeLimitError(f"leg_{leg + 1}: {value[leg]:.6f} m is {word} the stroke limit {limit:.6f} m"
-                                   f"{why}", leg=leg + 1, value=float(value[leg]), limit=limit)
+    check_stroke(low, high, lim, what="commanded length", suffix=why)
     for name, values, limit, unit in (("strut_velocity_max", speed, lim.strut_velocity_max, "m/s"),
                                       ("strut_acceleration_max", accel, lim.strut_acceleration_max, "m/s^2")):
         if (values > limit * SPEED_TOLERANCE).any():

@@ -6,11 +6,11 @@ unit (vib_i). With the Jacobian J (rows [n_i, (R a_i) x n_i], base frame):
 - twist  t = [v, w] = J^-1 L_dot           (velocity of the platform origin);
 - accel  a = [a, alpha] = J^-1 (L_ddot - c), c_i = the velocity-product part of
   L_ddot_i = s_i . (w x (w x r_i)) + |v_A,perp|^2 / l_i, i.e. L_ddot at zero
-  acceleration (``leg_kinematics.leg_motion``), which is the J_dot t term.
+  acceleration (``kinematics.legs.leg_motion``), which is the J_dot t term.
 
 Commanded leg accelerations come from the commands the emulator follows, with the
 emulator's own models: ``emulation.vibration_buffer.VibrationBuffer`` for the vib_*
-windows and ``emulation.trajectory.TrajectoryFollower`` for leg_* trajectories.
+windows and ``emulation.strut_trajectory.TrajectoryFollower`` for leg_* trajectories.
 
 External wrench: leg_forces is affine in the external wrench W = [F_E, M_E]
 (acting on the platform, moment about the platform origin, base frame) with

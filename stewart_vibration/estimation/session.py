@@ -1,7 +1,7 @@
 """The leg-force estimator's per-run state (pure numpy; the node only converts messages).
 
 ``ForceEstimator`` keeps what the emulator follows -- the vib_* window buffer and the leg_*
-trajectory, with the emulator's own models (emulation.vibration_buffer, emulation.trajectory) and
+trajectory, with the emulator's own models (emulation.vibration_buffer, emulation.strut_trajectory) and
 its safety ramps as the emulator reports them on vibration/status -- and turns batches of joint
 states into modelled leg forces and the external wrench:
 

@@ -36,7 +36,7 @@ from ..errors import ConfigError
 from ..install import default_config_dir
 from ..kinematics import leg_vectors
 from ..kinematics.rotations import quaternion_from_rpy
-from ..robot import Robot
+from ..robot import LEG_NAMES, Robot
 
 BASE_JOINTS = ("universal", "ball")
 
@@ -162,7 +162,7 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
             f'      <inertial pos="0 0 {cyl_com:.17g}" mass="{p.cylinder_mass:.17g}" diaginertia="{cyl_inertia}"/>',
             f'      <geom type="capsule" fromto="0 0 0 0 0 {2 * cyl_com:.17g}" size="0.010" rgba="0.3 0.4 0.8 1"/>',
             f'      <body name="piston_{n}" pos="0 0 {lengths[i]:.17g}">',
-            f'        <joint name="leg_{n}" type="slide" axis="0 0 1" ref="{lengths[i]:.17g}"/>',
+            f'        <joint name="{LEG_NAMES[i]}" type="slide" axis="0 0 1" ref="{lengths[i]:.17g}"/>',
             f'        <inertial pos="0 0 {-pis_com:.17g}" mass="{p.piston_mass:.17g}" diaginertia="{pis_inertia}"/>',
             f'        <geom type="capsule" fromto="0 0 {-2 * pis_com:.17g} 0 0 0" size="0.006" rgba="0.8 0.8 0.8 1"/>',
             f'        <site name="tip_{n}" pos="0 0 0" size="0.004"/>',
@@ -179,10 +179,10 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
     lines += ['    </body>', '  </worldbody>', '  <equality>']
     lines += [f'    <connect name="hinge_{i + 1}" site1="tip_{i + 1}" site2="a_{i + 1}"/>' for i in range(6)]
     lines += ['  </equality>', '  <actuator>']
-    lines += [f'    <general name="leg_{i + 1}" joint="leg_{i + 1}" gear="1" gainprm="1" biastype="affine" '
-              'biasprm="0 0 0"/>' for i in range(6)]
+    lines += [f'    <general name="{name}" joint="{name}" gear="1" gainprm="1" biastype="affine" '
+              'biasprm="0 0 0"/>' for name in LEG_NAMES]
     lines += ['  </actuator>', '  <sensor>']
-    lines += [f'    <actuatorfrc name="force_leg_{i + 1}" actuator="leg_{i + 1}"/>' for i in range(6)]
+    lines += [f'    <actuatorfrc name="force_{name}" actuator="{name}"/>' for name in LEG_NAMES]
     lines += ['  </sensor>', '</mujoco>']
     return "\n".join(lines) + "\n"
 

@@ -28,7 +28,7 @@ from ..input_checks import as_batch
 from ..kinematics import leg_vectors
 from ..kinematics.legs import leg_motion
 from ..kinematics.rotations import quaternion_from_rpy, rotation_from_rpy, rpy_from_rotation
-from ..robot import Robot
+from ..robot import LEG_NAMES, Robot
 from .mjcf import SimulationSettings, build_model, leg_frame
 
 
@@ -54,7 +54,7 @@ class StewartSim:
         self.data = mujoco.MjData(self.model)
         self._scratch = mujoco.MjData(self.model)
         m = self.model
-        jid = [m.joint(f"leg_{i}").id for i in range(1, 7)]
+        jid = [m.joint(name).id for name in LEG_NAMES]
         self.slide_qpos = np.array([m.jnt_qposadr[j] for j in jid])
         self.slide_dof = np.array([m.jnt_dofadr[j] for j in jid])
         first = "u1" if base_joint == "universal" else "ball"

@@ -24,7 +24,7 @@ from ..kinematics import inverse_kinematics
 from ..kinematics.rotations import rotation_from_rpy
 from ..paper import CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ
 from ..robot import Robot
-from .feasibility import check_frequency, check_leg_peaks, check_stroke
+from .feasibility import check_frequency, check_leg_peaks, check_vibration_stroke
 from .screw import (
     VibrationScrew,
     displaced_poses,
@@ -241,7 +241,7 @@ def decompose_vibration(
     if check_limits:
         check_leg_peaks(robot, peak_amp, peak_acc)
         extreme_poses = displaced_poses(screw, pose, np.array([-amp, amp]))[2]
-        check_stroke(robot, l0, low, high, extreme_poses)
+        check_vibration_stroke(robot, l0, low, high, extreme_poses)
 
     return VibrationDecomposition(
         pose=pose.copy(), frame=frame, method=method, screw=screw, twist=twist,

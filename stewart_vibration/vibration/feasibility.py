@@ -10,8 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import StrokeLimitError, VibrationLimitError
+from ..errors import VibrationLimitError
 from ..kinematics import inverse_kinematics
+from ..kinematics.limits import check_stroke
 from ..robot import STANDARD_GRAVITY, Robot, VibrationUnitLimits
 from ..splines import spline_extremes
 
@@ -48,7 +49,7 @@ def check_leg_peaks(robot: Robot, amplitudes, accelerations) -> None:
             )
 
 
-def check_stroke(robot: Robot, nominal_lengths, low_change, high_change, extreme_poses=None) -> None:
+def check_vibration_stroke(robot: Robot, nominal_lengths, low_change, high_change, extreme_poses=None) -> None:
     """Leg lengths l0 + min/max vibration change [6] within the stroke, then joints at the extremes.
 
     StrokeLimitError(leg=, value=, limit=) names the leg whose vibrating
@@ -56,21 +57,9 @@ def check_stroke(robot: Robot, nominal_lengths, low_change, high_change, extreme
     displaced platform poses at the vibration extremes) are also checked for
     joint limits by the inverse kinematics.
     """
-    lim = robot.limits
-    lowest = np.asarray(nominal_lengths) + np.minimum(low_change, high_change)
-    highest = np.asarray(nominal_lengths) + np.maximum(low_change, high_change)
-    for mask, values, limit, word in (
-        (lowest < lim.stroke_min, lowest, lim.stroke_min, "below the minimum"),
-        (highest > lim.stroke_max, highest, lim.stroke_max, "above the maximum"),
-    ):
-        if mask.any():
-            leg = int(np.argmax(mask))
-            value = float(values[leg])
-            raise StrokeLimitError(
-                f"leg {leg + 1}: vibrating length reaches {value:.6f} m, {abs(value - limit) * 1e6:.3f} um "
-                f"{word} stroke {limit:.6f} m",
-                leg=leg + 1, value=value, limit=limit,
-            )
+    nominal = np.asarray(nominal_lengths, dtype=float)
+    check_stroke(nominal + np.minimum(low_change, high_change), nominal + np.maximum(low_change, high_change),
+                 robot.limits, what="vibrating length")
     if extreme_poses is not None:
         inverse_kinematics(robot, extreme_poses, check_limits=True)
 

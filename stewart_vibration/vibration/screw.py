@@ -24,7 +24,7 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..input_checks import as_batch
 from ..kinematics import jacobian_from_vectors, leg_vectors_from_rotation
-from ..kinematics.rotations import rotation_from_rpy, rpy_from_rotation, skew
+from ..kinematics.rotations import rodrigues_coefficients, rotation_from_rpy, rpy_from_rotation, so3_exp
 from ..robot import Robot
 
 
@@ -70,8 +70,9 @@ def twist_per_unit(screw: VibrationScrew, position: np.ndarray) -> np.ndarray:
 
 
 def _rotation_terms(delta: np.ndarray):
-    """sin(delta), 1 - cos(delta) (cancellation-free) for the Rodrigues formula."""
-    return np.sin(delta), 2.0 * np.sin(0.5 * delta) ** 2
+    """sin(delta), 1 - cos(delta) (cancellation-free) for the Rodrigues formula about a unit axis."""
+    a, b = rodrigues_coefficients(delta * delta)
+    return a * delta, b * delta * delta
 
 
 def rotate_about(axis: np.ndarray, vectors: np.ndarray, delta: np.ndarray):
@@ -98,10 +99,7 @@ def displaced_poses(screw: VibrationScrew, pose: np.ndarray, delta: np.ndarray):
     if screw.rotational:
         dv, _, _ = rotate_about(screw.axis, pose[:3] - screw.point, delta)
         dp = dp + dv
-        sin, one_minus_cos = _rotation_terms(delta)
-        wx = skew(screw.axis)
-        rot_delta = np.eye(3) + sin[:, None, None] * wx + one_minus_cos[:, None, None] * (wx @ wx)
-        rotation = rot_delta @ rot0
+        rotation = so3_exp(screw.axis * delta[:, None]) @ rot0
     else:
         rotation = np.broadcast_to(rot0, delta.shape + (3, 3)).copy()
     position = pose[:3] + dp
