@@ -13,6 +13,7 @@ refuses), and that the robot still reaches a valid target (the paper's pose) to 
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 import pytest
@@ -437,13 +438,22 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
     # the robot still works: stop any vibration, clear an e-stop, go to the paper's pose
     hostile.call(Trigger, "vibration_planner/stop", Trigger.Request())
     hostile.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request())  # latched now, whatever it was
-    c.spin_for(0.5)
-    assert hostile.call(Trigger, "hardware_emulator/reset", Trigger.Request()).success, hostile.logs()
-    target = paper_pose(robot)
-    c.spin_for(3.0)  # the reset's move home
-    publish(target_pub, pose_stamped(target, Time(), "base"))
+    resets = []
 
-    def reached() -> bool:
+    def reset_taken() -> bool:  # refused while the e-stop's ramp is still running: asked again
+        resets.append(hostile.call(Trigger, "hardware_emulator/reset", Trigger.Request()))
+        if not resets[-1].success:
+            c.spin_for(0.2)
+        return resets[-1].success
+
+    assert c.spin_until(reset_taken, 30), (resets[-1].message, hostile.logs())
+    target = paper_pose(robot)
+    sent_at = [0.0]
+
+    def reached() -> bool:  # the target is sent again every 3 s: the reset's move home may still be running
+        if time.monotonic() - sent_at[0] > 3.0:
+            publish(target_pub, pose_stamped(target, Time(), "base"))
+            sent_at[0] = time.monotonic()
         recent = hostile.poses[-50:]
         return len(recent) == 50 and all(
             e[0] <= 10e-6 and e[1] <= 0.01 for e in (pose_error(m, target) for m in recent))

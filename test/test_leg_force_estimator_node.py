@@ -13,6 +13,7 @@ import pytest
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import WrenchStamped
+from rclpy.duration import Duration as RclpyDuration
 from rclpy.serialization import serialize_message
 from ros_client import node_under_test
 from sensor_msgs.msg import JointState
@@ -72,7 +73,7 @@ def test_force_estimate_and_external_wrench(robot, estimator):
     dt = 2.5e-4
     vib_pub.publish(window(robot, plan, np.arange(0, 0.3 + dt / 2, dt)))
     vib_pub.publish(window(robot, plan, np.arange(0.2, 0.5 + dt / 2, dt)))
-    client.spin_for(0.5)
+    assert vib_pub.wait_for_all_acked(RclpyDuration(seconds=10))  # delivered before the first state is sent
 
     # joint states at 500 Hz over [0.05, 0.45] s: legs at rest, vib_i exact, efforts = model + wrench
     t = np.arange(0.05, 0.45, 0.002)

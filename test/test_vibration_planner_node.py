@@ -52,16 +52,23 @@ def trigger(client, name):
     return client.call(Trigger, f"vibration_planner/{name}", Trigger.Request())
 
 
-def start_with_pose(client, poses, pose, timeout_s: float = 10.0):
-    """Publish a pose estimate and call start; while the planner has no pose yet (a first sample sent as DDS was
-    still matching waits for a heartbeat: CI), publish again and retry for up to ``timeout_s``. Any other answer
-    (success or another refusal) is returned at once."""
+NOT_READY = ("no platform/pose_estimate", "clock not running")  # the planner's refusals until its inputs arrive
+
+
+def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=None, waiting_for=NOT_READY):
+    """Publish a pose estimate (a pose vector or a PoseStamped) and call start; while the planner has no pose
+    (or, with ``publish_also``, no /clock) yet -- a first sample sent as DDS was still matching waits for a
+    heartbeat: CI -- publish again (``publish_also()`` too) and retry for up to ``timeout_s``. Any answer other
+    than the refusals in ``waiting_for`` is returned at once."""
+    msg = pose if isinstance(pose, PoseStamped) else pose_msg(pose)
     deadline = time.monotonic() + timeout_s
     while True:
-        poses.publish(pose_msg(pose))
+        if publish_also is not None:
+            publish_also()
+        poses.publish(msg)
         client.spin_for(0.2)
         response = trigger(client, "start")
-        if response.success or "no platform/pose_estimate" not in response.message or time.monotonic() > deadline:
+        if response.success or not any(r in response.message for r in waiting_for) or time.monotonic() > deadline:
             return response
 
 
@@ -134,10 +141,9 @@ def test_parameter_validation_and_bad_starts(planner):
     assert not response.success and "no platform/pose_estimate" in response.message
     nan = pose_msg(np.zeros(6))
     nan.pose.position.x = float("nan")
-    client.publisher("platform/pose_estimate", PoseStamped).publish(nan)
+    nan_poses = client.publisher("platform/pose_estimate", PoseStamped)
     assert client.wait_for_subscribers("platform/pose_estimate")
-    client.spin_for(0.3)
-    response = trigger(client, "start")  # the NaN estimate is refused when a start needs it
+    response = start_with_pose(client, nan_poses, nan)  # the NaN estimate is refused when a start needs it
     assert not response.success and "pose estimate unusable" in response.message and "non-finite" in response.message
     assert trigger(client, "stop").message == "already idle"
     assert client.spin_until(lambda: any("rejected start: pose estimate unusable" in m
@@ -276,17 +282,12 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
         clock = client.publisher("/clock", Clock)
         poses = client.publisher("platform/pose_estimate", PoseStamped)
         assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-        poses.publish(pose_msg(paper_pose(robot)))
-        client.spin_for(0.2)
-        response = trigger(client, "start")
+        response = start_with_pose(client, poses, paper_pose(robot), waiting_for=("no platform/pose_estimate",))
         assert not response.success and "clock not running" in response.message, response.message
 
         sim = 100.0
-        clock.publish(Clock(clock=Time(sec=100)))
-        client.spin_for(0.2)
-        client.publisher("platform/pose_estimate", PoseStamped).publish(pose_msg(paper_pose(robot)))
-        client.spin_for(0.2)
-        response = trigger(client, "start")
+        response = start_with_pose(client, poses, paper_pose(robot),
+                                   publish_also=lambda: clock.publish(Clock(clock=Time(sec=100))))
         assert response.success, response.message
         while sim < 102.5:  # 2.5 s of sim time at ~4x wall speed
             sim += 0.01

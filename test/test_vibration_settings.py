@@ -55,3 +55,37 @@ def test_start_check_refuses_with_the_planners_reason(robot, change, error, word
     assert isinstance(caught.value, StewartError)
     text = start_refusal(caught.value, s)
     assert text.startswith(f"infeasible vibration ({error.__name__})") and words in text
+
+
+@pytest.mark.parametrize("change, words", [
+    ({"phase_rad": float("nan")}, "phase_rad must be finite"),
+    ({"lead_s": -1e-9}, "lead_s must be >= 0"),
+    ({"duration_s": -1e-9}, "duration_s must be >= 0"),
+    ({"lead_s": 0.5, "start_lead_s": 0.5 - 1e-9}, "start_lead_s"),
+    ({"ramp_s": 0.25, "duration_s": 0.5 - 1e-9}, "2 ramp_s"),
+    ({"lookahead_s": 0.5, "window_period_s": 0.5}, "must exceed window_period_s"),
+])
+def test_each_settings_rule_refuses_just_beyond_its_boundary(robot, change, words):
+    """The documented rules, each at its boundary: just beyond it is refused with the reason, exactly at it
+    is accepted (the boundary values: lead 0, duration 0 or 2 ramps, start_lead = lead)."""
+    reason = settings_reason(robot, dict(default_settings(robot), **change))
+    assert reason is not None and words in reason, reason
+
+
+@pytest.mark.parametrize("change", [{"lead_s": 0.0}, {"duration_s": 0.0}, {"lead_s": 0.5, "start_lead_s": 0.5},
+                                    {"ramp_s": 0.25, "duration_s": 0.5}, {"phase_rad": -1.0}])
+def test_each_settings_rule_accepts_its_boundary(robot, change):
+    assert settings_reason(robot, dict(default_settings(robot), **change)) is None
+
+
+def test_readme_documents_the_planner_defaults(robot):
+    """The README's parameter table gives every numeric planner default the core declares (one source of
+    truth: a default changed in the code and not in the README, or back, fails here)."""
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    (row,) = [line for line in readme.splitlines() if line.startswith("| vibration_planner | `direction`")]
+    documented = {name: float(value) for name, value in re.findall(r"`(\w+)` \((-?[0-9.]+(?:e-?[0-9]+)?)", row)}
+    declared = {name: spec.default for name, spec in parameters(robot).items()}
+    assert documented == pytest.approx(declared), (documented, declared)

@@ -57,6 +57,7 @@ COVERAGE = [
     ("kinematics/rotations.py", ["test_rotations.py", "test_kinematics.py", "test_dynamics_kinematics.py"]),
     ("vibration/paper_study.py", ["test_vibration_paper_cli.py"]),
     ("vibration/streaming.py", ["test_vibration_streaming.py"]),
+    ("vibration/settings.py", ["test_vibration_settings.py", "test_vibration_streaming.py"]),
     ("vibration/feasibility.py", ["test_vibration_limits.py", "test_vibration_streaming.py"]),
     ("vibration/*.py", VIBRATION_TESTS),
     ("estimation/motion.py", ["test_estimation.py"]),
