@@ -26,10 +26,11 @@ from ..kinematics.rotations import (
 from ..robot import LEG_NAMES, VIB_NAMES
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
-# reader that stalls longer than depth / rate loses samples. 3 s: on a 2-core machine shared with a
-# browser and a test run (load average 7-10) kinematics once stalled ~1.4 s and lost 196 states with
-# 1 s; the memory is ~0.5 MB per endpoint.
-STREAM_DEPTH = 1500
+# reader that stalls longer than depth / rate loses samples. 6 s of sim time at real time, 3 s at twice real
+# time: on a 2-core machine shared with a browser and a test run (load average 7-10) kinematics once stalled
+# ~1.4 s and lost 196 states with 1 s of depth; beside a CPU hog at twice real time the estimator lost 109
+# states with 1.5 s (of wall time). The memory is ~1 MB per endpoint.
+STREAM_DEPTH = 3000
 
 BASE_FRAME = "base"
 

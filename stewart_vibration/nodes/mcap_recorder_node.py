@@ -10,7 +10,7 @@ a std_msgs/Header, else log_time. A writer thread does all MCAP work
 Parameters: output_dir (str, "runs"), file_pattern (str, "run_{stamp}.mcap";
 fields {stamp} local time YYYYmmdd_HHMMSS, {node}), record_on_start (bool,
 true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
-/clock, /diagnostics, /rosout), qos_depth (int, 1500), chunk_size (bytes,
+/clock, /diagnostics, /rosout), qos_depth (int, 3000), chunk_size (bytes,
 262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
 Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
 SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
@@ -47,6 +47,7 @@ from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.writer import McapRunWriter
 from .common import (
     OK,
+    STREAM_DEPTH,
     WARN,
     Diagnostics,
     StopFlag,
@@ -89,7 +90,7 @@ class McapRecorderNode(Node):
             description="name of the next file ({stamp}: local time, {node})"))
         declare_read_only(self, "record_on_start", True, "open a file at start (else on ~/start)")
         declare_read_only(self, "topics", [""], "topics to record (empty = the suite's)")
-        declare_read_only(self, "qos_depth", 1500, "history depth of the recording subscriptions (3 s at 500 Hz)")
+        declare_read_only(self, "qos_depth", STREAM_DEPTH, "history depth of the recording subscriptions (6 s, 500 Hz)")
         self.declare_parameter("chunk_size", 256 * 1024, ParameterDescriptor(
             description="MCAP chunk size of the next file, bytes", integer_range=[
                 IntegerRange(from_value=1024, to_value=64 * 1024 * 1024, step=1)]))
