@@ -26,6 +26,7 @@ from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.motion.force_guard import (
     LAG_MEMORY_S,
+    MAX_STOP_RETRIES,
     RECEIPT_WINDOW_S,
     RESUME_FRESH_S,
     ForceGuard,
@@ -543,3 +544,36 @@ def test_robot_and_tissue_cannot_be_changed_through_their_arrays(robot, tissue):
                   tissue.center, tissue.stiffness, tissue.damping):
         with pytest.raises(ValueError, match="read-only"):
             array[0] = 1.0
+
+
+def test_a_stop_that_did_not_take_is_replanned_over_a_doubled_window(robot):
+    """missed_stop: nothing before a trip; after one, a refused stop gets a new stop planned from the running
+    move for twice the receipt window (the emulator takes it anywhere in that window), further along than the
+    first; struts not past the first stop within its window: no new stop; at most MAX_STOP_RETRIES."""
+    guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
+                                                                                 [0, 0, 0.01, 0, 0, 0])
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 40, duration, 40)
+    traj = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
+    t_start = 5.0
+    guard.begin_move(t_start, duration, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    assert guard.missed_stop(t_start + 0.1, refused=True) is None  # no trip yet
+    guard.observe([t_start], [np.zeros(6)], t_start)
+    now = t_start + 0.3 * duration
+    trip = guard.check_estimates(now)  # blind since the move's start: a trip with its stop
+    assert trip is not None and trip.which == "estimates" and trip.stop is not None
+    first = trip.stop
+    assert guard.missed_stop(now + 0.01) is None  # within the first stop's window: not judged yet
+    later = now + 0.05
+    retry = guard.missed_stop(later, refused=True)
+    assert retry is not None and retry.progress > first.progress and guard.trip.stop is retry
+    for arrival in later + np.linspace(0, 2 * guard.receipt_window, 7):  # the emulator takes it in 2 windows
+        follower = TrajectoryFollower(start)
+        follower.replace(traj, t_start)
+        cmd = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, [retry.duration], [retry.lengths], [np.zeros(6)],
+                               [np.zeros(6)])
+        checked_command(follower, cmd, arrival, robot.limits)
+    for _ in range(MAX_STOP_RETRIES - 1):
+        assert guard.missed_stop(later, refused=True) is not None
+    assert guard.missed_stop(later, refused=True) is None  # retries used up

@@ -185,3 +185,20 @@ def test_rotation_rejects_acceleration_and_both_kinds(robot, pose):
     for times in (np.zeros((4, 2)), np.array([0.0, np.nan, 0.2])):
         with pytest.raises(InvalidInputError, match="times"):
             decompose_vibration(robot, pose, amplitude=1e-6, frequency=10.0, times=times)
+
+
+def test_peak_leg_acceleration_matches_finite_differences_of_the_ik(robot, pose):
+    """A large lateral vibration (5 mm, where l'' delta'^2 is several % of l' delta''): each leg's peak
+    acceleration equals the largest second difference of the IK leg length over one period."""
+    amplitude, frequency = 5e-3, 35.0
+    plan = decompose_vibration(robot, pose, direction=[1.0, 0.3, 0.2], amplitude=amplitude, frequency=frequency,
+                               check_limits=False)
+    t = np.linspace(0.0, 1.0 / frequency, 40001)
+    dt = t[1] - t[0]
+    shifted = np.tile(pose, (t.size, 1))
+    shifted[:, :3] += amplitude * np.sin(2 * np.pi * frequency * t)[:, None] * plan.direction
+    lengths = inverse_kinematics(robot, shifted)
+    second = (lengths[2:] - 2 * lengths[1:-1] + lengths[:-2]) / dt**2
+    linear_only = np.abs(plan.gains) * amplitude * (2 * np.pi * frequency) ** 2
+    assert np.abs(np.abs(second).max(axis=0) / linear_only - 1).max() > 0.01  # the curvature term matters here
+    np.testing.assert_allclose(plan.peak_leg_acceleration, np.abs(second).max(axis=0), rtol=2e-4)

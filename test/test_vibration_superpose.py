@@ -198,3 +198,17 @@ def test_linear_method_skips_fk_and_classify_validates(robot, pose):
         classify_motion(np.zeros((10, 4)))
     with pytest.raises(InvalidInputError):
         superpose_vibration(robot, pose, np.zeros((5, 3)))
+
+
+def test_naive_comparison_is_about_the_motion_not_where_it_happens():
+    """compare_naive measures the principal axes and sizes of the motions about their own means: moving
+    either trajectory by a constant offset changes nothing (a direction of 1 along x vs 2 along x+y:
+    length ratio 1/(2 sqrt 2), 45 deg)."""
+    from stewart_vibration.vibration.superpose import compare_naive
+
+    s = np.sin(np.linspace(0.0, 2 * np.pi, 101))[:, None]
+    naive, reference = s * [1.0, 0.0, 0.0], s * [2.0, 2.0, 0.0]
+    for offset_a, offset_b in (([0, 0, 0], [0, 0, 0]), ([0.3, -0.2, 5.0], [-1.0, 4.0, 0.5])):
+        out = compare_naive(naive + offset_a, reference + offset_b)
+        assert out["length_ratio"] == pytest.approx(1 / (2 * np.sqrt(2)), rel=1e-12)
+        assert out["angle_rad"] == pytest.approx(np.pi / 4, rel=1e-12)
