@@ -255,16 +255,22 @@ def test_emulated_struts_follow_their_commands_against_the_tissue(robot, tissue)
           np.sqrt((np.linalg.norm(err[steady, :3], axis=1) ** 2).mean()))
 
 
-def test_stop_plan_stays_within_the_limits_for_any_arrival_in_the_window(robot):
-    """The emulator's own check accepts the stop whenever it arrives within the receipt window."""
-    guard = ForceGuard(robot, 150.0, 0.0)
+def guarded_10mm_lift(robot, guard):
+    """A 10 mm minimum-jerk lift from home at 10 mm/s, starting at 5 s and watched by ``guard``: (start and
+    goal strut lengths, duration s, its leg trajectory, start time s)."""
     start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
                                                                                  [0, 0, 0.01, 0, 0, 0])
     duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
     times = np.linspace(duration / 40, duration, 40)
     traj = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
-    t_start = 5.0
-    guard.begin_move(t_start, duration, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    guard.begin_move(5.0, duration, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    return start, goal, duration, traj, 5.0
+
+
+def test_stop_plan_stays_within_the_limits_for_any_arrival_in_the_window(robot):
+    """The emulator's own check accepts the stop whenever it arrives within the receipt window."""
+    guard = ForceGuard(robot, 150.0, 0.0)
+    start, goal, duration, traj, t_start = guarded_10mm_lift(robot, guard)
     for phase in (0.1, 0.3, 0.5, 0.7):
         now = t_start + phase * duration
         stop = guard.plan_stop(now)
@@ -551,13 +557,7 @@ def test_a_stop_that_did_not_take_is_replanned_over_a_doubled_window(robot):
     move for twice the receipt window (the emulator takes it anywhere in that window), further along than the
     first; struts not past the first stop within its window: no new stop; at most MAX_STOP_RETRIES."""
     guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
-    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
-                                                                                 [0, 0, 0.01, 0, 0, 0])
-    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
-    times = np.linspace(duration / 40, duration, 40)
-    traj = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
-    t_start = 5.0
-    guard.begin_move(t_start, duration, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    start, goal, duration, traj, t_start = guarded_10mm_lift(robot, guard)
     assert guard.missed_stop(t_start + 0.1, refused=True) is None  # no trip yet
     guard.observe([t_start], [np.zeros(6)], t_start)
     now = t_start + 0.3 * duration
