@@ -64,6 +64,12 @@ def test_start_check_refuses_with_the_planners_reason(robot, change, error, word
     ({"lead_s": 0.5, "start_lead_s": 0.5 - 1e-9}, "start_lead_s"),
     ({"ramp_s": 0.25, "duration_s": 0.5 - 1e-9}, "2 ramp_s"),
     ({"lookahead_s": 0.5, "window_period_s": 0.5}, "must exceed window_period_s"),
+    ({"direction": [0.0, 0.0, 0.0]}, "not all zero"),
+    ({"direction": [0.0, float("nan"), 1.0]}, "3 finite values"),
+    ({"direction": [0.0, 1.0]}, "3 finite values"),
+    ({"sample_period_s": 0.1 / 35.0 * 1.001}, "too coarse"),
+    ({"max_lookahead_s": 30.0, "sample_period_s": 1e-4}, "samples"),
+    ({"frequency_hz": 1e9}, "outside the vibration unit's band"),
 ])
 def test_each_settings_rule_refuses_just_beyond_its_boundary(robot, change, words):
     """The documented rules, each at its boundary: just beyond it is refused with the reason, exactly at it
@@ -73,7 +79,8 @@ def test_each_settings_rule_refuses_just_beyond_its_boundary(robot, change, word
 
 
 @pytest.mark.parametrize("change", [{"lead_s": 0.0}, {"duration_s": 0.0}, {"lead_s": 0.5, "start_lead_s": 0.5},
-                                    {"ramp_s": 0.25, "duration_s": 0.5}, {"phase_rad": -1.0}])
+                                    {"ramp_s": 0.25, "duration_s": 0.5}, {"phase_rad": -1.0},
+                                    {"sample_period_s": 0.1 / 35.0 * 0.999}, {"direction": [0.0, 1e-3, 0.0]}])
 def test_each_settings_rule_accepts_its_boundary(robot, change):
     assert settings_reason(robot, dict(default_settings(robot), **change)) is None
 
