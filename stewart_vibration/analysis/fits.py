@@ -28,7 +28,25 @@ class SinusoidFit:
 
 
 def fit_sinusoid(times, signals, frequency: float, drift: bool = True) -> SinusoidFit:
-    """Fit columns of ``signals`` [n, k] (or [n]) at ``frequency`` (Hz) over ``times`` [n] (s)."""
+    """Fit columns of ``signals`` [n, k] (or [n]) at ``frequency`` (Hz) over ``times`` [n] (s).
+
+    Least squares of x(t) ~ s sin(w t) + c cos(w t) + offset (+ drift (t - mean t)), w = 2 pi f,
+    so amplitude = hypot(s, c) and phase = atan2(c, s).
+
+    Args:
+        times: sample times [n] (s).
+        signals: samples [n, k] or [n] (any unit).
+        frequency: the known frequency (Hz).
+        drift: also fit a linear drift term.
+
+    Returns:
+        SinusoidFit; each field has the shape of ``signals`` without its first axis ([k], or 0-d for
+        [n]): amplitude and offset (units of ``signals``), phase (rad, in [-pi, pi]), complex amplitude
+        s + i c, residual_rms.
+
+    Raises:
+        InvalidInputError: fewer than 4 samples, or a non-finite value in ``signals``.
+    """
     t = np.asarray(times, dtype=float)
     x = np.asarray(signals, dtype=float)
     x2 = x.reshape(t.size, -1)
@@ -57,7 +75,18 @@ def dominant_sinusoid(times, signal) -> tuple[float, float]:
     The FFT peak of the (uniformly resampled, Hann-windowed) signal gives the
     frequency to one bin, 1/T; a golden-section search within +-1 bin then
     minimises the residual of the least-squares sinusoid fit (fit_sinusoid),
-    which resolves the frequency far below the bin width. (0, 0) for fewer than 8 samples.
+    which resolves the frequency far below the bin width.
+
+    Args:
+        times: increasing sample times [n] (s).
+        signal: samples [n].
+
+    Returns:
+        (amplitude (units of ``signal``), frequency (Hz)); (0.0, 0.0) for fewer than 8 samples or a
+        time span <= 0.
+
+    Raises:
+        InvalidInputError: ``signal`` has a non-finite value (``fit_sinusoid``).
     """
     t = np.asarray(times, dtype=float)
     x = np.asarray(signal, dtype=float)
@@ -104,6 +133,17 @@ def line_vibration(times, positions, frequency: float) -> LineVibration:
     The fundamental is Re(c e^{i w t}) with c in C^3; its principal axis is the
     first left singular vector of [Re c, Im c] (3 x 2), the amplitude the first
     singular value, and the off-axis ratio sigma2 / sigma1 (0 for a line).
+
+    Args:
+        times: sample times [n] (s).
+        positions: platform positions [n, 3] (m, base frame).
+        frequency: the vibration frequency (Hz).
+
+    Returns:
+        LineVibration: direction (3,) unit (base frame, sign arbitrary), amplitude (m), off_axis_ratio.
+
+    Raises:
+        InvalidInputError: fewer than 4 samples, or a non-finite position (``fit_sinusoid``).
     """
     fit = fit_sinusoid(times, positions, frequency)
     c = fit.complex_amplitude
@@ -113,7 +153,15 @@ def line_vibration(times, positions, frequency: float) -> LineVibration:
 
 
 def direction_error_deg(measured, expected) -> float:
-    """Angle (deg) between two line directions, sign-free (a line has no sign)."""
+    """Angle (deg) between two line directions, sign-free (a line has no sign).
+
+    Args:
+        measured: a non-zero direction (3,), any length.
+        expected: a non-zero direction (3,), any length.
+
+    Returns:
+        The angle between the lines (deg, in [0, 90]).
+    """
     a = np.asarray(measured, dtype=float)
     b = np.asarray(expected, dtype=float)
     cos = cast(float, abs(float(a @ b)) / (np.linalg.norm(a) * np.linalg.norm(b)))  # numpy types it floating
@@ -121,13 +169,28 @@ def direction_error_deg(measured, expected) -> float:
 
 
 def leg_phase_offsets_deg(fit: SinusoidFit, reference_leg: int | None = None) -> np.ndarray:
-    """Each leg's phase relative to the reference leg (largest amplitude by default), deg in (-180, 180]."""
+    """Each leg's phase relative to the reference leg (largest amplitude by default), deg in (-180, 180].
+
+    Args:
+        fit: SinusoidFit of the leg signals (phase and amplitude [6]).
+        reference_leg: index (0-based) of the reference leg; None: the leg with the largest amplitude.
+
+    Returns:
+        Phase offsets [6] (deg, in (-180, 180]); 0 for the reference leg.
+    """
     ref = int(np.argmax(fit.amplitude)) if reference_leg is None else reference_leg
     return np.degrees(wrap_angle(fit.phase - fit.phase[ref]))
 
 
 def phase_error_to_0_or_pi_deg(offsets_deg) -> np.ndarray:
-    """Distance (deg) of each relative phase from the nearest of 0 and 180 deg."""
+    """Distance (deg) of each relative phase from the nearest of 0 and 180 deg.
+
+    Args:
+        offsets_deg: relative phases (deg), any shape.
+
+    Returns:
+        Distances (deg, in [0, 90]), same shape as ``offsets_deg``.
+    """
     off = np.abs(np.asarray(offsets_deg, dtype=float)) % 180.0
     return np.minimum(off, 180.0 - off)
 
@@ -135,7 +198,25 @@ def phase_error_to_0_or_pi_deg(offsets_deg) -> np.ndarray:
 def force_error(times_est, forces_est, times_meas, forces_meas, frequency: float | None = None) -> dict:
     """RMS of (estimated - measured) leg forces [n, 6] on the measured time base, absolute (N) and
     relative to the measured force amplitude (the fitted oscillation at ``frequency``, else half the
-    peak-to-peak). Estimates are linearly interpolated to the measured stamps."""
+    peak-to-peak). Estimates are linearly interpolated to the measured stamps.
+
+    Measured samples outside the estimate's time span are dropped.
+
+    Args:
+        times_est: increasing estimate times [m] (s).
+        forces_est: estimated leg forces [m, 6] (N).
+        times_meas: measurement times [n] (s).
+        forces_meas: measured leg forces [n, 6] (N).
+        frequency: vibration frequency (Hz) for the amplitude fit; None or 0: half the peak-to-peak.
+
+    Returns:
+        {"rms_error_n": [6] (N), "force_amplitude_n": [6] (N), "relative_rms_error": [6],
+        "worst_leg_relative": float, "samples": number of measured samples used}.
+
+    Raises:
+        InvalidInputError: fewer than 4 measured samples lie within the estimate's time span, or (with
+            ``frequency``) a measured force is not finite (``fit_sinusoid``).
+    """
     te, fe = np.asarray(times_est, dtype=float), np.asarray(forces_est, dtype=float)
     tm, fm = np.asarray(times_meas, dtype=float), np.asarray(forces_meas, dtype=float)
     inside = (tm >= te[0]) & (tm <= te[-1])

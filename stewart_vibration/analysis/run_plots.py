@@ -28,7 +28,19 @@ def _save(fig, out: Path, name: str, plots: list[str]) -> None:
 
 
 def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
-    """Write the PNGs into ``out``; returns their file names."""
+    """Write the PNGs into ``out``; returns their file names.
+
+    One figure per subject, only for the data present (lengths and displacements plotted in mm, times
+    in s from the first message).
+
+    Args:
+        data: the run's arrays (``run_report.extract``).
+        summary: the run's summary (``run_report.summarize``), for the figures' titles.
+        out: an existing directory to write into.
+
+    Returns:
+        The file names of the PNGs written, in order.
+    """
     plots: list[str] = []
     if "leg_lengths" in data:
         fig, axes = _legs_grid("Leg lengths (strut, from legs/joint_states)")

@@ -54,7 +54,15 @@ def _joint_series(reader, topic, names, field):
 
 def vibration_window(data: dict, ramp_trim_s: float = 0.25) -> tuple[float, float] | None:
     """(start, end) s of the steady vibration: where any |vib_i| exceeds 2 % of its peak, minus
-    ``ramp_trim_s`` at both ends (the ramps) when the interval is long enough; None if no vibration."""
+    ``ramp_trim_s`` at both ends (the ramps) when the interval is long enough; None if no vibration.
+
+    Args:
+        data: the run's arrays (``extract``): ``vib_t`` [n] (s from the first message), ``vib`` [n, 6] (m).
+        ramp_trim_s: trimmed at both ends (s) when the interval is longer than 4 ``ramp_trim_s``.
+
+    Returns:
+        (start, end) (s from the first message), or None without vib_* samples or with all of them 0.
+    """
     if "vib" not in data or not len(data["vib_t"]):
         return None
     level = np.abs(data["vib"]).max(axis=1)
@@ -72,7 +80,19 @@ def _within(t: np.ndarray, window) -> np.ndarray:
 
 
 def extract(reader: RunReader) -> dict:
-    """Arrays of the run (SI) keyed by what they are; missing topics are left out."""
+    """Arrays of the run (SI) keyed by what they are; missing topics are left out.
+
+    Args:
+        reader: the open run.
+
+    Returns:
+        {"time_origin_s": log time of the first message (s); "leg_t", "leg_lengths" [n, 6] (m);
+        "vib_t", "vib" [n, 6] (m); "force_t", "force" [n, 6] (measured axial force, N); "est_t", "est"
+        [n, 6] (estimated leg force, N); "pose_t", "pose_xyz" [n, 3] (m); "wrench_applied(_t)",
+        "wrench_estimated(_t)" [n, 6] ([N; N m], the estimate only with an applied one); "guard_trips";
+        "events"; "vibration_window" (``vibration_window``)}. Every time (``*_t``, ``t_s``) is in s from
+        the first message.
+    """
     data: dict = {}
     starts = [m.log_time for m in reader.messages()][:1]
     t0 = starts[0] if starts else 0
@@ -131,10 +151,24 @@ def extract(reader: RunReader) -> dict:
 def summarize(reader: RunReader, data: dict, signals: dict, robot: Robot) -> dict:
     """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events.
 
-    ``signals``: ``run_summary.load_signals`` of the same run; the platform's vibration and the force error
-    come from the run summary's own functions over the steady window found here (``vibration_window``),
-    at the legs' median fitted frequency. ``robot``: removes an applied tissue's leg forces from the
-    measured efforts, as the run summary does.
+    The platform's vibration and the force error come from the run summary's own functions over the
+    steady window found here (``vibration_window``), at the legs' median fitted frequency.
+
+    Args:
+        reader: the open run.
+        data: the run's arrays (``extract``).
+        signals: ``run_summary.load_signals`` of the same run.
+        robot: removes an applied tissue's leg forces from the measured efforts, as the run summary does.
+
+    Returns:
+        A JSON-ready dict (SI units; times in s from the first message): file, complete, message_count,
+        topics, leg_length_mean_m, vibration_window_s, per-leg vibration, platform, force errors,
+        tissue_wrench, guard_trips and events, each only where the data exist.
+
+    Raises:
+        ValueError: fewer than 4 ground-truth poses in the steady window (``run_summary.platform_vibration``).
+        InvalidInputError: fewer than 4 measured efforts lie within the force estimates' time span, or a
+            fitted signal is not finite (``fits``).
     """
     topics = reader.topics()
     out: dict = {
@@ -199,7 +233,15 @@ def summarize(reader: RunReader, data: dict, signals: dict, robot: Robot) -> dic
 
 
 def markdown(summary: dict, plots: list[str]) -> str:
-    """Human-readable summary."""
+    """Human-readable summary.
+
+    Args:
+        summary: the JSON summary (``summarize``).
+        plots: the PNG file names to embed.
+
+    Returns:
+        The summary as markdown text (tables of topics, legs and events; plots as images).
+    """
     lines = [f"# Run report: {Path(summary['file']).name}", ""]
     lines += [f"- complete file: {summary['complete']}", f"- messages: {summary['message_count']}", ""]
     lines += ["| topic | type | messages |", "|---|---|---|"]
@@ -242,8 +284,20 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
                  robot: Robot | None = None) -> dict:
     """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary.
 
-    ``mcap_path``: a .mcap or a bag directory. McapFileError (before anything is written)
-    for a missing, empty, foreign or, unless ``allow_truncated``, truncated file.
+    Args:
+        mcap_path: a .mcap or a bag directory.
+        out_dir: the output directory (created if missing).
+        allow_truncated: accept a truncated (crash) file.
+        robot: the robot; None loads config/robot.yaml.
+
+    Returns:
+        The JSON summary (``summarize``) with "plots": the PNG file names.
+
+    Raises:
+        McapFileError: before anything is written, for a missing, empty, foreign or, unless
+            ``allow_truncated``, truncated file.
+        ConfigError: ``robot`` is None and config/robot.yaml cannot be loaded.
+        ValueError, InvalidInputError: as ``summarize``.
     """
     from . import run_plots
 

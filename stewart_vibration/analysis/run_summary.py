@@ -41,8 +41,22 @@ STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate",
 
 
 def load_signals(mcap_path) -> dict:
-    """Time series of a run (an MCAP path, a run folder or an open RunReader): ground-truth poses, joint
-    states, force estimates (header-stamp times in s), the stream counts and the nodes' last diagnostics."""
+    """Time series of a run (an MCAP file path or an open RunReader): ground-truth poses, joint
+    states, force estimates (header-stamp times in s), the stream counts and the nodes' last diagnostics.
+
+    Args:
+        mcap_path: an MCAP file path or an open RunReader.
+
+    Returns:
+        {"pose": (times [n] (s), poses [n, 6] (m, rad)), "joints": (times [n], {"position", "velocity",
+        "effort": [n, 12]}, leg_1..6 then vib_1..6), "force_estimate": (times [n], {...: [n, 6]}),
+        "vibration_starts": distinct vib window stamps (s), "stream_counts" (``stream_counts``),
+        "vibration_status": [{key: value}], "node_diagnostics" (``last_diagnostics``), "tissue_wrench" and
+        "wrench_estimate" (``wrench_array``), "guard_status": [({key: value}, message)]}.
+
+    Raises:
+        McapFileError: a path that is missing, not a regular file (a folder included), empty or not MCAP.
+    """
     wanted: dict[str, list[Any]] = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
               "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
               "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": []}
@@ -68,7 +82,14 @@ def load_signals(mcap_path) -> dict:
 
 
 def wrench_array(messages) -> tuple[np.ndarray, np.ndarray]:
-    """WrenchStamped messages -> (times [n] s, wrenches [n, 6] = [force N, torque N m])."""
+    """WrenchStamped messages -> (times [n] s, wrenches [n, 6] = [force N, torque N m]).
+
+    Args:
+        messages: WrenchStamped messages.
+
+    Returns:
+        (header-stamp times [n] (s), wrenches [n, 6] [force N; torque N m]); empty arrays without messages.
+    """
     if not messages:
         return np.empty(0), np.empty((0, 6))
     times = np.array([stamp_s(m.header) for m in messages])
@@ -79,7 +100,14 @@ def wrench_array(messages) -> tuple[np.ndarray, np.ndarray]:
 
 def stream_counts(reader: RunReader) -> dict:
     """Messages per 500 Hz topic whose stamps lie in the span every one of them covers (from the last
-    first stamp to the first last stamp: start-up and shut-down are not losses)."""
+    first stamp to the first last stamp: start-up and shut-down are not losses).
+
+    Args:
+        reader: the open run.
+
+    Returns:
+        {key of STREAM_TOPICS: message count}; all messages of each topic when one of them is missing.
+    """
     names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
     stamps: dict[str, list[int]] = {key: [] for key in STREAM_TOPICS}
     for raw in reader.messages(list(names)):
@@ -92,7 +120,14 @@ def stream_counts(reader: RunReader) -> dict:
 
 
 def last_diagnostics(arrays) -> dict:
-    """{status name: (level, message, {key: value})} of the last DiagnosticStatus of each name."""
+    """{status name: (level, message, {key: value})} of the last DiagnosticStatus of each name.
+
+    Args:
+        arrays: DiagnosticArray messages, in time order.
+
+    Returns:
+        {status name: (level as int, message, {key: value})}.
+    """
     out = {}
     for array in arrays:
         for status in array.status:
@@ -104,7 +139,20 @@ def last_diagnostics(arrays) -> dict:
 def stream_summary(signals: dict) -> dict:
     """Per 500 Hz topic: messages and their ratio to legs/joint_states (every state should give one pose
     estimate, one force estimate and one wrench estimate); and what each node reported about its input
-    (received, lost, processed, lag) in its last diagnostics."""
+    (received, lost, processed, lag) in its last diagnostics.
+
+    Args:
+        signals: from ``load_signals`` (stream_counts, node_diagnostics, vibration_status).
+
+    Returns:
+        {"topics": {topic: {"count", "ratio"}}, "nodes": {node: {"received", "lost", "processed",
+        "lag_p50_ms", "lag_p99_ms", "level", "message"}}, "worst_ratio": the lowest ratio of the derived
+        streams (0.0 if none), "lost": states lost over all nodes, "windows": {"accepted", "refused",
+        "refusals"}}.
+
+    Raises:
+        ValueError: a count or lag in a node's diagnostics or the vibration status is not a number.
+    """
     counts = signals["stream_counts"]
     base = max(counts.get("legs/joint_states", 0), 1)
     topics = {topic: {"count": int(n), "ratio": n / base} for topic, n in counts.items()}
@@ -129,7 +177,21 @@ def stream_summary(signals: dict) -> dict:
 def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:
     """Time (s) within [start, end] during which the vibration units moved at >= half their planned
     amplitude: the peak |vib_i| over each period-long bin, against 0.5 |k_i| A (the planned active time of
-    a ramped vibration is duration - ramp)."""
+    a ramped vibration is duration - ramp).
+
+    Only legs planned at more than 20 % of the largest amplitude count; all of them must reach half.
+
+    Args:
+        times: sample times [n] (s).
+        vib: vib_* displacements [n, 6] (m).
+        leg_amplitudes: planned leg amplitudes |k_i| A [6] (m).
+        frequency: the vibration frequency (Hz).
+        start: start of the interval (s).
+        end: end of the interval (s).
+
+    Returns:
+        The active time (s, a whole number of periods); 0.0 with fewer than 2 samples in [start, end].
+    """
     sel = (times >= start) & (times <= end)
     t, v = times[sel], np.abs(vib[sel])
     if t.size < 2:
@@ -144,7 +206,18 @@ def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, 
 
 
 def vibration_start(signals: dict, after: float) -> float:
-    """The vibration's common start time t0 (sim s): the first vib window stamp from ``after`` - 1 s on."""
+    """The vibration's common start time t0 (sim s): the first vib window stamp from ``after`` - 1 s on.
+
+    Args:
+        signals: from ``load_signals`` (vibration_starts, s).
+        after: a lower bound of t0 (sim s).
+
+    Returns:
+        t0 (sim s).
+
+    Raises:
+        ValueError: no vibration/joint_trajectory window is stamped at or after ``after`` - 1 s.
+    """
     starts = signals["vibration_starts"]
     later = starts[starts >= after - 1.0]  # the caller's clock may run ahead of the planner's
     if later.size == 0:
@@ -154,7 +227,16 @@ def vibration_start(signals: dict, after: float) -> float:
 
 def steady_window(start: float, duration: float, ramp: float) -> tuple[float, float]:
     """(t0, t1) (s) of a vibration's steady part: after the ramp-in and before the ramp-out, with
-    STEADY_MARGIN_S more on both sides."""
+    STEADY_MARGIN_S more on both sides.
+
+    Args:
+        start: the vibration's start t0 (s).
+        duration: the vibration's duration including both ramps (s).
+        ramp: the ramp time (s).
+
+    Returns:
+        (start + ramp + STEADY_MARGIN_S, start + duration - ramp - STEADY_MARGIN_S) (s).
+    """
     return start + ramp + STEADY_MARGIN_S, start + duration - ramp - STEADY_MARGIN_S
 
 
@@ -264,7 +346,20 @@ def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | float:
     """The axial forces [n, 6] (N) the applied tissue wrench (platform/tissue_wrench, ground truth) puts on the
     legs at the states ``times`` [n] (s), at the ground-truth poses; 0 without tissue. The leg-force figure
     compares the robot's model (legs/force_estimate: no external load) with the measured efforts minus this:
-    the tissue is the environment, not part of the model the figure checks."""
+    the tissue is the environment, not part of the model the figure checks.
+
+    Args:
+        robot: the robot.
+        signals: from ``load_signals`` (tissue_wrench, pose).
+        times: state times [n] (s); wrench and pose are linearly interpolated to them.
+
+    Returns:
+        Leg forces [n, 6] (N), or 0.0 without a recorded tissue wrench.
+
+    Raises:
+        ValueError: a tissue wrench but no ground-truth pose is recorded (``np.interp``).
+        numpy.linalg.LinAlgError: the leg-force system is singular at a sample (``leg_forces``).
+    """
     ta, wrench = signals.get("tissue_wrench", (np.empty(0), None))
     if not ta.size:
         return 0.0
@@ -277,7 +372,14 @@ def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | float:
 
 
 def guard_trips(signals: dict) -> list[dict]:
-    """Every force-guard trip in kinematics/guard_status (the last status of each trip: its final peaks)."""
+    """Every force-guard trip in kinematics/guard_status (the last status of each trip: its final peaks).
+
+    Args:
+        signals: from ``load_signals`` (guard_status: [({key: value}, message)]).
+
+    Returns:
+        One dict per trip (its status values plus "message"), in order of trip_time_s.
+    """
     trips = {}
     for values, message in signals.get("guard_status", []):
         if values.get("state") == "tripped" and "trip_time_s" in values:
@@ -293,7 +395,22 @@ def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) 
     of the moment (N m); relative = RMS / the run's peak applied magnitude. A run whose peak moment is below
     1 % of the peak force x ``moment_scale_m`` (e.g. a pure distraction along the tibia axis: ~1e-11 N m)
     has no relative moment error (None): its absolute error is reported. Guard trips: the peak estimated
-    and applied force from the trip to the end of its stop (+ 0.5 s) against guard_force_n."""
+    and applied force from the trip to the end of its stop (+ 0.5 s) against guard_force_n.
+
+    Args:
+        signals: from ``load_signals`` (tissue_wrench, wrench_estimate, guard_status).
+        vibrations: (t0, duration) (s) of each vibration.
+        moment_scale_m: length (m) that scales the peak force to the smallest peak moment judged.
+
+    Returns:
+        None without applied or estimated wrenches; else {"samples", "peak_force_n", "peak_moment_nm",
+        "moves_holds": {"samples", "rms_force_error_n", "rms_moment_error_nm", "relative_force",
+        "relative_moment" (or None)}, "vibration": the same RMS errors or None, "guard": one dict per trip}.
+
+    Raises:
+        ValueError: no applied and estimated wrench share a stamp (an empty maximum), or a trip's
+            status value is not a number.
+    """
     ta, applied = signals["tissue_wrench"]
     te, estimate = signals["wrench_estimate"]
     if not ta.size or not te.size:
@@ -352,6 +469,17 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
     frequency, the active duration and every leg's force error (the worst); with a tissue the wrench
     estimate and the guard trips; the sample ratio of every derived stream and, per node, its lost input
     states and its lag.
+
+    Args:
+        summary: the run summary ("moves", "vibrations", optional "tissue" and "streams").
+        bounds: the scenario's bounds (SI units, deg for angles); wrench_error_relative (0.02),
+            wrench_error_vibration_n (1 N) and guard_overshoot (0.1) have defaults.
+
+    Returns:
+        One line per missed bound (a NaN figure misses too); [] if all passed.
+
+    Raises:
+        KeyError: a required bound or figure is missing.
     """
     failures = []
     for move in summary["moves"]:
@@ -411,7 +539,14 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
 
 
 def tissue_lines(summary: dict) -> list[str]:
-    """The run summary's soft-tissue lines (estimate vs applied, guard trips, guarded moves); [] without tissue."""
+    """The run summary's soft-tissue lines (estimate vs applied, guard trips, guarded moves); [] without tissue.
+
+    Args:
+        summary: the run summary ("tissue" from ``summarize_tissue``, "tissue_config", "guard_stops").
+
+    Returns:
+        Text lines (N, N m, s): the wrench estimate's errors, one per guard trip and one per guarded move.
+    """
     tissue = summary.get("tissue")
     if not tissue:
         return []

@@ -67,7 +67,17 @@ class SimulationRun:
 
 def tissue_xfrc(sim: StewartSim, tissue: TissueModel, data=None) -> tuple[np.ndarray, np.ndarray]:
     """(wrench about the platform origin, the same as MuJoCo's xfrc_applied: moment about the centre of
-    mass), both (6,) base frame, of the tissue at the platform state in ``data`` (qpos, qvel)."""
+    mass), both (6,) base frame, of the tissue at the platform state in ``data`` (qpos, qvel).
+
+    Args:
+        sim: the simulator.
+        tissue: the tissue model.
+        data: the MjData whose qpos, qvel give the platform state; None = ``sim.data``.
+
+    Returns:
+        (wrench, xfrc), both (6,) (N, N m; base frame): moment about the platform origin, and moment about
+        the platform's centre of mass (for ``xfrc_applied``).
+    """
     pose, twist = sim.platform_pose(data), sim.platform_twist(data)
     wrench = tissue_wrench(tissue, pose, twist)
     return wrench, wrench_about_point(wrench, rotation_from_rpy(pose[3:]) @ sim.robot.moving_body.com)
@@ -76,7 +86,25 @@ def tissue_xfrc(sim: StewartSim, tissue: TissueModel, data=None) -> tuple[np.nda
 def simulate_trajectory(sim: StewartSim, trajectory: SinusoidalTrajectory, duration: float,
                         tissue: TissueModel | None = None) -> SimulationRun:
     """Drive the struts along the trajectory's leg lengths for ``duration`` s; record every step.
-    ``tissue``: apply that soft-tissue load (evaluated at each step's start state) to the platform."""
+
+    The simulator is reset, set to the trajectory's state at t = 0 and stepped round(duration / timestep)
+    times with the computed-force drive; each recorded row is the state at a step's start, re-evaluated
+    with mj_forward.
+
+    Args:
+        sim: the simulator (its model's timestep sets the step); left at the final state.
+        trajectory: the prescribed platform trajectory.
+        duration: simulated time (s).
+        tissue: optional soft-tissue load on the platform, evaluated at each step's start state.
+
+    Returns:
+        SimulationRun with n = round(duration / timestep) rows: time [n] (s), pose, twist, accel [n, 6],
+        forces [n, 6] (N), lengths [n, 6] (m), violation [n] (m), reference_pose [n, 6] and wrench [n, 6]
+        (the tissue's wrench about the platform origin, zeros without tissue).
+
+    Raises:
+        IndexError: ``duration`` rounds to zero steps.
+    """
     dt = sim.model.opt.timestep
     steps = int(round(duration / dt))
     t = np.arange(steps) * dt
@@ -123,7 +151,16 @@ class ForceComparison:
 
 
 def compare_forces(model: np.ndarray, reference: np.ndarray) -> ForceComparison:
-    """Error measures of ``model`` forces against ``reference`` forces, both [n, 6]."""
+    """Error measures of ``model`` forces against ``reference`` forces, both [n, 6].
+
+    Args:
+        model: model forces [n, 6] (N).
+        reference: reference (MuJoCo) forces [n, 6] (N).
+
+    Returns:
+        ForceComparison: per-leg RMS relative error [6], overall RMS relative error, the worst leg's, and
+        max |model - reference| / max |reference|.
+    """
     diff = model - reference
     per_leg = np.sqrt((diff**2).mean(axis=0)) / np.sqrt((reference**2).mean(axis=0))
     overall = float(np.sqrt((diff**2).mean()) / np.sqrt((reference**2).mean()))
@@ -145,7 +182,15 @@ class ScenarioResult:
 
 
 def paper_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
-    """The paper's example: 1 um along the force line, sin(2 t + 2 pi / 3), at the paper pose."""
+    """The paper's example: 1 um along the force line, sin(2 t + 2 pi / 3), at the paper pose.
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        (trajectory, description): the SinusoidalTrajectory (1 um, 2 rad/s, phase 2 pi / 3, along the
+        platform z axis at the paper pose) and a one-line description.
+    """
     pose = paper_pose(robot)
     traj = vibration_trajectory(pose, force_line_direction(pose).reshape(3), PAPER_AMPLITUDE_M,
                                 PAPER_OMEGA_RAD_S / (2 * np.pi), PAPER_PHASE_RAD)
@@ -153,7 +198,15 @@ def paper_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
 
 
 def clinical_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
-    """Clinical case: 35 Hz, 0.3 g peak along the force line at the paper pose."""
+    """Clinical case: 35 Hz, 0.3 g peak along the force line at the paper pose.
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        (trajectory, description): the SinusoidalTrajectory (amplitude 0.3 g / (2 pi 35 Hz)^2 in m, phase 0,
+        along the platform z axis at the paper pose) and a one-line description.
+    """
     pose = paper_pose(robot)
     amp = displacement_from_acceleration(CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ)
     traj = vibration_trajectory(pose, force_line_direction(pose).reshape(3), amp, CLINICAL_FREQUENCY_HZ)
@@ -163,8 +216,26 @@ def clinical_scenario(robot: Robot) -> tuple[SinusoidalTrajectory, str]:
 
 def run_scenario(robot: Robot, name: str, duration: float, settings: SimulationSettings | None = None,
                  sim: StewartSim | None = None, tissue: TissueModel | None = None) -> ScenarioResult:
-    """Simulate scenario ``name`` ("paper" or "clinical") for ``duration`` s and compare both models; with
-    ``tissue`` the platform works against that soft-tissue load (both models get its wrench)."""
+    """Simulate scenario ``name`` ("paper" or "clinical") for ``duration`` s and compare both models.
+
+    With ``tissue`` the platform works against that soft-tissue load (both models get its wrench).
+
+    Args:
+        robot: the robot.
+        name: "paper" or "clinical".
+        duration: simulated time (s).
+        settings: simulation settings for a new StewartSim (ignored when ``sim`` is given).
+        sim: an existing simulator to use (reset by the run).
+        tissue: optional soft-tissue load.
+
+    Returns:
+        ScenarioResult: the run, the full and the paper model's force comparisons against MuJoCo, the
+        tracking error (max position error, m) and the vibration's translation amplitude (m).
+
+    Raises:
+        KeyError: ``name`` is neither "paper" nor "clinical".
+        IndexError: ``duration`` rounds to zero steps (``simulate_trajectory``).
+    """
     traj, description = {"paper": paper_scenario, "clinical": clinical_scenario}[name](robot)
     if tissue is not None:
         description += f", against the tissue '{tissue.name}'"
@@ -184,10 +255,18 @@ def run_scenario(robot: Robot, name: str, duration: float, settings: SimulationS
 def closed_chain_forces(sim: StewartSim, qacc: np.ndarray, data=None):
     """Solve MuJoCo's equations of motion for the actuator forces at the current state.
 
-    [B  J_c^T] [F; lambda] = M qacc + c, with M from mj_fullM, c = qfrc_bias
-    (Coriolis, centrifugal, gravity), J_c the connect-constraint Jacobian rows
-    and B the actuator map. Requires mj_forward at the state (set_state does
-    it). Returns (F (6,), lambda, relative residual of the least-squares solve).
+    [B  J_c^T] [F; lambda] = M qacc + c, with M from mj_fullM, c = qfrc_bias - qfrc_passive
+    (Coriolis, centrifugal, gravity, minus passive forces), J_c the equality (connect) constraint Jacobian
+    rows and B the actuator map, solved by least squares. Requires mj_forward at the state (set_state does it).
+
+    Args:
+        sim: the simulator.
+        qacc: generalised accelerations (nv,) (e.g. from ``StewartSim.set_state``).
+        data: the MjData of the state; None = ``sim.data``.
+
+    Returns:
+        (F, lambda, residual): actuator forces F (nu,) = (6,) (N), constraint forces lambda (one per equality
+        constraint row), and the relative residual |A x - b| / |b| of the least-squares solve.
     """
     m, d = sim.model, (sim.data if data is None else data)
     mass = np.zeros((m.nv, m.nv))
@@ -206,6 +285,19 @@ def universal_spin(sim: StewartSim, pose, twist, accel):
 
     The Newton-Euler model assumes zero spin about the leg axis; the U-joint
     forces spin = w_cyl . s with w_cyl = x q1' + (Rx(q1) y) q2' (home leg frame).
+
+    Args:
+        sim: the simulator (its home leg frames).
+        pose: platform pose (6,) (m, rad).
+        twist: platform twist (6,) = [v, w] (m/s, rad/s; base frame).
+        accel: platform acceleration (6,) = [a, alpha] (m/s^2, rad/s^2; base frame).
+
+    Returns:
+        (spin, spin_acc, motion): spin rates (6,) (rad/s), spin accelerations (6,) (rad/s^2) and the
+        LegMotion of the state.
+
+    Raises:
+        InvalidInputError: pose, twist or accel is not numeric, not [..., 6] or not finite (``leg_motion``).
     """
     lm = leg_motion(sim.robot, pose, twist, accel)
     spin, spin_acc = np.zeros(6), np.zeros(6)
@@ -234,6 +326,19 @@ def leg_spin_force_correction(sim: StewartSim, pose, twist, accel) -> np.ndarray
     H dF = -sum [dh; rho x dh]. This is the documented bound of the exact
     static check with universal joints (first order in I_a, exact at a
     consistent state).
+
+    Args:
+        sim: the simulator (robot and home leg frames).
+        pose: platform pose (6,) (m, rad).
+        twist: platform twist (6,) = [v, w] (m/s, rad/s; base frame).
+        accel: platform acceleration (6,) = [a, alpha] (m/s^2, rad/s^2; base frame).
+
+    Returns:
+        dF (6,) (N), to add to the Newton-Euler axial forces.
+
+    Raises:
+        InvalidInputError: pose, twist or accel is not numeric, not [..., 6] or not finite (``leg_motion``).
+        numpy.linalg.LinAlgError: H is singular.
     """
     spin, spin_acc, lm = universal_spin(sim, pose, twist, accel)
     p = sim.robot.leg_bodies

@@ -229,10 +229,29 @@ def leg_forces(robot: Robot, pose, twist, accel, external_wrench=None, friction:
                return_reactions: bool = False):
     """Axial actuator forces [..., 6] (N) for a platform motion, full Newton-Euler model.
 
-    pose, twist, accel, external_wrench: [..., 6] as in the module docstring
-    (broadcast together). friction: optional Friction (motor force = frictionless
-    force + coulomb sign(l_dot) + viscous l_dot). With ``return_reactions``
-    returns a LegForceResult with the joint reactions.
+    Args:
+        robot: the robot (platform + payload body, leg bodies, gravity).
+        pose: platform poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad).
+        twist: platform twists [..., 6] = [v, w] of the platform origin (m/s, rad/s; base frame).
+        accel: platform accelerations [..., 6] = [a, alpha] of the same point (m/s^2, rad/s^2; base frame).
+        external_wrench: optional wrench on the platform [..., 6] = [F_E, M_E] (N, N m about the platform
+            origin; base frame), broadcast to the batch shape of the motion; None = no external load.
+        friction: optional Friction (motor force = frictionless force + coulomb sign(l_dot) + viscous l_dot,
+            coulomb and viscous scalars or per leg (6,)).
+        return_reactions: also return the joint reactions.
+
+    Returns:
+        Axial forces [..., 6] (N, positive extends the strut), the batch shape that of pose, twist and accel
+        broadcast together; with ``return_reactions`` a LegForceResult whose ``force`` is that array and whose
+        platform_joint, base_joint and transverse [..., 6, 3] (N, base frame) are the frictionless reactions.
+
+    Raises:
+        InvalidInputError: pose, twist, accel or external_wrench is not numeric, not [..., 6] or not finite
+            (``as_batch``).
+        ValueError: the batch shapes of pose, twist and accel do not broadcast, or external_wrench does not
+            broadcast to theirs (numpy).
+        numpy.linalg.LinAlgError: the 6x6 leg-force system H is exactly singular at a sample whose
+            preconditioned solve failed its residual check (the LAPACK fallback).
     """
     batch, force, rate, extra = _run_blocks(_full_block, robot, pose, twist, accel, external_wrench,
                                             return_reactions)
@@ -257,6 +276,25 @@ def leg_forces_paper(robot: Robot, pose, twist, accel, external_wrench=None) -> 
     are taken about the platform's centre of mass (eq. 16 is Euler's equation
     about the COM; the paper's COM is at the platform origin); vector leg
     terms are m_u s_i.(a_ui - g) s_i.
+
+    Args:
+        robot: the robot.
+        pose: platform poses [..., 6] (m, rad).
+        twist: platform twists [..., 6] = [v, w] of the platform origin (m/s, rad/s; base frame).
+        accel: platform accelerations [..., 6] = [a, alpha] (m/s^2, rad/s^2; base frame).
+        external_wrench: optional wrench on the platform [..., 6] = [F_E, M_E] (N, N m about the platform
+            origin; base frame); None = no external load.
+
+    Returns:
+        Axial forces [..., 6] (N, positive extends the strut), the broadcast batch shape of the motion.
+
+    Raises:
+        InvalidInputError: pose, twist, accel or external_wrench is not numeric, not [..., 6] or not finite
+            (``as_batch``).
+        ValueError: the batch shapes of pose, twist and accel do not broadcast, or external_wrench does not
+            broadcast to theirs (numpy).
+        numpy.linalg.LinAlgError: the 6x6 leg-force system is exactly singular at a sample whose
+            preconditioned solve failed its residual check (the LAPACK fallback).
     """
     batch, force, _, _ = _run_blocks(_paper_block, robot, pose, twist, accel, external_wrench, False)
     return force.reshape(batch + (6,))

@@ -18,7 +18,18 @@ from ..kinematics.rotations import euler_rate_matrix, rotation_from_rpy
 
 
 def euler_rate_matrix_derivative(rpy, rpy_rate) -> np.ndarray:
-    """dE/dt [..., 3, 3] for E(theta) of ``euler_rate_matrix`` (rpy in rad, rates in rad/s)."""
+    """dE/dt [..., 3, 3] for E(theta) of ``euler_rate_matrix`` (rpy in rad, rates in rad/s).
+
+    Args:
+        rpy: [..., 3] = [roll, pitch, yaw] (rad); only pitch and yaw enter.
+        rpy_rate: their time derivatives [..., 3] (rad/s); broadcast against ``rpy``.
+
+    Returns:
+        dE/dt [..., 3, 3] (1/s), the broadcast batch shape.
+
+    Raises:
+        ValueError: the shapes of ``rpy`` and ``rpy_rate`` do not broadcast (numpy).
+    """
     rpy = np.asarray(rpy, dtype=float)
     rate = np.asarray(rpy_rate, dtype=float)
     cp, cy = np.cos(rpy[..., 1]), np.cos(rpy[..., 2])
@@ -36,8 +47,21 @@ def euler_rate_matrix_derivative(rpy, rpy_rate) -> np.ndarray:
 def twist_from_euler_rates(pose, pose_rate, pose_accel) -> tuple[np.ndarray, np.ndarray]:
     """(twist, accel) [..., 6] from pose [..., 6] and its time derivatives [..., 6].
 
-    pose_rate = [x', y', z', roll', pitch', yaw'] (m/s, rad/s); pose_accel the
-    second derivatives. w = E(theta) theta' and alpha = E theta'' + E' theta'.
+    w = E(theta) theta' and alpha = E theta'' + E' theta' (``euler_rate_matrix`` and its derivative).
+
+    Args:
+        pose: platform poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad).
+        pose_rate: [x', y', z', roll', pitch', yaw'] [..., 6] (m/s, rad/s).
+        pose_accel: the second derivatives [..., 6] (m/s^2, rad/s^2).
+
+    Returns:
+        (twist, accel), each [..., 6] (the broadcast batch shape): twist [v, w] = [p', E theta'] (m/s, rad/s)
+        and accel [a, alpha] = [p'', E theta'' + E' theta'] (m/s^2, rad/s^2) of the platform origin,
+        base frame.
+
+    Raises:
+        InvalidInputError: an input is not numeric, not [..., 6] or not finite (``as_batch``).
+        ValueError: the batch shapes do not broadcast (numpy).
     """
     pose = as_batch(pose, 6, "pose")
     rate = as_batch(pose_rate, 6, "pose_rate")
@@ -94,7 +118,17 @@ class SinusoidalTrajectory:
 
 
 def force_line_direction(pose) -> np.ndarray:
-    """Unit force-line direction = platform z axis in the base frame, [..., 3]."""
+    """Unit force-line direction = platform z axis in the base frame, [..., 3].
+
+    Args:
+        pose: platform poses [..., 6] (m, rad); only the orientation enters.
+
+    Returns:
+        R e_z [..., 3] (unit vectors, base frame).
+
+    Raises:
+        InvalidInputError: a pose is not numeric, not [..., 6] or not finite (``as_batch``).
+    """
     pose = as_batch(pose, 6, "pose")
     return rotation_from_rpy(pose[..., 3:])[..., :, 2]
 
@@ -103,8 +137,24 @@ def vibration_trajectory(pose, direction, amplitude: float, frequency_hz: float,
                          phase: float = 0.0) -> SinusoidalTrajectory:
     """Platform at ``pose`` (6,) translating by amplitude sin(2 pi f t + phase) along ``direction``.
 
-    direction (3,) base frame (normalised here); amplitude in m; the
-    orientation stays fixed. Returns a SinusoidalTrajectory.
+    The orientation stays fixed.
+
+    Args:
+        pose: centre pose (6,) (m, rad); any shape holding one [..., 6] row.
+        direction: translation direction (3,) (base frame), normalised here; a zero vector is not rejected
+            (it gives NaN amplitudes).
+        amplitude: peak translation (m).
+        frequency_hz: vibration frequency f (Hz).
+        phase: phase (rad).
+
+    Returns:
+        SinusoidalTrajectory with centre ``pose``, one component: amplitude [1, 6] = [amplitude u, 0, 0, 0],
+        omega [1] = 2 pi f (rad/s) and phase [1, 6] = ``phase``.
+
+    Raises:
+        InvalidInputError: ``pose`` is not [..., 6] or ``direction`` not [..., 3], or either is not numeric or
+            not finite (``as_batch``).
+        ValueError: ``pose`` or ``direction`` holds more than one row (reshape).
     """
     pose = as_batch(pose, 6, "pose").reshape(6)
     u = as_batch(direction, 3, "direction").reshape(3)

@@ -148,7 +148,17 @@ def _cross(a, b):
 
 
 def tissue_displacement(model: TissueModel, position, rotation):
-    """(u [..., 3] m, theta [..., 3] rad, arm r = R c [..., 3]) of the tissue centre, tissue frame."""
+    """(u [..., 3] m, theta [..., 3] rad, arm r = R c [..., 3]) of the tissue centre, tissue frame.
+
+    Args:
+        model: the tissue model.
+        position: platform origins p [..., 3] (base frame, m).
+        rotation: platform rotations R [..., 3, 3].
+
+    Returns:
+        (u, theta, arm): u = R_r^T (p + R c - p_r - R_r c) [..., 3] (m) and theta = log(R_r^T R) [..., 3]
+        (rad), both in the tissue frame; arm r = R c [..., 3] (base frame, m).
+    """
     rest = model.rest_rotation
     arm = rotation @ model.center
     u = (position + arm - model.rest_center) @ rest
@@ -157,8 +167,19 @@ def tissue_displacement(model: TissueModel, position, rotation):
 
 def tissue_wrench_from_state(model: TissueModel, position, rotation, velocity=None, omega=None) -> np.ndarray:
     """Wrench [..., 6] = [F, M] (N, N m about the platform origin, base frame) of the tissue on the platform at
-    positions [..., 3], rotations [..., 3, 3] and, optionally, origin velocities and angular velocities [..., 3]
-    (base frame; None = at rest: no damping)."""
+    positions [..., 3], rotations [..., 3, 3] and, optionally, origin velocities and angular velocities [..., 3].
+
+    Args:
+        model: the tissue model.
+        position: platform origins p [..., 3] (base frame, m).
+        rotation: platform rotations R [..., 3, 3].
+        velocity: optional origin velocities v [..., 3] (base frame, m/s); None = at rest: no damping.
+        omega: optional angular velocities w [..., 3] (base frame, rad/s); None = 0; ignored when
+            ``velocity`` is None.
+
+    Returns:
+        [F, M] [..., 6] (N, N m about the platform origin; base frame).
+    """
     u, theta, arm = tissue_displacement(model, position, rotation)
     k, c = model.stiffness, model.damping
     force_t = -k[:3] * u
@@ -177,7 +198,18 @@ def tissue_wrench_from_state(model: TissueModel, position, rotation, velocity=No
 
 def tissue_wrench_single(model: TissueModel, position, rotation, velocity, omega) -> list[float]:
     """``tissue_wrench_from_state`` for one state in plain Python floats (~10x faster than numpy on 3-vectors:
-    the emulator evaluates it every state period). position, velocity, omega (3,), rotation (3, 3)."""
+    the emulator evaluates it every state period).
+
+    Args:
+        model: the tissue model.
+        position: platform origin p (3,) (base frame, m).
+        rotation: platform rotation R, a (3, 3) numpy array.
+        velocity: origin velocity v (3,) (base frame, m/s).
+        omega: angular velocity w (3,) (base frame, rad/s).
+
+    Returns:
+        [F_x, F_y, F_z, M_x, M_y, M_z] as six floats (N, N m about the platform origin; base frame).
+    """
     px, py, pz = position[0], position[1], position[2]
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rotation.tolist()
     cx, cy, cz = model._center_list
@@ -212,7 +244,21 @@ def tissue_wrench_single(model: TissueModel, position, rotation, velocity, omega
 
 def tissue_wrench(model: TissueModel, pose, twist=None) -> np.ndarray:
     """Wrench [..., 6] of the tissue on the platform at poses [..., 6] with optional twists [..., 6] = [v, w]
-    (base frame; None = at rest). Base frame, moment about the platform origin (see the module docstring)."""
+    (base frame; None = at rest). Base frame, moment about the platform origin (see the module docstring).
+
+    Args:
+        model: the tissue model.
+        pose: platform poses [..., 6] (m, rad).
+        twist: optional platform twists [..., 6] = [v, w] (m/s, rad/s; base frame), broadcast against
+            ``pose``; None = at rest (no damping).
+
+    Returns:
+        [F, M] [..., 6] (N, N m about the platform origin; base frame).
+
+    Raises:
+        InvalidInputError: ``pose`` or ``twist`` is not numeric, not [..., 6] or not finite (``as_batch``).
+        ValueError: the batch shapes of ``pose`` and ``twist`` do not broadcast (numpy).
+    """
     pose = as_batch(pose, 6, "pose")
     if twist is None:
         return tissue_wrench_from_state(model, pose[..., :3], rotation_from_rpy(pose[..., 3:]))
@@ -224,7 +270,15 @@ def tissue_wrench(model: TissueModel, pose, twist=None) -> np.ndarray:
 
 def wrench_about_point(wrench, arm) -> np.ndarray:
     """The same wrench [..., 6] with its moment about the point at ``arm`` [..., 3] from the original
-    reference point: [F, M - arm x F] (e.g. the centre of mass for MuJoCo's xfrc_applied)."""
+    reference point: [F, M - arm x F] (e.g. the centre of mass for MuJoCo's xfrc_applied).
+
+    Args:
+        wrench: wrenches [..., 6] = [F, M] (N, N m) about the original reference point.
+        arm: vectors [..., 3] (m) from the original reference point to the new one, in the wrench's frame.
+
+    Returns:
+        [F, M - arm x F] [..., 6] (N, N m about the new point).
+    """
     wrench = np.asarray(wrench, dtype=float)
     force = wrench[..., :3]
     return np.concatenate([force, wrench[..., 3:] - _cross(arm, force)], axis=-1)
@@ -257,7 +311,20 @@ def _pair(tree: dict, key: str, units: tuple[str, str], source) -> tuple[float, 
 
 
 def resolve_pose(robot: Robot, value, what: str) -> np.ndarray:
-    """``home``, ``paper`` or 6 numbers [x, y, z, roll, pitch, yaw] (m, rad) -> pose (6,)."""
+    """``home``, ``paper`` or 6 numbers [x, y, z, roll, pitch, yaw] (m, rad) -> pose (6,).
+
+    Args:
+        robot: the robot (its home pose and the paper pose).
+        value: "home", "paper", or a list of six numbers (m, rad).
+        what: where the value comes from, for the error message.
+
+    Returns:
+        The pose (6,) (m, rad), a new array.
+
+    Raises:
+        ConfigError: ``value`` is neither "home", "paper" nor a list of six finite numbers.
+        ValueError: the list holds entries numpy cannot convert to float (not caught).
+    """
     if value == "home":
         return robot.home_pose.copy()
     if value == "paper":
@@ -269,7 +336,23 @@ def resolve_pose(robot: Robot, value, what: str) -> np.ndarray:
 
 
 def tissue_from_dict(tree: dict, robot: Robot, source: str = "<dict>") -> TissueModel:
-    """Build a TissueModel from the parsed YAML tree (see config/tissue.yaml); ConfigError with the reason."""
+    """Build a TissueModel from the parsed YAML tree (see config/tissue.yaml); ConfigError with the reason.
+
+    Args:
+        tree: the parsed YAML mapping (keys name, note, rest_pose, center_m, axial, lateral, torsional,
+            bending, preload_n, stiffening).
+        robot: the robot (for rest_pose "home" / "paper").
+        source: where the tree comes from, for error messages and ``TissueModel.source``.
+
+    Returns:
+        The TissueModel (SI units).
+
+    Raises:
+        ConfigError: the tree is not a mapping, has unknown keys, a bad rest_pose or center_m, a missing,
+            non-numeric, negative or non-finite stiffness, damping or preload, or a bad stiffening section.
+        ValueError: rest_pose, center_m or a piecewise-linear list holds entries numpy cannot convert to
+            float (not caught).
+    """
     if not isinstance(tree, dict):
         raise ConfigError(f"tissue config {source}: top level must be a mapping")
     unknown = set(tree) - _KEYS
@@ -314,7 +397,20 @@ def tissue_from_dict(tree: dict, robot: Robot, source: str = "<dict>") -> Tissue
 
 def load_tissue(path, robot: Robot) -> TissueModel:
     """Tissue model from a YAML file; a bare file name is looked up in the config directory too.
-    ConfigError on a missing file, bad YAML or a bad value."""
+
+    Args:
+        path: the YAML file (str or Path); a relative path that is not a file is tried in
+            ``default_config_dir()``.
+        robot: the robot (for rest_pose "home" / "paper").
+
+    Returns:
+        The TissueModel.
+
+    Raises:
+        ConfigError: the file cannot be read or is not valid YAML, a value is bad (``tissue_from_dict``), or
+            the config directory is needed and not found (``default_config_dir``).
+        ValueError: a pose or list entry cannot be converted to float (``tissue_from_dict``).
+    """
     path = Path(path)
     if not path.is_file() and not path.is_absolute() and (default_config_dir() / path).is_file():
         path = default_config_dir() / path
@@ -326,7 +422,19 @@ def load_tissue(path, robot: Robot) -> TissueModel:
 
 
 def load_tissue_option(value: str | None, robot: Robot) -> TissueModel | None:
-    """A node's ``tissue_config`` parameter: '' (or None) = no tissue, else ``load_tissue``."""
+    """A node's ``tissue_config`` parameter: '' (or None) = no tissue, else ``load_tissue``.
+
+    Args:
+        value: the parameter: a YAML path, '' or None.
+        robot: the robot.
+
+    Returns:
+        The TissueModel, or None for '' / None.
+
+    Raises:
+        ConfigError: as ``load_tissue``.
+        ValueError: as ``load_tissue``.
+    """
     return load_tissue(value, robot) if value else None
 
 

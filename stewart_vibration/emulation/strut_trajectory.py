@@ -48,8 +48,25 @@ def build_trajectory(
 ) -> JointTrajectory:
     """Validate a received trajectory and order its columns as ``expected_names``.
 
-    Raises InvalidInputError with the reason (wrong names/count, empty,
-    non-increasing times, mismatched sizes, non-finite values).
+    Args:
+        joint_names: the trajectory's joint names, in its column order.
+        expected_names: the joint names the columns are ordered to (the same set, any order).
+        start: the start (header stamp, s; <= 0 means "now").
+        times: time_from_start of each point [n] (s), >= 0 and strictly increasing.
+        positions: positions per point, [n, dof] rows (a 2-D array, or n sequences of dof values).
+        velocities: velocities per point [n, dof], or None / all rows empty for none.
+        accelerations: accelerations per point [n, dof], or None / all rows empty for none; needs
+            ``velocities``.
+
+    Returns:
+        JointTrajectory with ``start`` (s), ``times`` [n] (s) and positions / velocities / accelerations
+        [n, dof] in the column order of ``expected_names`` (velocities / accelerations None if absent).
+
+    Raises:
+        InvalidInputError: with the reason: a non-finite start; joint names not exactly
+            ``expected_names`` (or repeated); no points; times not finite, negative or not strictly
+            increasing; a point with the wrong number of values or without positions; non-finite values;
+            velocity / acceleration rows not one per point; accelerations without velocities.
     """
     names = list(joint_names)
     expected = list(expected_names)
@@ -206,9 +223,30 @@ def checked_command(follower: TrajectoryFollower, traj: JointTrajectory, now: fl
     joint_trajectory_controller rules (see HardwareEmulator.command_struts): points already past are dropped
     and the motion departs from the state commanded now; positions-only trajectories get finite-difference
     velocities (zero at both ends). The spline from the departure state through every point must stay
-    within the stroke, strut_velocity_max and strut_acceleration_max and end at rest; ``step_speed`` (m/s)
-    is the velocity step allowed at a first point at the start time and at the held end. A start more than
-    ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused."""
+    within the stroke, strut_velocity_max and strut_acceleration_max and end at rest.
+
+    Args:
+        follower: the follower the command arrives at (its commanded state is the departure state).
+        traj: the validated leg command: start (s, 0 = now), times [n] (s), positions [n, 6] (m),
+            velocities [n, 6] (m/s) or None, accelerations [n, 6] (m/s^2) or None.
+        now: the arrival time (s).
+        limits: robot.limits (stroke_min / stroke_max m, strut_velocity_max m/s, strut_acceleration_max m/s^2).
+        max_start_delay_s: the latest start accepted, ahead of ``now`` (s).
+        step_speed: the velocity step (m/s) allowed at a first point at the start time and at the held end.
+
+    Returns:
+        JointTrajectory with the absolute start max(now, start) (s) and only the points after ``now``
+        (times relative to that start, velocities filled in).
+
+    Raises:
+        ActuatorLimitError: with ``limit_name`` and ``value``: the start is more than ``max_start_delay_s``
+            ahead ("max_start_delay_s"); it is in the future while another trajectory still waits for its
+            start ("waiting_trajectory"); every point is past ("stale_trajectory"); the trajectory ends
+            moving faster than ``step_speed``; a first point at the start time is a position or velocity
+            step from the commanded state; the spline's velocity or acceleration exceeds
+            strut_velocity_max / strut_acceleration_max (with ``leg`` 1..6).
+        StrokeLimitError: the spline's commanded length leaves [stroke_min, stroke_max] (``check_stroke``).
+    """
     begin = traj.start_at(now)
     if begin > now + max_start_delay_s:
         raise ActuatorLimitError(
@@ -292,8 +330,18 @@ def controlled_stop(follower: TrajectoryFollower, at: float, acceleration_max: f
 
     The rest position is p0 + v0 T / 2 + a0 T^2 / 12 (the quintic's natural travel); the duration T
     is the shortest on a 10 % grid from |v0| / acceleration_max whose sampled acceleration is within
-    the limit. Returns a trajectory with the absolute start ``at`` and one point, or None when the
-    struts are already at rest (the caller holds the position)."""
+    the limit.
+
+    Args:
+        follower: the follower whose commanded state at ``at`` the stop departs from.
+        at: the stop time (s, absolute).
+        acceleration_max: the strut acceleration limit (m/s^2).
+
+    Returns:
+        A JointTrajectory with the absolute start ``at`` and one point at T (s): rest positions [1, dof]
+        (m), zero velocities and accelerations; or None when the struts are already at rest (the caller
+        holds the position).
+    """
     p, v, a = (x[0] for x in follower.sample(np.array([at])))
     if np.abs(v).max() < 1e-9 and np.abs(a).max() < 1e-9:
         return None

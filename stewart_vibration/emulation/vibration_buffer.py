@@ -68,7 +68,17 @@ class BufferStatus:
 def window_arrays(traj: JointTrajectory, now: float):
     """(absolute times [n], positions, velocities, accelerations [n, 6]) of a vib_* trajectory; start
     0 = now. Without velocities the knots get finite-difference velocities (zero for a single point);
-    accelerations are NaN rows where the trajectory has none (cubic segments)."""
+    accelerations are NaN rows where the trajectory has none (cubic segments).
+
+    Args:
+        traj: the vib_* window (start s, times [n] s from start, positions [n, 6] m, optional velocities
+            m/s and accelerations m/s^2).
+        now: the receive time (s), the start of a window stamped <= 0.
+
+    Returns:
+        (times [n] (s, absolute), positions [n, 6] (m), velocities [n, 6] (m/s),
+        accelerations [n, 6] (m/s^2, NaN rows where absent)).
+    """
     start = traj.start_at(now)
     times = start + traj.times
     pos = traj.positions

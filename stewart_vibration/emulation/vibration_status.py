@@ -63,7 +63,20 @@ class VibrationReport:
 
 
 def report_from_values(level: str, values: dict[str, str]) -> VibrationReport:
-    """Inverse of ``VibrationReport.as_values`` (for readers of vibration/status)."""
+    """Inverse of ``VibrationReport.as_values`` (for readers of vibration/status).
+
+    Missing or empty values take the report's defaults (amplitude zeros, times 0 or None).
+
+    Args:
+        level: the DiagnosticStatus level ("ok", "warn", "error").
+        values: the key/value strings of ``VibrationReport.as_values`` (amplitude_um in um, times in s).
+
+    Returns:
+        The VibrationReport (amplitude [6] in m, times in s).
+
+    Raises:
+        ValueError: a numeric value (time, amplitude or count) is not a number.
+    """
     def num(key, default=None):
         text = values.get(key, "")
         return float(text) if text else default

@@ -38,7 +38,22 @@ def _solve(jac: np.ndarray, rhs: np.ndarray) -> np.ndarray:
 
 def platform_twist(robot, pose, length_rate, jac=None) -> np.ndarray:
     """Twist [..., 6] = [v, w] (m/s, rad/s, base frame) from hinge-length rates L_dot [..., 6] (m/s).
-    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
+
+    Solves J t = L_dot.
+
+    Args:
+        robot: the robot.
+        pose: platform poses [..., 6] (m, rad).
+        length_rate: hinge-to-hinge length rates L_dot [..., 6] (m/s).
+        jac: the Jacobian [..., 6, 6] at ``pose`` if already computed.
+
+    Returns:
+        Twists [..., 6] = [v, w] of the platform origin (m/s, rad/s; base frame).
+
+    Raises:
+        InvalidInputError: ``pose`` or ``length_rate`` is not numeric, not [..., 6] or not finite.
+        SingularPoseError: a Jacobian is singular.
+    """
     pose = as_batch(pose, 6, "pose")
     rate = as_batch(length_rate, 6, "length_rate")
     return _solve(jacobian(robot, pose) if jac is None else jac, rate)
@@ -46,7 +61,24 @@ def platform_twist(robot, pose, length_rate, jac=None) -> np.ndarray:
 
 def platform_accel(robot, pose, twist, length_accel, jac=None) -> np.ndarray:
     """Acceleration [..., 6] = [a, alpha] of the platform origin from L_ddot [..., 6] (m/s^2) and the twist.
-    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
+
+    Solves J a = L_ddot - c with c the velocity-product part of L_ddot (``leg_motion`` at zero acceleration).
+
+    Args:
+        robot: the robot.
+        pose: platform poses [..., 6] (m, rad).
+        twist: platform twists [..., 6] = [v, w] (m/s, rad/s; base frame).
+        length_accel: hinge-to-hinge length accelerations L_ddot [..., 6] (m/s^2).
+        jac: the Jacobian [..., 6, 6] at ``pose`` if already computed.
+
+    Returns:
+        Accelerations [..., 6] = [a, alpha] of the platform origin (m/s^2, rad/s^2; base frame).
+
+    Raises:
+        InvalidInputError: ``pose``, ``twist`` or ``length_accel`` is not numeric, not [..., 6] or not finite.
+        ValueError: the batch shapes of ``pose`` and ``twist`` do not broadcast (numpy).
+        SingularPoseError: a Jacobian is singular.
+    """
     pose = as_batch(pose, 6, "pose")
     twist = as_batch(twist, 6, "twist")
     acc = as_batch(length_accel, 6, "length_accel")
@@ -56,7 +88,21 @@ def platform_accel(robot, pose, twist, length_accel, jac=None) -> np.ndarray:
 
 def external_wrench(robot, pose, measured, model, jac=None) -> np.ndarray:
     """External wrench on the platform [..., 6] = -J^T (F_measured - F_model) (N, N m about the platform origin).
-    ``jac``: the Jacobian [..., 6, 6] at ``pose`` if already computed."""
+
+    Args:
+        robot: the robot.
+        pose: platform poses [..., 6] (m, rad); not used (nor validated) when ``jac`` is given.
+        measured: measured axial forces [..., 6] (N).
+        model: modelled axial forces [..., 6] (N) at zero external wrench.
+        jac: the Jacobian [..., 6, 6] at ``pose`` if already computed.
+
+    Returns:
+        W = [F_E, M_E] [..., 6] (N, N m about the platform origin; base frame).
+
+    Raises:
+        InvalidInputError: ``pose`` (without ``jac``), ``measured`` or ``model`` is not numeric, not [..., 6] or
+            not finite.
+    """
     jac = jacobian(robot, as_batch(pose, 6, "pose")) if jac is None else jac
     diff = as_batch(measured, 6, "measured") - as_batch(model, 6, "model")
     return -np.einsum("...ij,...i->...j", jac, diff)

@@ -74,10 +74,31 @@ def forward_kinematics(
     Solves g_i = |p + R a_i - b_i| - l_i = 0 with the analytic Jacobian
     (J [dp; dphi] = -g, never inverted), updating p += dp and
     R <- exp([dphi]x) R, so no Euler-angle singularity. A step that increases
-    max|g| is halved (backtracking, up to 10 times). ``guess`` (pose [..., 6])
-    warm-starts; without it the start is home + J0^-1 (l - l0). Stops at
-    max|g| < tol (m). Solutions below the base or with det J of the other
+    max|g| is halved (backtracking, up to 10 times). Without a guess the start is
+    home + J0^-1 (l - l0). Solutions below the base or with det J of the other
     sign than at home (another assembly mode) are flagged assembly_ok=False.
+    One sample with one guess is solved in plain floats (``fk_scalar``); large
+    batches are split over the worker threads.
+
+    Args:
+        robot: the robot.
+        lengths: target strut lengths l_i [..., 6] (m), all > 0.
+        guess: optional start poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad, base frame), broadcast
+            to the batch shape of ``lengths`` (warm start).
+        tol: convergence threshold on max_i |g_i| (m).
+        max_iter: most Newton iterations per sample.
+        check_limits: check ``lengths`` against [stroke_min, stroke_max] before solving.
+
+    Returns:
+        ForwardKinematicsResult with pose [..., 6] (m, rad), rotation R [..., 3, 3], and per sample [...]:
+        iterations, residual max_i |l_i(pose) - l_i| (m), converged and assembly_ok. Failures are flagged,
+        not raised (see ``ForwardKinematicsResult.raise_for_failure``).
+
+    Raises:
+        InvalidInputError: ``lengths`` or ``guess`` is not numeric, not [..., 6] or not finite (``as_batch``),
+            or a length is <= 0.
+        StrokeLimitError: ``check_limits`` is set and a length is outside the stroke (``check_stroke``).
+        ValueError: ``guess`` does not broadcast to the batch shape of ``lengths`` (numpy).
     """
     lengths = as_batch(lengths, 6, "lengths")
     low, high = float(lengths.min()), float(lengths.max())

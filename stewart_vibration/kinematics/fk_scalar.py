@@ -26,8 +26,12 @@ Matrix = tuple[Vector, Vector, Vector]
 def solve_linear_6(matrix: list[list[float]], rhs: list[float]) -> tuple[list[float], float] | None:
     """Solve A x = b (n x n, here 6) by Gaussian elimination with partial pivoting.
 
-    Returns (x, sign of det A), or None when a pivot is exactly zero. ``matrix``
-    and ``rhs`` are overwritten.
+    Args:
+        matrix: A as n rows of n floats; overwritten (rows swapped and eliminated).
+        rhs: b, n floats; overwritten.
+
+    Returns:
+        (x, sign of det A): x a list of n floats, the sign 1.0 or -1.0; None when a pivot is exactly zero.
     """
     n = len(rhs)
     sign = 1.0
@@ -66,7 +70,19 @@ def solve_linear_6(matrix: list[list[float]], rhs: list[float]) -> tuple[list[fl
 
 
 def leg_residuals(hinges, base, position: Vector, rot: Matrix, target):
-    """Per leg (d_i, r_i = R a_i, l_i) and the residual max|l_i - target_i| (m)."""
+    """Per leg (d_i, r_i = R a_i, l_i) and the residual max|l_i - target_i| (m).
+
+    Args:
+        hinges: the six platform hinges a_i as (x, y, z) floats (platform frame, m).
+        base: the six base hinges b_i as (x, y, z) floats (base frame, m).
+        position: platform origin p (base frame, m).
+        rot: platform rotation R as three rows of three floats.
+        target: the six target leg lengths (m).
+
+    Returns:
+        (legs, worst): legs a list of six tuples (d_x, d_y, d_z, r_x, r_y, r_z, l_i, l_i - target_i) with
+        d_i = p + R a_i - b_i and r_i = R a_i (base frame, m); worst = max_i |l_i - target_i| (m).
+    """
     (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot
     px, py, pz = position
     legs = []
@@ -100,12 +116,19 @@ def _least_squares_step(rows, rhs) -> list[float]:
 def forward_kinematics_scalar(hinges, base, target, start, tol: float, max_iter: int, home_det_sign: float):
     """Newton FK from a warm start for one sample.
 
-    hinges: six platform hinges a_i (platform frame, m); base: six base hinges
-    b_i (base frame, m); target: six leg lengths (m); start: pose guess
-    [x, y, z, roll, pitch, yaw] (m, rad). Returns (pose tuple, rotation,
-    iterations, residual in m, assembly_ok) with assembly_ok true when every
-    platform hinge is above its base hinge and sign(det J) equals
-    ``home_det_sign``.
+    Args:
+        hinges: the six platform hinges a_i as (x, y, z) floats (platform frame, m).
+        base: the six base hinges b_i as (x, y, z) floats (base frame, m).
+        target: the six target leg lengths (m).
+        start: start pose [x, y, z, roll, pitch, yaw] (m, rad).
+        tol: convergence threshold on max_i |l_i - target_i| (m).
+        max_iter: most Newton iterations.
+        home_det_sign: sign of det J at the home pose (the expected assembly mode).
+
+    Returns:
+        (pose, rotation, iterations, residual, assembly_ok): pose a tuple of six floats (m, rad), rotation R
+        as three row tuples, iterations an int, residual max_i |l_i - target_i| (m), and assembly_ok true when
+        every platform hinge is above its base hinge (d_z > 0) and sign(det J) equals ``home_det_sign``.
     """
     position = (float(start[0]), float(start[1]), float(start[2]))
     rotation = rotation_from_rpy_scalar(float(start[3]), float(start[4]), float(start[5]))

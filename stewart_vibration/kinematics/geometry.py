@@ -109,7 +109,16 @@ def joint_angles(robot: Robot, poses) -> tuple[np.ndarray, np.ndarray]:
 
 
 def joint_angles_from_axes(n: np.ndarray, rot: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(universal, spherical) joint angles [..., 6] (rad) from unit leg axes n [..., 6, 3] and R [..., 3, 3]."""
+    """(universal, spherical) joint angles [..., 6] (rad) from unit leg axes n [..., 6, 3] and R [..., 3, 3].
+
+    Args:
+        n: unit leg axes n_i [..., 6, 3] (base frame).
+        rot: platform rotation R [..., 3, 3].
+
+    Returns:
+        (universal, spherical), each [..., 6] (rad): arccos(n_i . e_z) and arccos(n_i . R e_z), the leg axis
+        against the base and the platform z axis.
+    """
     universal = np.arccos(np.clip(n[..., 2], -1.0, 1.0))
     platform_z = rot[..., :, 2]
     spherical = np.arccos(np.clip(np.einsum("...ij,...j->...i", n, platform_z), -1.0, 1.0))

@@ -37,6 +37,13 @@ def jacobian_from_vectors(d: np.ndarray, r: np.ndarray, lengths: np.ndarray | No
 def jacobian(robot: Robot, poses) -> np.ndarray:
     """Leg-length Jacobian J [..., 6, 6] at platform poses [..., 6] (m, rad): dl = J [dp; dphi].
 
+    Args:
+        robot: the robot.
+        poses: platform poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad).
+
+    Returns:
+        J [..., 6, 6] with rows [n_i, (R a_i) x n_i] (base frame); dp in m, dphi a small rotation vector (rad).
+
     Raises:
         InvalidInputError: a pose is not finite or not [..., 6].
     """
@@ -50,7 +57,14 @@ def condition_number(robot: Robot, poses) -> np.ndarray:
 
     The rotation columns (m/rad) are divided by the characteristic length L (mean platform hinge
     radius) so all columns are dimensionless before the singular values are taken:
-    J_h = J diag(1, 1, 1, 1/L, 1/L, 1/L). Singular poses give inf.
+    J_h = J diag(1, 1, 1, 1/L, 1/L, 1/L).
+
+    Args:
+        robot: the robot (its ``characteristic_length`` L, m).
+        poses: platform poses [..., 6] (m, rad).
+
+    Returns:
+        sigma_max / sigma_min of J_h, [...] (dimensionless, >= 1); inf at singular poses.
 
     Raises:
         InvalidInputError: a pose is not finite or not [..., 6].

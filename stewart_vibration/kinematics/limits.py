@@ -107,8 +107,12 @@ def check_reachable(limits: Limits, d: np.ndarray, lengths: np.ndarray, rot: np.
 def check_conditioning(limits: Limits, cond: np.ndarray) -> None:
     """Raise SingularPoseError if a condition number [...] exceeds condition_number_max (or is NaN).
 
+    Args:
+        limits: the robot's limits (condition_number_max).
+        cond: condition numbers [...] (e.g. from ``condition_number``); the flat index is the error's sample.
+
     Raises:
-        SingularPoseError: with ``sample`` (flat index), ``value`` and ``limit``.
+        SingularPoseError: with ``sample`` (flat index), ``value`` and ``limit`` of the first violation.
     """
     bad = ~(np.asarray(cond) <= limits.condition_number_max)
     if bad.any():

@@ -15,7 +15,14 @@ from ..input_checks import as_batch
 
 
 def wrap_angle(angle):
-    """Angle(s) (rad) wrapped to (-pi, pi]: pi stays pi, -pi becomes pi."""
+    """Angle(s) (rad) wrapped to (-pi, pi]: pi stays pi, -pi becomes pi.
+
+    Args:
+        angle: angles (rad), a float or an array of any shape.
+
+    Returns:
+        The wrapped angles (rad), same shape as ``angle`` (a numpy scalar for a float).
+    """
     return np.pi - (np.pi - np.asarray(angle)) % (2 * np.pi)
 
 def rpy_matrix_entries(sr, sp, sy, cr, cp, cy, out=None):
@@ -62,6 +69,15 @@ def rpy_from_matrix_entries(r00, r10, r20, r21, r22, atan2=np.arctan2, hypot=np.
 
     The one place the inverse formula is written; ``atan2`` and ``hypot`` are numpy's (arrays) or
     ``math``'s (floats, the scalar forward kinematics).
+
+    Args:
+        r00, r10, r20, r21, r22: the entries R_00, R_10, R_20, R_21, R_22 (floats or arrays of one shape).
+        atan2: the two-argument arctangent to use (``np.arctan2`` or ``math.atan2``).
+        hypot: the hypotenuse function to use (``np.hypot`` or ``math.hypot``).
+
+    Returns:
+        (roll, pitch, yaw) (rad), a tuple of floats or arrays: roll = atan2(R_21, R_22),
+        pitch = atan2(-R_20, hypot(R_00, R_10)), yaw = atan2(R_10, R_00).
     """
     return atan2(r21, r22), atan2(-r20, hypot(r00, r10)), atan2(r10, r00)
 
@@ -84,21 +100,44 @@ def rotation_from_rpy(rpy) -> np.ndarray:
 
 
 def rpy_from_rotation(rot) -> np.ndarray:
-    """Inverse of ``rotation_from_rpy``: R [..., 3, 3] -> [..., 3] (rad) with pitch in [-pi/2, pi/2]."""
+    """Inverse of ``rotation_from_rpy``: R [..., 3, 3] -> [..., 3] (rad) with pitch in [-pi/2, pi/2].
+
+    Args:
+        rot: rotation matrices R [..., 3, 3] (platform frame -> base frame).
+
+    Returns:
+        [..., 3] = [roll, pitch, yaw] (rad), pitch in [-pi/2, pi/2].
+    """
     rot = np.asarray(rot, dtype=float)
     return np.stack(rpy_from_matrix_entries(rot[..., 0, 0], rot[..., 1, 0], rot[..., 2, 0], rot[..., 2, 1],
                                             rot[..., 2, 2]), axis=-1)
 
 
 def rotation_from_rpy_scalar(roll: float, pitch: float, yaw: float):
-    """``rotation_from_rpy`` for one angle triple in plain floats (rad): R as nested tuples, rows first."""
+    """``rotation_from_rpy`` for one angle triple in plain floats (rad): R as nested tuples, rows first.
+
+    Args:
+        roll: roll angle (rad).
+        pitch: pitch angle (rad).
+        yaw: yaw angle (rad).
+
+    Returns:
+        R = Rz(yaw) Ry(pitch) Rx(roll) as three row tuples of three floats (platform frame -> base frame).
+    """
     e = rpy_matrix_entries(math.sin(roll), math.sin(pitch), math.sin(yaw),
                            math.cos(roll), math.cos(pitch), math.cos(yaw))
     return (e[0], e[1], e[2]), (e[3], e[4], e[5]), (e[6], e[7], e[8])
 
 
 def rpy_from_rotation_scalar(rot) -> tuple[float, float, float]:
-    """``rpy_from_rotation`` for one rotation given as nested tuples (rows first), in plain floats."""
+    """``rpy_from_rotation`` for one rotation given as nested tuples (rows first), in plain floats.
+
+    Args:
+        rot: R as three rows of three floats (indexable as ``rot[row][col]``).
+
+    Returns:
+        (roll, pitch, yaw) as floats (rad), pitch in [-pi/2, pi/2].
+    """
     return rpy_from_matrix_entries(rot[0][0], rot[1][0], rot[2][0], rot[2][1], rot[2][2], math.atan2, math.hypot)
 
 
@@ -106,6 +145,12 @@ def euler_rate_matrix(rpy) -> np.ndarray:
     """E(theta) with w = E theta_dot (w in the base frame); singular at pitch = +-pi/2.
 
     E = [[cy cp, -sy, 0], [sy cp, cy, 0], [-sp, 0, 1]].
+
+    Args:
+        rpy: [..., 3] = [roll, pitch, yaw] (rad); only pitch and yaw enter E.
+
+    Returns:
+        E [..., 3, 3], mapping roll-pitch-yaw rates (rad/s) to the angular velocity w (rad/s, base frame).
     """
     rpy = np.asarray(rpy, dtype=float)
     cp, cy = np.cos(rpy[..., 1]), np.cos(rpy[..., 2])
@@ -121,7 +166,14 @@ def euler_rate_matrix(rpy) -> np.ndarray:
 
 
 def skew(v) -> np.ndarray:
-    """[v]x for v [..., 3] -> [..., 3, 3] so that skew(v) @ u = v x u."""
+    """[v]x for v [..., 3] -> [..., 3, 3] so that skew(v) @ u = v x u.
+
+    Args:
+        v: vectors [..., 3].
+
+    Returns:
+        The skew-symmetric matrices [v]x, [..., 3, 3].
+    """
     v = np.asarray(v, dtype=float)
     out = np.zeros(v.shape[:-1] + (3, 3))
     out[..., 0, 1], out[..., 0, 2] = -v[..., 2], v[..., 1]
@@ -136,6 +188,12 @@ def rodrigues_coefficients(theta2):
 
     b is evaluated as (sin(t/2) / t)^2 * 2, free of the cancellation in 1 - cos t, so micro-radian
     rotations keep full relative precision; below t^2 = 1e-12 the Taylor series is used.
+
+    Args:
+        theta2: squared rotation angle t^2 (rad^2), a float or an array of any shape.
+
+    Returns:
+        (a, b), arrays of the shape of ``theta2`` (0-d for a float).
     """
     small = np.asarray(theta2) < 1e-12
     t = np.sqrt(np.where(small, 1.0, theta2))
@@ -146,7 +204,14 @@ def rodrigues_coefficients(theta2):
 
 
 def rodrigues_coefficients_scalar(theta2: float) -> tuple[float, float]:
-    """``rodrigues_coefficients`` for one float (the scalar forward kinematics)."""
+    """``rodrigues_coefficients`` for one float (the scalar forward kinematics).
+
+    Args:
+        theta2: squared rotation angle t^2 (rad^2).
+
+    Returns:
+        (a, b) = (sin t / t, (1 - cos t) / t^2) as floats; the Taylor series below t^2 = 1e-12.
+    """
     if theta2 < 1e-12:
         return 1.0 - theta2 / 6.0, 0.5 - theta2 / 24.0
     t = math.sqrt(theta2)
@@ -170,7 +235,15 @@ def so3_exp(phi) -> np.ndarray:
 
 
 def so3_exp_scalar(phi, rot):
-    """exp([phi]x) R for one rotation vector phi (rad, 3 floats) and R as nested tuples (rows first)."""
+    """exp([phi]x) R for one rotation vector phi (rad, 3 floats) and R as nested tuples (rows first).
+
+    Args:
+        phi: rotation vector (x, y, z) (rad; axis times angle), three floats.
+        rot: R as three rows of three floats.
+
+    Returns:
+        The product exp([phi]x) R as three row tuples of three floats.
+    """
     x, y, z = phi
     a, b = rodrigues_coefficients_scalar(x * x + y * y + z * z)
     e = (
@@ -190,7 +263,14 @@ def so3_exp_scalar(phi, rot):
 
 
 def so3_log(rot) -> np.ndarray:
-    """Rotation vector of R [..., 3, 3] (angle < pi) -> [..., 3]."""
+    """Rotation vector of R [..., 3, 3] (angle < pi) -> [..., 3].
+
+    Args:
+        rot: rotation matrices R [..., 3, 3] with rotation angle < pi (the axis is lost at pi).
+
+    Returns:
+        Rotation vectors [..., 3] (rad; axis times angle) with exp([phi]x) = R.
+    """
     rot = np.asarray(rot, dtype=float)
     cos = np.clip((np.trace(rot, axis1=-2, axis2=-1) - 1.0) / 2.0, -1.0, 1.0)
     theta = np.arccos(cos)
@@ -204,7 +284,14 @@ def so3_log(rot) -> np.ndarray:
 
 
 def quaternion_from_rpy(rpy) -> np.ndarray:
-    """Unit quaternion [x, y, z, w] of R = Rz(yaw) Ry(pitch) Rx(roll)."""
+    """Unit quaternion [x, y, z, w] of R = Rz(yaw) Ry(pitch) Rx(roll).
+
+    Args:
+        rpy: [..., 3] = [roll, pitch, yaw] (rad).
+
+    Returns:
+        Unit quaternions [..., 4] in ROS order [x, y, z, w].
+    """
     rpy = np.asarray(rpy, dtype=float)
     hr, hp, hy = rpy[..., 0] / 2, rpy[..., 1] / 2, rpy[..., 2] / 2
     cr, sr, cp, sp, cy, sy = np.cos(hr), np.sin(hr), np.cos(hp), np.sin(hp), np.cos(hy), np.sin(hy)
@@ -220,7 +307,14 @@ def quaternion_from_rpy(rpy) -> np.ndarray:
 
 
 def rotation_from_quaternion(quat) -> np.ndarray:
-    """Rotation matrices [..., 3, 3] of unit quaternions [..., 4] [x, y, z, w] (not renormalised)."""
+    """Rotation matrices [..., 3, 3] of unit quaternions [..., 4] [x, y, z, w] (not renormalised).
+
+    Args:
+        quat: unit quaternions [..., 4] in ROS order [x, y, z, w]; not normalised here.
+
+    Returns:
+        R [..., 3, 3].
+    """
     q = np.asarray(quat, dtype=float)
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     rows = [
@@ -232,7 +326,19 @@ def rotation_from_quaternion(quat) -> np.ndarray:
 
 
 def rpy_from_quaternion(quat, *, unit_tolerance: float = 1e-6) -> np.ndarray:
-    """[x, y, z, w] -> [roll, pitch, yaw]. Rejects non-unit quaternions (|q| off by > tolerance)."""
+    """[x, y, z, w] -> [roll, pitch, yaw]. Rejects non-unit quaternions (|q| off by > tolerance).
+
+    Args:
+        quat: quaternions [..., 4] in ROS order [x, y, z, w]; normalised before conversion.
+        unit_tolerance: largest accepted | |q| - 1 |.
+
+    Returns:
+        [..., 3] = [roll, pitch, yaw] (rad), pitch in [-pi/2, pi/2].
+
+    Raises:
+        InvalidInputError: ``quat`` is not numeric, not [..., 4] or not finite (``as_batch``), or a norm differs
+            from 1 by more than ``unit_tolerance``.
+    """
     q = as_batch(quat, 4, "quaternion")
     norm = np.linalg.norm(q, axis=-1)
     if (np.abs(norm - 1.0) > unit_tolerance).any():
@@ -246,7 +352,17 @@ def rpy_from_quaternion(quat, *, unit_tolerance: float = 1e-6) -> np.ndarray:
 
 
 def pose_to_position_quaternion(poses) -> tuple[np.ndarray, np.ndarray]:
-    """Pose vectors [..., 6] -> (position [..., 3] m, quaternion [..., 4] [x, y, z, w])."""
+    """Pose vectors [..., 6] -> (position [..., 3] m, quaternion [..., 4] [x, y, z, w]).
+
+    Args:
+        poses: platform poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad).
+
+    Returns:
+        (position [..., 3] (m, a copy), unit quaternion [..., 4] [x, y, z, w]).
+
+    Raises:
+        InvalidInputError: a pose is not numeric, not [..., 6] or not finite (``as_batch``).
+    """
     poses = as_batch(poses, 6, "pose")
     return poses[..., :3].copy(), quaternion_from_rpy(poses[..., 3:])
 
@@ -257,8 +373,23 @@ MESSAGE_QUATERNION_TOLERANCE = 1e-3
 
 
 def pose_from_position_quaternion(position, quaternion, *, unit_tolerance: float = 1e-6) -> np.ndarray:
-    """(position [..., 3], unit quaternion [..., 4] [x, y, z, w]) -> pose vectors [..., 6]; the quaternion
-    is normalised when its norm is within ``unit_tolerance`` of 1, refused (InvalidInputError) beyond."""
+    """(position [..., 3], unit quaternion [..., 4] [x, y, z, w]) -> pose vectors [..., 6].
+
+    The quaternion is normalised when its norm is within ``unit_tolerance`` of 1, refused beyond.
+
+    Args:
+        position: platform positions [..., 3] (m).
+        quaternion: platform orientations [..., 4] [x, y, z, w]; broadcast against ``position``.
+        unit_tolerance: largest accepted | |q| - 1 |.
+
+    Returns:
+        Poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad) of the broadcast shape.
+
+    Raises:
+        InvalidInputError: ``position`` is not [..., 3] or not finite, ``quaternion`` is not [..., 4] or not
+            finite, or a quaternion norm differs from 1 by more than ``unit_tolerance``.
+        ValueError: the batch shapes of ``position`` and ``quaternion`` do not broadcast (numpy).
+    """
     position = as_batch(position, 3, "position")
     rpy = rpy_from_quaternion(quaternion, unit_tolerance=unit_tolerance)
     return np.concatenate(np.broadcast_arrays(position, rpy), axis=-1)

@@ -87,7 +87,16 @@ _PHI_TABLE = smoothstep(_S_TABLE)[0]
 
 
 def pose_direction(robot: Robot, start, goal) -> np.ndarray:
-    """Pose-space displacement start -> goal (6,): [dp (m), rotation vector x characteristic length (m)]."""
+    """Pose-space displacement start -> goal (6,): [dp (m), rotation vector x characteristic length (m)].
+
+    Args:
+        robot: the robot (its characteristic length L, m).
+        start: start pose (6,) (m, rad).
+        goal: goal pose (6,) (m, rad).
+
+    Returns:
+        [p_goal - p_start, L log(R_goal R_start^T)] (6,) (m; base frame).
+    """
     start, goal = np.asarray(start, float), np.asarray(goal, float)
     phi = so3_log(rotation_from_rpy(goal[3:]) @ rotation_from_rpy(start[3:]).T)
     return np.concatenate([goal[:3] - start[:3], phi * robot.characteristic_length])

@@ -18,7 +18,17 @@ MIN_JERK_PEAK_SPEED = 1.875  # max of d/ds (10 s^3 - 15 s^4 + 6 s^5)
 def minimum_jerk(start, goal, duration: float, times):
     """(positions, velocities, accelerations) [n, dim] of a minimum-jerk move.
 
-    start, goal: [dim]; duration T (s) > 0; times [n] (s), clamped to [0, T].
+    Args:
+        start: start coordinates [dim] (any unit).
+        goal: goal coordinates [dim] (same unit).
+        duration: move duration T (s), > 0.
+        times: sample times [n] (s), clamped to [0, T].
+
+    Returns:
+        (positions, velocities, accelerations), each [n, dim] (unit, unit/s, unit/s^2).
+
+    Raises:
+        InvalidInputError: ``duration`` is not finite or not > 0.
     """
     if not (np.isfinite(duration) and duration > 0):
         raise InvalidInputError(f"duration must be > 0 s, got {duration}")
@@ -29,7 +39,17 @@ def minimum_jerk(start, goal, duration: float, times):
 
 
 def minimum_jerk_duration(start, goal, max_speed: float, min_duration: float) -> float:
-    """Shortest T >= min_duration (s) whose peak speed stays within max_speed (units/s)."""
+    """Shortest T >= min_duration (s) whose peak speed stays within max_speed (units/s).
+
+    Args:
+        start: start coordinates [dim].
+        goal: goal coordinates [dim].
+        max_speed: speed limit of every coordinate (units/s), > 0.
+        min_duration: shortest accepted duration (s).
+
+    Returns:
+        T = max(min_duration, 1.875 max_k |goal_k - start_k| / max_speed) (s).
+    """
     distance = float(np.abs(np.asarray(goal, dtype=float) - np.asarray(start, dtype=float)).max())
     return max(min_duration, MIN_JERK_PEAK_SPEED * distance / max_speed)
 

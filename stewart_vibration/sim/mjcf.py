@@ -76,7 +76,20 @@ _YAML_KEYS = {
 
 
 def load_simulation_settings(path=None, **overrides) -> SimulationSettings:
-    """Settings from config/simulation.yaml (or ``path``), then keyword overrides."""
+    """Settings from config/simulation.yaml (or ``path``), then keyword overrides.
+
+    Args:
+        path: the YAML file; None = simulation.yaml in ``default_config_dir()``.
+        **overrides: SimulationSettings fields to set after the file's values.
+
+    Returns:
+        The SimulationSettings.
+
+    Raises:
+        ConfigError: the file cannot be read or is not valid YAML, has unknown keys, the timestep is not > 0
+            or solimp does not have 5 numbers, or (``path`` None) no config directory is found.
+        TypeError: an override is not a SimulationSettings field.
+    """
     path = Path(path) if path is not None else default_config_dir() / "simulation.yaml"
     try:
         tree = yaml.safe_load(path.read_text()) or {}
@@ -94,7 +107,14 @@ def load_simulation_settings(path=None, **overrides) -> SimulationSettings:
 
 
 def leg_frame(axis: np.ndarray) -> np.ndarray:
-    """Rotation (3, 3) whose z column is the unit leg ``axis`` and x column is horizontal."""
+    """Rotation (3, 3) whose z column is the unit leg ``axis`` and x column is horizontal.
+
+    Args:
+        axis: unit leg axis (3,) (base frame).
+
+    Returns:
+        [x, axis x x, axis] as columns (3, 3), x = e_z x axis normalised (e_x when the axis is vertical).
+    """
     x = np.cross([0.0, 0.0, 1.0], axis)
     if np.linalg.norm(x) < 1e-9:
         x = np.array([1.0, 0.0, 0.0])
@@ -103,7 +123,14 @@ def leg_frame(axis: np.ndarray) -> np.ndarray:
 
 
 def quat_wxyz_from_matrix(rot: np.ndarray) -> np.ndarray:
-    """MuJoCo quaternion [w, x, y, z] of a rotation matrix (3, 3)."""
+    """MuJoCo quaternion [w, x, y, z] of a rotation matrix (3, 3).
+
+    Args:
+        rot: rotation matrix (3, 3).
+
+    Returns:
+        Unit quaternion (4,) in MuJoCo order [w, x, y, z].
+    """
     import mujoco
 
     quat = np.zeros(4)
@@ -116,7 +143,19 @@ def _f(values) -> str:
 
 
 def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal") -> str:
-    """MJCF XML string of the robot at its home pose (see module docstring)."""
+    """MJCF XML string of the robot at its home pose (see module docstring).
+
+    Args:
+        robot: the robot.
+        settings: numerical settings; None = SimulationSettings() defaults.
+        base_joint: "universal" (the real robot) or "ball" (exact static check).
+
+    Returns:
+        The MJCF document (str).
+
+    Raises:
+        ConfigError: ``base_joint`` is neither "universal" nor "ball".
+    """
     if base_joint not in BASE_JOINTS:
         raise ConfigError(f"base_joint must be one of {BASE_JOINTS}, got {base_joint!r}")
     s = settings or SimulationSettings()
@@ -188,7 +227,20 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
 
 
 def build_model(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal"):
-    """Compiled mujoco.MjModel of ``build_mjcf``."""
+    """Compiled mujoco.MjModel of ``build_mjcf``.
+
+    Args:
+        robot: the robot.
+        settings: numerical settings; None = SimulationSettings() defaults.
+        base_joint: "universal" or "ball".
+
+    Returns:
+        The mujoco.MjModel.
+
+    Raises:
+        ConfigError: ``base_joint`` is neither "universal" nor "ball".
+        ValueError: MuJoCo cannot compile the generated XML.
+    """
     import mujoco
 
     return mujoco.MjModel.from_xml_string(build_mjcf(robot, settings, base_joint))

@@ -230,7 +230,17 @@ class StewartSim:
 
 def universal_angles(s, sd, sdd):
     """Hinge angles (q1 about x, then q2 about the rotated y) and their rates for the leg axis
-    s = Rx(q1) Ry(q2) z = [sin q2, -sin q1 cos q2, cos q1 cos q2] in the cylinder's home frame."""
+    s = Rx(q1) Ry(q2) z = [sin q2, -sin q1 cos q2, cos q1 cos q2] in the cylinder's home frame.
+
+    Args:
+        s: unit leg axis (3,) in the cylinder's home frame.
+        sd: its time derivative (3,) (1/s).
+        sdd: its second time derivative (3,) (1/s^2).
+
+    Returns:
+        (q, qd, qdd), each (2,) = [q1, q2]: angles (rad), rates (rad/s) and accelerations (rad/s^2);
+        singular at cos q2 = 0.
+    """
     q2 = np.arcsin(s[0])
     c2 = np.cos(q2)
     q2d = sd[0] / c2

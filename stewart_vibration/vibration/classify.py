@@ -54,7 +54,15 @@ class MotionClassification:
 
 
 def distinct_frequencies(frequencies, rtol: float = 1e-9) -> np.ndarray:
-    """Sorted distinct positive frequencies (Hz), merging values within rtol."""
+    """Sorted distinct positive frequencies (Hz), merging values within rtol.
+
+    Args:
+        frequencies: frequencies (Hz), any shape; values <= 0 are dropped.
+        rtol: relative tolerance under which neighbouring sorted values are merged (the smaller is kept).
+
+    Returns:
+        Distinct positive frequencies [m] (Hz), ascending; empty if none is positive.
+    """
     f = np.sort(np.asarray(frequencies, dtype=float).ravel())
     f = f[f > 0]
     if f.size == 0:
@@ -64,7 +72,17 @@ def distinct_frequencies(frequencies, rtol: float = 1e-9) -> np.ndarray:
 
 
 def common_period(frequencies, max_denominator: int = 32, rtol: float = 1e-9) -> float | None:
-    """Smallest T (s) with f_i T integer for all f_i, if the ratios are small rationals; else None."""
+    """Smallest T (s) with f_i T integer for all f_i, if the ratios are small rationals; else None.
+
+    Args:
+        frequencies: frequencies (Hz), any shape; only distinct positive ones count.
+        max_denominator: largest denominator accepted for the ratios f_i / f_min.
+        rtol: relative tolerance of the rational approximation of each ratio.
+
+    Returns:
+        The common period T (s), or None if there is no positive frequency or a ratio is not a
+        rational with denominator <= ``max_denominator`` (within ``rtol``).
+    """
     f = distinct_frequencies(frequencies)
     if f.size == 0:
         return None
@@ -94,8 +112,21 @@ def classify_motion(
 ) -> MotionClassification:
     """Classify sampled platform motion [N, 6] ([dp (m); dphi (rad)], base frame) or [N, 3] (dp only).
 
-    ``frequencies``: the leg vibration frequencies (Hz) that drive it (zero
-    amplitude legs excluded by the caller); None is treated as one frequency.
+    Args:
+        displacement: platform displacement [N, 6] ([dp (m); dphi (rad)], base frame) or [N, 3]
+            (dp only), N >= 3.
+        frequencies: the leg vibration frequencies (Hz) that drive it (zero amplitude legs excluded
+            by the caller); None is treated as one frequency.
+        characteristic_length: length L (m) for ``rotational_ratio`` = RMS |dphi| L / RMS |dp|.
+        line_tol: off-axis ratio below which the motion is a "line".
+        still_tol: RMS extent sigma_1 (m) at or below which the motion is "still".
+
+    Returns:
+        MotionClassification (kind, principal axes in the base frame, ratios, amplitudes in m and rad,
+        distinct frequencies in Hz, period in s or None).
+
+    Raises:
+        InvalidInputError: ``displacement`` is not 2-D [N >= 3, 3 or 6].
     """
     x = np.asarray(displacement, dtype=float)
     if x.ndim != 2 or x.shape[1] not in (3, 6) or x.shape[0] < 3:

@@ -40,7 +40,14 @@ METHODS = ("exact", "linear")
 
 
 def wrap_phase(phase):
-    """Phase wrapped to [0, 2 pi) (rad)."""
+    """Phase wrapped to [0, 2 pi) (rad).
+
+    Args:
+        phase: phase(s) (rad), a scalar or an array of any shape.
+
+    Returns:
+        ``phase`` mod 2 pi, in [0, 2 pi) (rad), same shape as ``phase``.
+    """
     return np.mod(phase, 2.0 * np.pi)
 
 
@@ -117,9 +124,26 @@ def make_screw(pose, direction=None, frame="platform", rotation_axis=None, rotat
     """The vibration screw in the base frame from a direction or a rotation axis (+ point).
 
     frame "platform": vectors/point in the platform frame at ``pose`` (point
-    relative to the platform origin); "base": in the base frame. Default: a
-    translation along the platform z axis (the tibia axis). A rotation axis
+    relative to the platform origin); "base": in the base frame. A rotation axis
     passes through ``rotation_point`` (default the platform origin).
+
+    Args:
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        direction: translation direction (3,), any non-zero length, in ``frame``; default [0, 0, 1] in
+            ``frame`` (for frame "platform" the platform z axis, the tibia axis). Not with ``rotation_axis``.
+        frame: "platform" or "base", the frame of ``direction``, ``rotation_axis`` and ``rotation_point``.
+        rotation_axis: rotation axis (3,), any non-zero length, in ``frame``; None for a translation.
+        rotation_point: a point on the rotation axis (3,) (m), in ``frame``; only with ``rotation_axis``.
+
+    Returns:
+        VibrationScrew in the base frame: for a translation ``translation`` = unit u and zero ``axis`` and
+        ``point``; for a rotation zero ``translation``, unit ``axis`` w and ``point`` c (m).
+
+    Raises:
+        InvalidInputError: ``frame`` is not "platform" or "base"; both ``direction`` and ``rotation_axis``
+            are given; ``rotation_point`` is given without ``rotation_axis``; ``direction`` or
+            ``rotation_axis`` is not one finite 3-vector or is zero (``unit_vector``); ``rotation_point``
+            is not numeric, not finite or not [..., 3].
     """
     if frame not in FRAMES:
         raise InvalidInputError(f"frame must be one of {FRAMES}, got {frame!r}")
@@ -144,7 +168,24 @@ def make_screw(pose, direction=None, frame="platform", rotation_axis=None, rotat
 
 
 def resolve_amplitude(amplitude, acceleration_g, frequency: float, rotational: bool) -> float:
-    """Platform amplitude A (m, or rad for a rotation) from a displacement or an acceleration (g)."""
+    """Platform amplitude A (m, or rad for a rotation) from a displacement or an acceleration (g).
+
+    An acceleration is converted with X = a g0 / (2 pi f)^2 (``displacement_from_acceleration``).
+
+    Args:
+        amplitude: peak displacement A (m; rad for a rotation), or None to use ``acceleration_g``.
+        acceleration_g: peak acceleration (g), or None; with both None a translation gets the clinical
+            CLINICAL_ACCELERATION_G (0.3 g).
+        frequency: vibration frequency f (Hz, > 0).
+        rotational: True for a rotation screw, which needs ``amplitude`` in rad.
+
+    Returns:
+        A as a float (m for a translation, rad for a rotation).
+
+    Raises:
+        InvalidInputError: both ``amplitude`` and ``acceleration_g`` are given; a rotation has no
+            ``amplitude``; ``acceleration_g`` or ``amplitude`` is not finite or not > 0.
+    """
     if amplitude is not None and acceleration_g is not None:
         raise InvalidInputError("give either amplitude (m) or acceleration_g (g), not both")
     if amplitude is None:
@@ -181,19 +222,44 @@ def decompose_vibration(
 ) -> VibrationDecomposition:
     """Decompose the platform vibration delta(t) = A sin(2 pi f t + phase) into six leg vibrations.
 
-    pose: nominal platform pose [x, y, z, roll, pitch, yaw] (m, rad).
-    direction: translation direction (3,), any length, in ``frame``
-    (default [0, 0, 1] in the platform frame: the tibia axis). For a rotational
-    vibration give ``rotation_axis`` (and optionally ``rotation_point``,
-    default the platform origin) instead; then the amplitude is in rad.
-    amplitude: peak displacement A (m); or ``acceleration_g`` (peak, in g),
-    converted with X = a / (2 pi f)^2; neither: the clinical 0.3 g.
-    frequency (Hz), phase (rad). method "exact" samples the IK of the
-    displaced poses (and checks limits on them), "linear" only k_i delta.
-    times (s) or ``duration`` (s) select the samples; default one period with
-    ``samples_per_period`` samples. With ``check_limits`` raises
-    VibrationLimitError (frequency band, per-leg amplitude or acceleration)
-    or StrokeLimitError / JointLimitError (pose or vibration excursion).
+    Leg i gets k_i delta(t) to first order (k_i = J_i s); method "exact" also samples the inverse
+    kinematics of the displaced poses (second-order DC offset and second harmonic included) and checks
+    limits on them, "linear" gives only k_i delta. An acceleration is converted with X = a / (2 pi f)^2.
+
+    Args:
+        robot: the robot.
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        direction: translation direction (3,), any length, in ``frame`` (default [0, 0, 1]: in the
+            platform frame the tibia axis). For a rotational vibration give ``rotation_axis`` instead.
+        amplitude: peak displacement A (m; rad for a rotation); or give ``acceleration_g``; neither:
+            the clinical 0.3 g (translations only).
+        frequency: vibration frequency f (Hz, > 0).
+        phase: vibration phase (rad).
+        frame: "platform" (vectors/point in the platform frame at ``pose``) or "base".
+        method: "exact" or "linear".
+        acceleration_g: peak platform acceleration (g), for a translation.
+        times: sample times [N] (s); default from ``duration``.
+        duration: duration (s) sampled when ``times`` is None; default one period.
+        samples_per_period: samples per period (>= 8) when ``times`` is None.
+        rotation_axis: rotation axis (3,) in ``frame`` for a rotational vibration (amplitude in rad).
+        rotation_point: a point on the rotation axis (3,) (m) in ``frame``; default the platform origin.
+        check_limits: check the frequency band, the pose, the per-leg peaks and the vibration excursion.
+
+    Returns:
+        VibrationDecomposition (base frame, SI units): per-leg gains, amplitudes |k_i| A and phases
+        (phase or phase + pi), ``linear_signals`` [N, 6] (m), ``exact_signals`` [N, 6] (m; None for
+        method "linear"), peak changes and peak leg accelerations [6].
+
+    Raises:
+        InvalidInputError: ``method`` or ``frame`` unknown; ``pose`` not one finite (6,) pose;
+            ``frequency`` or ``phase`` not finite, or ``frequency`` <= 0; a bad ``direction``,
+            ``rotation_axis``, ``rotation_point`` or amplitude (``make_screw``, ``resolve_amplitude``);
+            ``times`` not a finite 1-D array, ``samples_per_period`` < 8 or ``duration`` <= 0.
+        VibrationLimitError: with ``check_limits``, the frequency is outside the vibration unit's band,
+            or a leg's peak amplitude or acceleration exceeds the unit's limit.
+        UnreachablePoseError, StrokeLimitError, JointLimitError: with ``check_limits``, the nominal pose
+            or the displaced poses at delta = -A / +A cannot be taken, or a leg's vibrating length leaves
+            the stroke.
     """
     if method not in METHODS:
         raise InvalidInputError(f"method must be one of {METHODS}, got {method!r}")

@@ -18,7 +18,16 @@ from ..splines import spline_extremes
 
 
 def check_frequency(robot: Robot, frequency: float) -> None:
-    """VibrationLimitError(limit_name="frequency_min"/"frequency_max") outside the unit's band (Hz)."""
+    """VibrationLimitError(limit_name="frequency_min"/"frequency_max") outside the unit's band (Hz).
+
+    Args:
+        robot: the robot; its ``vibration_unit`` gives frequency_min / frequency_max (Hz).
+        frequency: vibration frequency (Hz).
+
+    Raises:
+        VibrationLimitError: ``frequency`` is below frequency_min or above frequency_max, with
+            ``leg`` None, ``limit_name``, ``value`` and ``limit`` (Hz).
+    """
     unit = robot.vibration_unit
     for bad, name, limit, word in (
         (frequency < unit.frequency_min, "frequency_min", unit.frequency_min, "below"),
@@ -33,7 +42,18 @@ def check_frequency(robot: Robot, frequency: float) -> None:
 
 
 def check_leg_peaks(robot: Robot, amplitudes, accelerations) -> None:
-    """Per-leg peak displacement (m) and acceleration (m/s^2) [6] against the unit limits."""
+    """Per-leg peak displacement (m) and acceleration (m/s^2) [6] against the unit limits.
+
+    Args:
+        robot: the robot; its ``vibration_unit`` gives amplitude_max (m) and acceleration_max (m/s^2).
+        amplitudes: peak leg vibration displacement [6] (m).
+        accelerations: peak leg vibration acceleration [6] (m/s^2).
+
+    Raises:
+        VibrationLimitError: a peak exceeds its limit (by more than 1e-12 relative), amplitudes checked
+            before accelerations, with ``leg`` (1..6, the leg furthest over), ``limit_name``
+            ("amplitude_max" / "acceleration_max"), ``value`` and ``limit`` (m or m/s^2).
+    """
     unit = robot.vibration_unit
     for values, limit, name, unit_text, scale in (
         (np.asarray(amplitudes, float), unit.amplitude_max, "amplitude_max", "um", 1e6),
@@ -52,10 +72,21 @@ def check_leg_peaks(robot: Robot, amplitudes, accelerations) -> None:
 def check_vibration_stroke(robot: Robot, nominal_lengths, low_change, high_change, extreme_poses=None) -> None:
     """Leg lengths l0 + min/max vibration change [6] within the stroke, then joints at the extremes.
 
-    StrokeLimitError(leg=, value=, limit=) names the leg whose vibrating
-    length leaves [stroke_min, stroke_max]; ``extreme_poses`` [k, 6] (the
-    displaced platform poses at the vibration extremes) are also checked for
-    joint limits by the inverse kinematics.
+    Args:
+        robot: the robot; ``robot.limits`` gives stroke_min / stroke_max (m).
+        nominal_lengths: nominal leg lengths l0 [6] (m).
+        low_change: leg-length change at one vibration extreme [6] (m).
+        high_change: leg-length change at the other extreme [6] (m); the per-leg min / max of the two is
+            checked, so their order does not matter.
+        extreme_poses: displaced platform poses at the vibration extremes [k, 6] (m, rad, base frame),
+            checked by the inverse kinematics; None to skip.
+
+    Raises:
+        StrokeLimitError: a leg's vibrating length leaves [stroke_min, stroke_max], with ``leg`` (1..6),
+            ``value`` and ``limit`` (m) of the first violation (below the minimum before above the maximum).
+        InvalidInputError: ``extreme_poses`` not finite or not [..., 6].
+        UnreachablePoseError, StrokeLimitError, JointLimitError: an extreme pose cannot be taken (hinge
+            not above the base, stroke or joint angle), naming the sample and the leg.
     """
     nominal = np.asarray(nominal_lengths, dtype=float)
     check_stroke(nominal + np.minimum(low_change, high_change), nominal + np.maximum(low_change, high_change),
@@ -67,8 +98,21 @@ def check_vibration_stroke(robot: Robot, nominal_lengths, low_change, high_chang
 def check_command_limits(limits: VibrationUnitLimits, times, positions, velocities, accelerations=None) -> None:
     """Raise VibrationLimitError (leg, limit, value) if the vib_* command -- the Hermite spline through
     the knots, as the units follow it (cubic, or quintic where knots carry accelerations) -- exceeds
-    the unit's displacement, velocity or acceleration limit (``hermite.spline_extremes``). Knot times
-    [n] s, positions / velocities / accelerations [n, 6] (accelerations: None or NaN rows)."""
+    the unit's displacement, velocity or acceleration limit (``splines.spline_extremes``).
+
+    Args:
+        limits: the vibration unit's limits (amplitude_max m, velocity_max m/s, acceleration_max m/s^2).
+        times: knot times [n] (s).
+        positions: knot vibration displacements [n, 6] (m).
+        velocities: knot velocities [n, 6] (m/s).
+        accelerations: knot accelerations [n, 6] (m/s^2), None or NaN rows for cubic segments.
+
+    Raises:
+        VibrationLimitError: the spline's peak |displacement|, |velocity| or |acceleration| of a leg
+            exceeds amplitude_max, velocity_max or acceleration_max (by more than 1e-9 relative), checked
+            in that order, with ``leg`` (1..6, the leg with the largest ratio to the limit), ``limit_name``,
+            ``value`` and ``limit`` (SI units).
+    """
     amax = limits.amplitude_max
     low, high, v, a = spline_extremes(times, positions, velocities, accelerations, position_bounds=(-amax, amax),
                                       velocity_bound=limits.velocity_max, acceleration_bound=limits.acceleration_max)

@@ -47,7 +47,16 @@ NAIVE_DIRECTIONS = {
 
 
 def classification_dict(cls) -> dict:
-    """A MotionClassification as a JSON-ready dict (amplitudes in m and rad, period in s)."""
+    """A MotionClassification as a JSON-ready dict (amplitudes in m and rad, period in s).
+
+    Args:
+        cls: the MotionClassification.
+
+    Returns:
+        {"kind", "principal_direction" (3,) (base frame), "off_axis_ratio", "planarity",
+        "translation_amplitude_m" (m), "rotation_amplitude_rad" (rad), "rotational_ratio", "periodic",
+        "period_s" (s or None)}.
+    """
     return {
         "kind": cls.kind, "principal_direction": cls.principal_direction, "off_axis_ratio": cls.off_axis_ratio,
         "planarity": cls.planarity, "translation_amplitude_m": cls.translation_amplitude,
@@ -57,7 +66,19 @@ def classification_dict(cls) -> dict:
 
 
 def fig7_cases(robot: Robot) -> dict:
-    """Superposition of the three Fig. 7 leg sets at the paper's pose (exact FK and J^-1)."""
+    """Superposition of the three Fig. 7 leg sets at the paper's pose (exact FK and J^-1).
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        {"7a" | "7b" | "7c": {"label": str, "legs": (6, 3) [amplitude m, frequency Hz, phase rad],
+        "result": SuperpositionResult (96 samples per period of the fastest leg)}}.
+
+    Raises:
+        VibrationLimitError, StrokeLimitError, ForwardKinematicsError: from ``superpose_vibration``, if
+            the robot's vibration unit or stroke does not allow a leg set, or the FK fails.
+    """
     pose = paper_pose(robot)
     out = {}
     for key, (label, table) in FIG7_CASES.items():
@@ -67,7 +88,31 @@ def fig7_cases(robot: Robot) -> dict:
 
 
 def decomposition_case(robot: Robot, amplitude, acceleration_g, frequency, phase, periods: float = 2.0) -> dict:
-    """Decomposition along the tibia axis at the paper's pose with exact and linear signals and FFT."""
+    """Decomposition along the tibia axis at the paper's pose with exact and linear signals and FFT.
+
+    Args:
+        robot: the robot.
+        amplitude: platform amplitude A (m), or None to use ``acceleration_g``.
+        acceleration_g: peak platform acceleration (g), or None.
+        frequency: vibration frequency (Hz).
+        phase: vibration phase (rad).
+        periods: number of periods sampled for ``plan`` and the differences.
+
+    Returns:
+        {"plan": VibrationDecomposition over ``periods`` periods, "difference": exact - linear leg
+        signals [N, 6] (m), "predicted_difference": (1 - k_i^2) delta^2 / (2 l_i) [N, 6] (m),
+        "fft_fundamental_m", "fft_second_harmonic_m", "fft_dc_m": [6] (m, from one period of 512
+        samples of the exact signals), "predicted_second_harmonic_ratio" [6],
+        "second_order_residual_ratio" (float), "roundtrip_angle_linear_rad" / "roundtrip_angle_exact_rad"
+        (rad, principal direction of the superposed legs vs the planned direction),
+        "roundtrip_rotation_linear_rad" / "roundtrip_rotation_exact_rad" (rad)}.
+
+    Raises:
+        InvalidInputError: a bad amplitude, acceleration or frequency (``decompose_vibration``).
+        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError: from
+            ``decompose_vibration`` / ``superpose_vibration``, if the robot's limits do not allow the case.
+        ForwardKinematicsError: the round-trip FK (``superpose_vibration``) fails.
+    """
     pose = paper_pose(robot)
     plan = decompose_vibration(robot, pose, amplitude=amplitude, acceleration_g=acceleration_g,
                                frequency=frequency, phase=phase, duration=periods / frequency)
@@ -94,17 +139,55 @@ def decomposition_case(robot: Robot, amplitude, acceleration_g, frequency, phase
 
 
 def paper_case(robot: Robot) -> dict:
-    """The paper's example: 1 um, 2 rad/s, phase 2 pi/3 along the tibia axis."""
+    """The paper's example: 1 um, 2 rad/s, phase 2 pi/3 along the tibia axis.
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        The ``decomposition_case`` dict over 2 periods.
+
+    Raises:
+        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError, ForwardKinematicsError:
+            as ``decomposition_case``, if the robot's limits do not allow the case.
+    """
     return decomposition_case(robot, PAPER_AMPLITUDE_M, None, PAPER_FREQUENCY_HZ, PAPER_PHASE_RAD)
 
 
 def clinical_case(robot: Robot) -> dict:
-    """The clinical default: 35 Hz at 0.3 g (~61 um) along the tibia axis, phase 2 pi/3."""
+    """The clinical default: 35 Hz at 0.3 g (~61 um) along the tibia axis, phase 2 pi/3.
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        The ``decomposition_case`` dict over 3 periods.
+
+    Raises:
+        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError, ForwardKinematicsError:
+            as ``decomposition_case``, if the robot's limits do not allow the case.
+    """
     return decomposition_case(robot, None, CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ, PAPER_PHASE_RAD, 3.0)
 
 
 def naive_comparison(robot: Robot) -> dict:
-    """The paper's sum_i n_i dl_i vs J^-1 dl for the legs that make a line along several directions."""
+    """The paper's sum_i n_i dl_i vs J^-1 dl for the legs that make a line along several directions.
+
+    Each direction of NAIVE_DIRECTIONS (platform frame) is decomposed linearly with the paper's
+    1 um, 2 rad/s, phase 2 pi/3 and superposed back over one period.
+
+    Args:
+        robot: the robot.
+
+    Returns:
+        {label: {"direction_base": planned unit direction (3,) (base frame), "naive_direction_base":
+        principal axis (3,) of the naive sum (base frame, sign arbitrary), "length_ratio",
+        "angle_error_rad" (rad), "result": SuperpositionResult, "plan": VibrationDecomposition}}.
+
+    Raises:
+        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError, ForwardKinematicsError:
+            from ``decompose_vibration`` / ``superpose_vibration``, if the robot's limits do not allow a case.
+    """
     pose = paper_pose(robot)
     out = {}
     for label, direction in NAIVE_DIRECTIONS.items():

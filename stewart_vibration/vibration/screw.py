@@ -53,7 +53,18 @@ class VibrationScrew:
 
 
 def unit_vector(value, name: str) -> np.ndarray:
-    """A (3,) vector normalised to unit length; InvalidInputError if zero or malformed."""
+    """A (3,) vector normalised to unit length; InvalidInputError if zero or malformed.
+
+    Args:
+        value: the vector (3,), any non-zero length.
+        name: the argument's name, for the error message.
+
+    Returns:
+        ``value`` / |value| (3,).
+
+    Raises:
+        InvalidInputError: ``value`` is not numeric, not finite, not of shape (3,), or has a norm < 1e-12.
+    """
     vec = as_batch(value, 3, name)
     if vec.shape != (3,):
         raise InvalidInputError(f"{name}: expected one 3-vector, got shape {list(vec.shape)}")
@@ -64,7 +75,17 @@ def unit_vector(value, name: str) -> np.ndarray:
 
 
 def twist_per_unit(screw: VibrationScrew, position: np.ndarray) -> np.ndarray:
-    """First-order [dp; dphi] (6,) per unit delta at the platform origin ``position`` (base frame)."""
+    """First-order [dp; dphi] (6,) per unit delta at the platform origin ``position`` (base frame).
+
+    s = [u + w x (p0 - c); w] for the screw's direction u, axis w and point c.
+
+    Args:
+        screw: the vibration screw (base frame).
+        position: platform origin p0 (3,) (base frame, m).
+
+    Returns:
+        Twist s (6,) [dp; dphi] per unit delta (base frame).
+    """
     linear = screw.translation + np.cross(screw.axis, position - screw.point)
     return np.concatenate([linear, screw.axis])
 
@@ -78,8 +99,14 @@ def _rotation_terms(delta: np.ndarray):
 def rotate_about(axis: np.ndarray, vectors: np.ndarray, delta: np.ndarray):
     """(exp([w]x delta) - I) v, its first and second delta-derivatives (rotated v).
 
-    vectors v [..., 3] broadcast against delta [N] as [N, ..., 3]. Returns
-    (dv, w x v', w x (w x v')) where v' = exp([w]x delta) v.
+    Args:
+        axis: unit rotation axis w (3,).
+        vectors: vectors v [..., 3] (ndarray).
+        delta: rotation angles [N] (rad, 1-D ndarray).
+
+    Returns:
+        (dv, w x v', w x (w x v')), each [N, ..., 3] (units of v), where v' = exp([w]x delta) v: the
+        change of v and its first and second derivatives with respect to delta.
     """
     sin, one_minus_cos = _rotation_terms(delta)
     extra = (slice(None),) + (None,) * (vectors.ndim - 1) + (None,)
@@ -92,7 +119,16 @@ def rotate_about(axis: np.ndarray, vectors: np.ndarray, delta: np.ndarray):
 
 
 def displaced_poses(screw: VibrationScrew, pose: np.ndarray, delta: np.ndarray):
-    """Platform (position [N, 3], rotation [N, 3, 3], pose [N, 6]) for delta [N] along the screw."""
+    """Platform (position [N, 3], rotation [N, 3, 3], pose [N, 6]) for delta [N] along the screw.
+
+    Args:
+        screw: the vibration screw (base frame).
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad).
+        delta: screw displacements [N] (m for a translation, rad for a rotation).
+
+    Returns:
+        (position [N, 3] (m), rotation R [N, 3, 3], pose [N, 6] (m, rad)), base frame.
+    """
     delta = np.asarray(delta, dtype=float)
     rot0 = rotation_from_rpy(pose[3:])
     dp = screw.translation * delta[:, None]
@@ -121,7 +157,16 @@ class LegLengthChange:
 
 
 def nominal_leg_geometry(robot: Robot, pose: np.ndarray):
-    """(d0 [6, 3], r0 = R0 a_i [6, 3], l0 [6], J [6, 6]) at the nominal pose (base frame)."""
+    """(d0 [6, 3], r0 = R0 a_i [6, 3], l0 [6], J [6, 6]) at the nominal pose (base frame).
+
+    Args:
+        robot: the robot.
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad).
+
+    Returns:
+        (d0 [6, 3] leg vectors (m), r0 = R0 a_i [6, 3] hinge arms (m), l0 [6] leg lengths (m),
+        J [6, 6] Jacobian with rows [n_i, r_i x n_i]), base frame.
+    """
     rot0 = rotation_from_rpy(pose[3:])
     d0, r0 = leg_vectors_from_rotation(robot, pose[:3], rot0)
     l0 = np.linalg.norm(d0, axis=-1)
@@ -136,6 +181,15 @@ def leg_length_change(robot: Robot, pose: np.ndarray, screw: VibrationScrew, del
     dl = dd . (2 d0 + dd) / (l(delta) + l0). Also returns the analytic first
     and second derivatives with respect to delta (used for velocities,
     accelerations and the second-order prediction).
+
+    Args:
+        robot: the robot.
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        screw: the vibration screw (base frame).
+        delta: screw displacements, a scalar or [N] (m for a translation, rad for a rotation).
+
+    Returns:
+        LegLengthChange with ``change`` (m), ``slope`` and ``curvature``, each [N, 6].
     """
     delta = np.atleast_1d(np.asarray(delta, dtype=float))
     d0, r0, l0, _ = nominal_leg_geometry(robot, pose)

@@ -40,7 +40,15 @@ class Parameter:
 
 def parameters(robot: Robot) -> dict[str, Parameter]:
     """The planner's numeric settings with their defaults and declared ranges (the frequency range is the
-    vibration unit's band of ``robot``)."""
+    vibration unit's band of ``robot``).
+
+    Args:
+        robot: the robot; ``robot.vibration_unit`` gives frequency_min / frequency_max (Hz).
+
+    Returns:
+        {name: Parameter(default, low, high, description)} for every numeric setting (SI units: m, g,
+        Hz, rad, s).
+    """
     unit = robot.vibration_unit
     return {
         "amplitude_m": Parameter(0.0, 0.0, 0.01, "platform displacement amplitude, m (0 = use acceleration_g)"),
@@ -78,14 +86,30 @@ VIBRATION_KEYS = SETTINGS[:8]
 
 
 def default_settings(robot: Robot) -> dict:
-    """Every setting at its default (what the planner runs with when nothing is set)."""
+    """Every setting at its default (what the planner runs with when nothing is set).
+
+    Args:
+        robot: the robot (for the numeric defaults of ``parameters``).
+
+    Returns:
+        {name: value} for every name of SETTINGS: "direction" [0, 0, 1] (the tibia axis), "frame"
+        "platform" and the numeric defaults.
+    """
     values = {name: p.default for name, p in parameters(robot).items()}
     return {"direction": list(DEFAULT_DIRECTION), "frame": DEFAULT_FRAME, **values}
 
 
 def duration_reason(duration_s: float, ramp_s: float) -> str | None:
     """The one rule for a vibration's length: duration_s = 0 (until stop) or at least two ramps (ramp-in and
-    ramp-out; the steady part may be empty). The reason it is broken, or None."""
+    ramp-out; the steady part may be empty). The reason it is broken, or None.
+
+    Args:
+        duration_s: vibration duration including the ramps (s; 0 = until stop).
+        ramp_s: ramp-in / ramp-out time (s).
+
+    Returns:
+        The reason text, or None if the rule holds.
+    """
     if duration_s != 0 and not duration_s >= 2 * ramp_s:
         return f"duration_s {duration_s} must be 0 (until stop) or >= 2 ramp_s = {2 * ramp_s}"
     return None
@@ -93,7 +117,16 @@ def duration_reason(duration_s: float, ramp_s: float) -> str | None:
 
 def settings_reason(robot: Robot, s: dict) -> str | None:
     """The reason the planner settings ``s`` (every name of SETTINGS) are invalid, or None. Never raises
-    for values of the parameters' types (any double, a double array of any length, any string)."""
+    for values of the parameters' types (any double, a double array of any length, any string).
+
+    Args:
+        robot: the robot; ``robot.vibration_unit`` gives the frequency band (Hz).
+        s: {name: value} for every name of SETTINGS (direction 3 values, frame, the rest in SI units).
+
+    Returns:
+        The first reason found (direction, frame, finiteness, frequency band, ranges, window size,
+        amplitude / acceleration, ramps and duration, streaming timing, sampling), or None if valid.
+    """
     unit = robot.vibration_unit
     direction = np.asarray(list(s["direction"]), dtype=float)
     if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < 1e-9:
@@ -143,9 +176,24 @@ def plan_vibration(robot: Robot, pose, s: dict, check_limits: bool = True, metho
     ``method`` "exact" (what the planner streams) or "linear" (gains k = J s, what the run summary judges the
     legs against).
 
+    Args:
+        robot: the robot.
+        pose: nominal platform pose [6] [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        s: the settings; uses direction, frame, amplitude_m (m), acceleration_g (g), frequency_hz (Hz) and
+            phase_rad (rad).
+        check_limits: check the vibration against the unit's, stroke and joint limits.
+        method: "exact" or "linear".
+
+    Returns:
+        The VibrationDecomposition (one period of samples, base frame).
+
     Raises:
-        InvalidInputError: a malformed direction, frame or pose.
-        VibrationLimitError, StrokeLimitError: with ``check_limits``, the vibration exceeds a limit.
+        InvalidInputError: a malformed direction, frame, pose or method; a non-finite or non-positive
+            frequency, amplitude or acceleration.
+        VibrationLimitError: with ``check_limits``, the frequency is outside the unit's band or a leg's
+            peak amplitude or acceleration exceeds the unit's limit.
+        UnreachablePoseError, StrokeLimitError, JointLimitError: with ``check_limits``, the pose or the
+            vibration's extreme poses cannot be taken.
     """
     use_amplitude = s["amplitude_m"] > 0
     return decompose_vibration(
@@ -155,14 +203,31 @@ def plan_vibration(robot: Robot, pose, s: dict, check_limits: bool = True, metho
 
 
 def same_seconds(seconds: float) -> float:
-    """A wall-time margin at real time: as many sim seconds."""
+    """A wall-time margin at real time: as many sim seconds.
+
+    Args:
+        seconds: a wall-time margin (s).
+
+    Returns:
+        ``seconds`` unchanged (sim s).
+    """
     return seconds
 
 
 def stream_settings(s: dict, wall_margin=same_seconds) -> StreamSettings:
     """The streaming's timing from the settings (duration_s 0 = until stop). ``wall_margin`` turns the
     wall-time margins lead_s and start_lead_s into sim seconds (``runtime.sim_clock.ClockRate.wall_margin``
-    faster than real time): a finite vibration sent whole may reach that much further ahead."""
+    faster than real time): a finite vibration sent whole may reach that much further ahead.
+
+    Args:
+        s: the settings; uses duration_s, ramp_s, sample_period_s, lookahead_s, lead_s, start_lead_s and
+            max_lookahead_s (s).
+        wall_margin: maps a wall-time margin (s) to sim seconds.
+
+    Returns:
+        StreamSettings (sim s): duration None for duration_s 0, lead_s through ``wall_margin``, and
+        max_lookahead_s plus the extra sim seconds ``wall_margin`` adds to start_lead_s.
+    """
     start_lead = wall_margin(s["start_lead_s"])
     return StreamSettings(duration=s["duration_s"] if s["duration_s"] > 0 else None, ramp_s=s["ramp_s"],
                           sample_period_s=s["sample_period_s"], lookahead_s=s["lookahead_s"],
@@ -213,7 +278,15 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds) -> StartP
 
 
 def start_refusal(exc: StewartError, s: dict) -> str:
-    """How the planner (and the UI's preview) says why ``start_check`` refused: the error's type and text."""
+    """How the planner (and the UI's preview) says why ``start_check`` refused: the error's type and text.
+
+    Args:
+        exc: the error ``start_check`` raised.
+        s: the settings (ramp_s (s) is named for a VibrationLimitError).
+
+    Returns:
+        "infeasible vibration (<type>): <text>", with a hint on ramp_s for a VibrationLimitError.
+    """
     if isinstance(exc, VibrationLimitError):
         return (f"infeasible vibration ({type(exc).__name__}): {exc} (with the ramps of ramp_s {s['ramp_s']} s; a "
                 "longer ramp_s lowers the peak acceleration)")

@@ -61,12 +61,26 @@ def sample_leg_vibration(
 ) -> LegVibrationSamples:
     """Leg vibration displacement vib_i(t) [N, 6] (m) with velocity and acceleration.
 
-    times (s) from the vibration start; ``duration`` (s) ends it (None: no
-    end); ``ramp_time`` (s) smooth quintic ramp-in/out of the platform
-    displacement. method "exact": IK difference of the displaced poses
-    (velocity l' delta', acceleration l' delta'' + l'' delta'^2, analytic);
-    "linear": k_i delta(t). ``fade``: an extra envelope (g, g', g'') [N] on delta
-    (``waveform.fade_out``: the ramp-out that ends a streamed window or a stop).
+    method "exact": IK difference of the displaced poses (velocity l' delta',
+    acceleration l' delta'' + l'' delta'^2, analytic); "linear": k_i delta(t).
+
+    Args:
+        robot: the robot.
+        plan: the vibration (screw, amplitude, frequency, phase, gains).
+        times: times [N] (s from the vibration start).
+        duration: end of the vibration (s), or None for no end.
+        ramp_time: smooth quintic ramp-in/out of the platform displacement (s).
+        method: "exact" or "linear".
+        fade: an extra envelope (g, g', g'') [N] on delta (``waveform.fade_out``: the ramp-out that
+            ends a streamed window or a stop), or None.
+
+    Returns:
+        LegVibrationSamples: times [N] (s), position [N, 6] (m), velocity [N, 6] (m/s) and
+        acceleration [N, 6] (m/s^2).
+
+    Raises:
+        InvalidInputError: ``times`` is not a finite 1-D array; ``ramp_time`` is negative or not finite,
+            or two ramps do not fit in ``duration``; ``method`` is unknown.
     """
     t, (delta, rate, accel) = _waveform(plan, times, duration, ramp_time, fade)
     if method == "linear":
@@ -89,6 +103,21 @@ def platform_vibration_motion(
     With s = u for a translation: v = u delta', a = u delta''. For a rotation
     about the axis w through c, with r = p(t) - c: omega = w delta',
     alpha = w delta'', v = w x r delta', a = w x r delta'' + w x (w x r) delta'^2.
+
+    Args:
+        plan: the vibration (nominal pose, screw, amplitude, frequency, phase).
+        times: times [N] (s from the vibration start).
+        duration: end of the vibration (s), or None for no end.
+        ramp_time: smooth quintic ramp-in/out (s).
+
+    Returns:
+        PlatformVibrationMotion (base frame): pose [N, 6] (m, rad), position [N, 3] (m), rotation
+        [N, 3, 3], velocity [N, 3] (m/s), acceleration [N, 3] (m/s^2), angular_velocity [N, 3] (rad/s),
+        angular_acceleration [N, 3] (rad/s^2).
+
+    Raises:
+        InvalidInputError: ``times`` is not a finite 1-D array; ``ramp_time`` is negative or not finite,
+            or two ramps do not fit in ``duration``.
     """
     t, (delta, rate, accel) = _waveform(plan, times, duration, ramp_time)
     screw = plan.screw

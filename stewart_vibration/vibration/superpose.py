@@ -63,13 +63,33 @@ class SuperpositionResult:
 
 
 def axis_angle(a, b) -> float:
-    """Angle (rad, in [0, pi/2]) between the lines spanned by a and b (sign-free, accurate near 0)."""
+    """Angle (rad, in [0, pi/2]) between the lines spanned by a and b (sign-free, accurate near 0).
+
+    Args:
+        a: a non-zero direction (3,), any length.
+        b: a non-zero direction (3,), any length.
+
+    Returns:
+        The angle atan2(|a x b|, |a . b|) (rad, in [0, pi/2]).
+    """
     a, b = np.asarray(a, float), np.asarray(b, float)
     return float(np.arctan2(np.linalg.norm(np.cross(a, b)), abs(a @ b)))
 
 
 def compare_naive(naive, reference) -> dict:
-    """{"length_ratio", "angle_rad"}: naive vs reference translation [N, 3] by principal axes."""
+    """{"length_ratio", "angle_rad"}: naive vs reference translation [N, 3] by principal axes.
+
+    Each trajectory is centred; its size is the largest distance of a sample from the mean and its
+    direction the first principal axis (SVD).
+
+    Args:
+        naive: the paper's naive platform translation [N, 3] (m, base frame).
+        reference: the reference translation, e.g. J^-1 dl, [N, 3] (m, base frame).
+
+    Returns:
+        {"length_ratio": naive size / reference size, "angle_rad": angle between the two principal
+        axes (rad, in [0, pi/2])}.
+    """
     out = {}
     dirs, sizes = [], []
     for traj in (np.asarray(naive), np.asarray(reference)):
@@ -83,7 +103,18 @@ def compare_naive(naive, reference) -> dict:
 
 
 def leg_table(legs) -> np.ndarray:
-    """(6, 3) [amplitude m, frequency Hz, phase rad] from an array or a VibrationDecomposition."""
+    """(6, 3) [amplitude m, frequency Hz, phase rad] from an array or a VibrationDecomposition.
+
+    Args:
+        legs: a (6, 3) array [amplitude (m), frequency (Hz), phase (rad)] per leg, or a
+            VibrationDecomposition (its ``leg_vibrations``).
+
+    Returns:
+        The (6, 3) table [amplitude m, frequency Hz, phase rad].
+
+    Raises:
+        InvalidInputError: ``legs`` is not numeric, not finite, not of shape (6, 3), or has a frequency <= 0.
+    """
     if isinstance(legs, VibrationDecomposition):
         return legs.leg_vibrations
     table = as_batch(legs, 3, "legs")
@@ -95,7 +126,20 @@ def leg_table(legs) -> np.ndarray:
 
 
 def default_superposition_times(table: np.ndarray, duration=None, samples_per_period: int = 64) -> np.ndarray:
-    """Sample times (s) over the common period (or ``duration``; 20 slowest periods if none)."""
+    """Sample times (s) over the common period (or ``duration``; 20 slowest periods if none).
+
+    Only legs with a non-zero amplitude count (all legs if none has one).
+
+    Args:
+        table: leg table (6, 3) [amplitude m, frequency Hz, phase rad].
+        duration: time span to sample (s); None: the common period of the frequencies, or 20 periods
+            of the slowest one if they have none.
+        samples_per_period: samples per period of the fastest frequency (the step is
+            1 / (f_max samples_per_period)).
+
+    Returns:
+        Uniform sample times [M] (s) from 0, covering ``duration`` with the endpoint excluded.
+    """
     active = table[table[:, 0] != 0]
     freqs = active[:, 1] if active.size else table[:, 1]
     if duration is None:
@@ -107,7 +151,19 @@ def default_superposition_times(table: np.ndarray, duration=None, samples_per_pe
 
 
 def naive_superposition(robot: Robot, pose, leg_changes) -> np.ndarray:
-    """The paper's sum_i n_i dl_i [N, 3] (m, base frame). WRONG physics, for comparison only."""
+    """The paper's sum_i n_i dl_i [N, 3] (m, base frame). WRONG physics, for comparison only.
+
+    Args:
+        robot: the robot.
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        leg_changes: leg-length changes dl [N, 6] (m).
+
+    Returns:
+        sum_i n_i dl_i [N, 3] (m, base frame), n_i the unit leg directions at ``pose``.
+
+    Raises:
+        InvalidInputError: ``pose`` is not numeric, not finite or not [..., 6].
+    """
     d0, _, l0, _ = nominal_leg_geometry(robot, as_batch(pose, 6, "pose"))
     return np.asarray(leg_changes) @ (d0 / l0[:, None])
 
@@ -127,14 +183,39 @@ def superpose_vibration(
 ) -> SuperpositionResult:
     """Platform motion from six leg vibrations at ``pose`` (m, rad).
 
-    legs: (6, 3) [amplitude (m), frequency (Hz), phase (rad)] per leg (a
-    negative amplitude is the same as phase + pi), or a VibrationDecomposition.
-    times (s): default the common period of the leg frequencies (or
-    ``duration``). method "exact" adds batched FK (Newton warm-started from the
-    linear prediction of every sample; tolerance ``fk_tol`` m, default
-    1e-9 of the largest amplitude, at least 1e-15); "linear" only J^-1 dl.
-    With ``check_limits`` the leg vibrations are checked against the
-    vibration unit (VibrationLimitError) and FK against the stroke.
+    Leg i vibrates by dl_i(t) = A_i sin(2 pi f_i t + phase_i); the platform moves by dx = J^-1 dl to
+    first order, and method "exact" adds batched FK of l0 + dl (Newton warm-started from the linear
+    prediction of every sample); "linear" gives only J^-1 dl.
+
+    Args:
+        robot: the robot.
+        pose: nominal platform pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), base frame.
+        legs: (6, 3) [amplitude (m), frequency (Hz), phase (rad)] per leg (a negative amplitude is the
+            same as phase + pi), or a VibrationDecomposition.
+        times: sample times [N] (s), N >= 3; default the common period of the active leg frequencies
+            (``default_superposition_times``).
+        duration: time span (s) sampled when ``times`` is None.
+        samples_per_period: samples per period of the fastest leg frequency when ``times`` is None.
+        method: "exact" or "linear".
+        check_limits: check the leg vibrations against the vibration unit and the FK lengths against
+            the stroke.
+        line_tol: off-axis ratio below which the motion is classified as a line.
+        fk_tol: FK tolerance (m); default 1e-9 of the largest leg amplitude, at least 1e-15.
+
+    Returns:
+        SuperpositionResult (base frame, SI units): ``leg_changes`` [N, 6] (m), ``linear`` [N, 6]
+        [dp m; dphi rad], ``exact`` [N, 6] and ``poses`` [N, 6] (None for "linear"), ``naive`` [N, 3] (m),
+        and the linear / exact classifications.
+
+    Raises:
+        InvalidInputError: ``method`` unknown; ``pose`` not finite [..., 6]; ``legs`` malformed
+            (``leg_table``); ``times`` not a finite 1-D array of at least 3 samples; a leg length <= 0.
+        VibrationLimitError: with ``check_limits``, an active leg frequency is outside the unit's band,
+            or a leg's peak amplitude |A_i| or acceleration |A_i| (2 pi f_i)^2 exceeds the unit's limit.
+        StrokeLimitError: method "exact" with ``check_limits``, a vibrating leg length l0 + dl leaves
+            the stroke.
+        ForwardKinematicsError: method "exact", the FK of a sample did not converge or found another
+            assembly mode.
     """
     if method not in ("exact", "linear"):
         raise InvalidInputError(f"method must be 'exact' or 'linear', got {method!r}")

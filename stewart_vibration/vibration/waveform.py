@@ -21,6 +21,17 @@ def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
 
     e = 0 before t = 0 and (with a duration) after t = duration; ramps of
     ``ramp_time`` seconds at both ends (0: a hard start/stop, e = 1 inside).
+
+    Args:
+        times: times [N] (s from the vibration start).
+        duration: end of the vibration (s), or None for no end.
+        ramp_time: length of each quintic ramp (s, >= 0).
+
+    Returns:
+        (e, de/dt (1/s), d2e/dt2 (1/s^2)), each of the shape of ``times``.
+
+    Raises:
+        InvalidInputError: ``ramp_time`` is negative or not finite, or two ramps do not fit in ``duration``.
     """
     t = np.asarray(times, dtype=float)
     if ramp_time < 0 or not np.isfinite(ramp_time):
@@ -51,7 +62,15 @@ def envelope(times, duration: float | None = None, ramp_time: float = 0.0):
 
 
 def product_rule(f, g):
-    """(f g, (f g)', (f g)'') from (f, f', f'') and (g, g', g'') (arrays that broadcast)."""
+    """(f g, (f g)', (f g)'') from (f, f', f'') and (g, g', g'') (arrays that broadcast).
+
+    Args:
+        f: (f, f', f'').
+        g: (g, g', g'').
+
+    Returns:
+        (f g, f' g + f g', f'' g + 2 f' g' + f g''), broadcast.
+    """
     f0, f1, f2 = f
     g0, g1, g2 = g
     return f0 * g0, f1 * g0 + f0 * g1, f2 * g0 + 2.0 * f1 * g1 + f0 * g2
@@ -59,7 +78,19 @@ def product_rule(f, g):
 
 def fade_out(times, start: float, ramp_time: float):
     """Falling envelope g(t), dg/dt, d2g/dt2 [N]: 1 before ``start``, a quintic smoothstep to 0 over
-    ``ramp_time`` (s), 0 after. Times and start in the same time base (s)."""
+    ``ramp_time`` (s), 0 after. Times and start in the same time base (s).
+
+    Args:
+        times: times [N] (s).
+        start: time the fade starts (s).
+        ramp_time: length of the fade (s, >= 0; 0: a hard stop after ``start``).
+
+    Returns:
+        (g, dg/dt (1/s), d2g/dt2 (1/s^2)), each [N].
+
+    Raises:
+        InvalidInputError: ``ramp_time`` is negative or not finite (``envelope``).
+    """
     g, rate, curve = envelope(start + ramp_time - np.asarray(times, dtype=float), None, ramp_time)
     return g, -rate, curve
 
@@ -68,7 +99,20 @@ def sinusoid(times, amplitude: float, frequency: float, phase: float, duration=N
              fade=None):
     """delta, d delta/dt, d2 delta/dt2 [N] of e(t) A sin(2 pi f t + phase) (units of A per s^k).
 
-    ``fade``: an optional extra envelope (g, g', g'') [N] multiplied onto e(t) (e.g. ``fade_out``).
+    Args:
+        times: times [N] (s from the vibration start).
+        amplitude: A (m for a translation, rad for a rotation).
+        frequency: f (Hz).
+        phase: phase (rad).
+        duration: end of the vibration (s), or None for no end (``envelope``).
+        ramp_time: length of the ramp-in and ramp-out (s, >= 0).
+        fade: an optional extra envelope (g, g', g'') [N] multiplied onto e(t) (e.g. ``fade_out``).
+
+    Returns:
+        (delta, d delta/dt, d2 delta/dt2), each [N] (units of A, A/s, A/s^2).
+
+    Raises:
+        InvalidInputError: ``ramp_time`` is negative or not finite, or two ramps do not fit in ``duration``.
     """
     t = np.asarray(times, dtype=float)
     omega = 2.0 * np.pi * frequency
@@ -84,7 +128,20 @@ def sinusoid(times, amplitude: float, frequency: float, phase: float, duration=N
 
 
 def default_times(frequency: float, duration: float | None = None, samples_per_period: int = 256) -> np.ndarray:
-    """Uniform sample times (s): one period of ``frequency`` (endpoint excluded) or ``duration``."""
+    """Uniform sample times (s): one period of ``frequency`` (endpoint excluded) or ``duration``.
+
+    Args:
+        frequency: f (Hz, > 0).
+        duration: time span (s), or None for one period.
+        samples_per_period: samples per period (>= 8); the step is 1 / (f samples_per_period).
+
+    Returns:
+        Times [samples_per_period] (s) over one period, or [M] from 0 up to ``duration`` (s;
+        ``duration`` included when it falls on the step).
+
+    Raises:
+        InvalidInputError: ``samples_per_period`` < 8, or ``duration`` <= 0.
+    """
     if samples_per_period < 8:
         raise InvalidInputError("samples_per_period must be >= 8")
     step = 1.0 / (frequency * samples_per_period)
@@ -96,10 +153,26 @@ def default_times(frequency: float, duration: float | None = None, samples_per_p
 
 
 def displacement_from_acceleration(acceleration_g: float, frequency: float) -> float:
-    """Peak displacement X = a / (2 pi f)^2 (m) of a sinusoid with peak acceleration a (g) at f (Hz)."""
+    """Peak displacement X = a / (2 pi f)^2 (m) of a sinusoid with peak acceleration a (g) at f (Hz).
+
+    Args:
+        acceleration_g: peak acceleration a (g, standard gravities).
+        frequency: f (Hz, non-zero).
+
+    Returns:
+        X (m).
+    """
     return float(acceleration_g) * STANDARD_GRAVITY / (2.0 * np.pi * float(frequency)) ** 2
 
 
 def acceleration_from_displacement(amplitude: float, frequency: float) -> float:
-    """Peak acceleration (g) of a sinusoid of peak displacement ``amplitude`` (m) at f (Hz)."""
+    """Peak acceleration (g) of a sinusoid of peak displacement ``amplitude`` (m) at f (Hz).
+
+    Args:
+        amplitude: peak displacement X (m).
+        frequency: f (Hz).
+
+    Returns:
+        X (2 pi f)^2 in g (standard gravities).
+    """
     return float(amplitude) * (2.0 * np.pi * float(frequency)) ** 2 / STANDARD_GRAVITY
