@@ -34,3 +34,25 @@ def first_violation(mask: np.ndarray) -> tuple[int, int]:
     sample = int(np.argmax(flat.any(axis=-1)))
     leg = int(np.argmax(flat[sample]))
     return sample, leg
+
+
+def unit_vector(value, name: str) -> np.ndarray:
+    """A (3,) vector normalised to unit length; InvalidInputError if zero or malformed.
+
+    Args:
+        value: the vector (3,), any non-zero length.
+        name: the argument's name, for the error message.
+
+    Returns:
+        ``value`` / |value| (3,).
+
+    Raises:
+        InvalidInputError: ``value`` is not numeric, not finite, not of shape (3,), or has a norm < 1e-12.
+    """
+    vec = as_batch(value, 3, name)
+    if vec.shape != (3,):
+        raise InvalidInputError(f"{name}: expected one 3-vector, got shape {list(vec.shape)}")
+    norm = float(np.linalg.norm(vec))
+    if norm < 1e-12:
+        raise InvalidInputError(f"{name}: must be a non-zero vector")
+    return vec / norm

@@ -104,6 +104,10 @@ def test_vibration_trajectory_is_a_line_along_the_direction(robot):
     assert np.allclose(s.pose[:, 3:], pose[3:]) and not s.twist[:, 3:].any()
     assert np.allclose(s.accel[:, :3], -(2 * np.pi * 35) ** 2 * disp, rtol=0, atol=1e-9)
     assert np.abs(disp @ un).max() == pytest.approx(1e-5, rel=1e-2)
+    from stewart_vibration.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError, match="non-zero"):  # was NaN amplitudes, silently
+        vibration_trajectory(pose, [0.0, 0.0, 0.0], 1e-5, 35.0)
 
 
 def test_euler_rate_conversion_rejects_bad_shapes():

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..input_checks import as_batch
+from ..input_checks import as_batch, unit_vector
 from ..kinematics.rotations import euler_rate_matrix, rotation_from_rpy
 
 
@@ -141,8 +141,7 @@ def vibration_trajectory(pose, direction, amplitude: float, frequency_hz: float,
 
     Args:
         pose: centre pose (6,) (m, rad); any shape holding one [..., 6] row.
-        direction: translation direction (3,) (base frame), normalised here; a zero vector is not rejected
-            (it gives NaN amplitudes).
+        direction: translation direction (3,) (base frame), any non-zero length (normalised here).
         amplitude: peak translation (m).
         frequency_hz: vibration frequency f (Hz).
         phase: phase (rad).
@@ -152,13 +151,12 @@ def vibration_trajectory(pose, direction, amplitude: float, frequency_hz: float,
         omega [1] = 2 pi f (rad/s) and phase [1, 6] = ``phase``.
 
     Raises:
-        InvalidInputError: ``pose`` is not [..., 6] or ``direction`` not [..., 3], or either is not numeric or
-            not finite (``as_batch``).
-        ValueError: ``pose`` or ``direction`` holds more than one row (reshape).
+        InvalidInputError: ``pose`` is not [..., 6], or not numeric or not finite (``as_batch``); ``direction``
+            is not one finite 3-vector or is zero (``unit_vector``).
+        ValueError: ``pose`` holds more than one row (reshape).
     """
     pose = as_batch(pose, 6, "pose").reshape(6)
-    u = as_batch(direction, 3, "direction").reshape(3)
-    u = u / np.linalg.norm(u)
+    u = unit_vector(direction, "direction")
     amp = np.zeros((1, 6))
     amp[0, :3] = amplitude * u
     return SinusoidalTrajectory(pose.copy(), amp, np.array([2 * np.pi * frequency_hz]), np.full((1, 6), phase))

@@ -21,8 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InvalidInputError
-from ..input_checks import as_batch
+from ..input_checks import unit_vector
 from ..kinematics import jacobian_from_vectors, leg_vectors_from_rotation
 from ..kinematics.rotations import rodrigues_coefficients, rotation_from_rpy, rpy_from_rotation, so3_exp
 from ..robot import Robot
@@ -50,28 +49,6 @@ class VibrationScrew:
     def unit(self) -> str:
         """Unit of the screw's amplitude: "rad" for a rotation, "m" for a translation."""
         return "rad" if self.rotational else "m"
-
-
-def unit_vector(value, name: str) -> np.ndarray:
-    """A (3,) vector normalised to unit length; InvalidInputError if zero or malformed.
-
-    Args:
-        value: the vector (3,), any non-zero length.
-        name: the argument's name, for the error message.
-
-    Returns:
-        ``value`` / |value| (3,).
-
-    Raises:
-        InvalidInputError: ``value`` is not numeric, not finite, not of shape (3,), or has a norm < 1e-12.
-    """
-    vec = as_batch(value, 3, name)
-    if vec.shape != (3,):
-        raise InvalidInputError(f"{name}: expected one 3-vector, got shape {list(vec.shape)}")
-    norm = float(np.linalg.norm(vec))
-    if norm < 1e-12:
-        raise InvalidInputError(f"{name}: must be a non-zero vector")
-    return vec / norm
 
 
 def twist_per_unit(screw: VibrationScrew, position: np.ndarray) -> np.ndarray:
