@@ -92,6 +92,7 @@ def test_future_start_holds_until_stamp():
         (NAMES, [1.0], [[0.17] * 5], "6 positions"),
         (NAMES, [1.0], [[float("nan")] * 6], "non-finite"),
         (NAMES, [float("nan")], [[0.17] * 6], "strictly increasing"),
+        (NAMES, [1e308], [[0.17] * 6], "exceeds"),  # hypothesis, CI: overflowed into NaN strut lengths
     ],
 )
 def test_malformed_trajectories_are_rejected(names, times, pos, match):

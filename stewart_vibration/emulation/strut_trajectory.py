@@ -43,6 +43,9 @@ class JointTrajectory:
         return now if self.start <= 0 else self.start
 
 
+MAX_TRAJECTORY_S = 86400.0  # longest time_from_start taken (s): one day
+
+
 def build_trajectory(
     joint_names, expected_names, start: float, times, positions, velocities=None, accelerations=None
 ) -> JointTrajectory:
@@ -80,6 +83,8 @@ def build_trajectory(
         raise InvalidInputError("trajectory has no points")
     if not np.isfinite(times).all() or times[0] < 0 or (np.diff(times) <= 0).any():
         raise InvalidInputError("time_from_start must be finite, >= 0 and strictly increasing")
+    if times[-1] > MAX_TRAJECTORY_S:  # a point 1e308 s ahead overflowed the spline into NaN lengths
+        raise InvalidInputError(f"time_from_start {times[-1]:g} s exceeds {MAX_TRAJECTORY_S:g} s")
 
     def table(values, what):
         if values is None:
