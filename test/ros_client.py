@@ -93,3 +93,6 @@ def node_under_test(name: str, module: str, domain: int, log_dir, args=()):
 
 
 __all__ = ["RosTestClient", "node_under_test", "rclpy"]
+
+
+PLANNER_NOT_READY = ("no platform/pose_estimate", "clock not running")  # start refusals until its inputs arrive

@@ -11,7 +11,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
-from ros_client import node_under_test
+from ros_client import PLANNER_NOT_READY, node_under_test
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
@@ -52,10 +52,7 @@ def trigger(client, name):
     return client.call(Trigger, f"vibration_planner/{name}", Trigger.Request())
 
 
-NOT_READY = ("no platform/pose_estimate", "clock not running")  # the planner's refusals until its inputs arrive
-
-
-def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=None, waiting_for=NOT_READY):
+def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=None, waiting_for=PLANNER_NOT_READY):
     """Publish a pose estimate (a pose vector or a PoseStamped) and call start; while the planner has no pose
     (or, with ``publish_also``, no /clock) yet -- a first sample sent as DDS was still matching waits for a
     heartbeat: CI -- publish again (``publish_also()`` too) and retry for up to ``timeout_s``. Any answer other

@@ -15,7 +15,7 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from ros_client import RosTestClient
+from ros_client import PLANNER_NOT_READY, RosTestClient
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -28,8 +28,6 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
 F = 35.0
 STATUS_QOS = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-
-NOT_READY = ("clock not running", "no platform/pose_estimate received yet")  # the planner's refusals while it starts
 
 
 class Suite:
@@ -82,7 +80,7 @@ class Suite:
         deadline = time.monotonic() + 15.0
         while True:  # a planner still starting up (no /clock or pose yet under load: CI with a hog) is retried
             response = self.client.call(Trigger, "vibration_planner/start", Trigger.Request())
-            if response.success or not any(reason in response.message for reason in NOT_READY) or \
+            if response.success or not any(reason in response.message for reason in PLANNER_NOT_READY) or \
                     time.monotonic() > deadline:
                 return response
             self.client.spin_for(0.2)
@@ -166,7 +164,7 @@ def test_long_stall_ramps_out_reports_and_restarts_without_reset(suite):
     def ended():  # the idle report may still be on its way (CI beside a CPU hog: checked while ramping out)
         return [r for _, r in suite.status if r.state == "idle" and r.since > t0]
 
-    assert suite.client.spin_until(lambda: ended(), 10), [r.message for _, r in suite.status[-5:]]
+    assert suite.client.spin_until(ended, 10), [r.message for _, r in suite.status[-5:]]
     assert "commands ended" in ended()[-1].reason, [r.message for _, r in suite.status[-5:]]
     os.kill(planner, signal.SIGCONT)
     assert suite.client.spin_until(lambda: suite.planner_says("aborted"), 10), suite.logs()

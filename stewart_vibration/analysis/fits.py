@@ -179,7 +179,13 @@ def leg_phase_offsets_deg(fit: SinusoidFit, reference_leg: int | None = None) ->
         Phase offsets [6] (deg, in (-180, 180]); 0 for the reference leg.
     """
     ref = int(np.argmax(fit.amplitude)) if reference_leg is None else reference_leg
-    return np.degrees(wrap_angle(fit.phase - fit.phase[ref]))
+    return phase_offsets_deg(fit.phase, ref)
+
+
+def phase_offsets_deg(phases, reference: int) -> np.ndarray:
+    """Phases [6] (rad) relative to ``phases[reference]``, deg in (-180, 180]."""
+    phases = np.asarray(phases, dtype=float)
+    return np.degrees(wrap_angle(phases - phases[reference]))
 
 
 def phase_error_to_0_or_pi_deg(offsets_deg) -> np.ndarray:

@@ -31,6 +31,7 @@ from .fits import (
     leg_phase_offsets_deg,
     line_vibration,
     phase_error_to_0_or_pi_deg,
+    phase_offsets_deg,
 )
 
 STEADY_MARGIN_S = 0.2  # skip this much after the ramp-in and before the ramp-out
@@ -319,7 +320,7 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
                                                                                       frequency)
     dt_halves = 0.5 * (t1 - t0)
     leg_freq = frequency + wrap_angle(second.phase - first.phase) / (2 * np.pi * dt_halves)
-    expected_offsets = np.degrees(wrap_angle(plan.leg_phases - plan.leg_phases[np.argmax(fit.amplitude)]))
+    expected_offsets = phase_offsets_deg(plan.leg_phases, int(np.argmax(fit.amplitude)))
     out.update({
         "leg_amplitude_m": fit.amplitude,
         "leg_amplitude_expected_m": plan.leg_amplitudes,

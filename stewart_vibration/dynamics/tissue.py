@@ -91,9 +91,9 @@ class TissueModel:
         # plain-float copies for tissue_wrench_single
         object.__setattr__(self, "_rest_list", rest.tolist())
         object.__setattr__(self, "_rest_center_list", self._rest_center.tolist())
-        object.__setattr__(self, "_center_list", np.asarray(self.center, dtype=float).tolist())
-        object.__setattr__(self, "_stiffness_list", np.asarray(self.stiffness, dtype=float).tolist())
-        object.__setattr__(self, "_damping_list", np.asarray(self.damping, dtype=float).tolist())
+        object.__setattr__(self, "_center_list", self.center.tolist())
+        object.__setattr__(self, "_stiffness_list", self.stiffness.tolist())
+        object.__setattr__(self, "_damping_list", self.damping.tolist())
 
     @property
     def rest_rotation(self) -> np.ndarray:

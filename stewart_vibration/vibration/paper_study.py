@@ -141,15 +141,8 @@ def decomposition_case(robot: Robot, amplitude, acceleration_g, frequency, phase
 def paper_case(robot: Robot) -> dict:
     """The paper's example: 1 um, 2 rad/s, phase 2 pi/3 along the tibia axis.
 
-    Args:
-        robot: the robot.
-
-    Returns:
-        The ``decomposition_case`` dict over 2 periods.
-
-    Raises:
-        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError, ForwardKinematicsError:
-            as ``decomposition_case``, if the robot's limits do not allow the case.
+    ``decomposition_case`` for ``robot`` over 2 periods (its dict; its errors if the robot's limits
+    do not allow the case).
     """
     return decomposition_case(robot, PAPER_AMPLITUDE_M, None, PAPER_FREQUENCY_HZ, PAPER_PHASE_RAD)
 
@@ -157,15 +150,8 @@ def paper_case(robot: Robot) -> dict:
 def clinical_case(robot: Robot) -> dict:
     """The clinical default: 35 Hz at 0.3 g (~61 um) along the tibia axis, phase 2 pi/3.
 
-    Args:
-        robot: the robot.
-
-    Returns:
-        The ``decomposition_case`` dict over 3 periods.
-
-    Raises:
-        VibrationLimitError, UnreachablePoseError, StrokeLimitError, JointLimitError, ForwardKinematicsError:
-            as ``decomposition_case``, if the robot's limits do not allow the case.
+    ``decomposition_case`` for ``robot`` over 3 periods (its dict; its errors if the robot's limits
+    do not allow the case).
     """
     return decomposition_case(robot, None, CLINICAL_ACCELERATION_G, CLINICAL_FREQUENCY_HZ, PAPER_PHASE_RAD, 3.0)
 
