@@ -130,6 +130,27 @@ def test_window_ending_away_from_rest_is_ramped_out_by_the_watchdog(buffer, robo
     assert np.abs(vel).max() <= A * W * 1.5
 
 
+@pytest.mark.parametrize("sign", [1.0, -1.0])
+def test_a_tail_inside_the_rest_band_that_brakes_out_of_it_is_ramped_out(buffer, robot, sign):
+    """A window ending just inside the rest band (position and velocity below rest_position / rest_velocity)
+    but moving outwards: the braking past its end carries the units v * tau further (tau >= 0.1 ms), out of
+    the band (hypothesis beside CI: 1.0038e-7 m against 1e-7). The settled position counts: the watchdog ramps
+    it out, and the units end at rest. Written by hand: a two-point window, cubic, no library waveform."""
+    stamp = 5.0
+    p_end, v_end = 0.99 * buffer.rest_position * sign, 0.99 * buffer.rest_velocity * sign
+    times = np.array([0.0, 0.01])
+    pos = np.zeros((2, 6))
+    vel = np.zeros((2, 6))
+    pos[1, 2], vel[1, 2] = p_end, v_end
+    buffer.add(build_trajectory(VIB, VIB, stamp, times, pos, vel, None), now=stamp - 0.1)
+    braked = p_end + v_end * max(abs(v_end) / robot.vibration_unit.acceleration_max, 1e-4)  # where braking holds it
+    assert abs(braked) > buffer.rest_position  # the case: braking leaves the band
+    start, reason = buffer.ramp()
+    assert start is not None and "watchdog" in reason
+    late = buffer.sample([buffer.commanded_until() + 0.01, stamp + 5.0])[0]
+    assert np.abs(late).max() <= buffer.rest_position * 1e-6
+
+
 def test_no_latch_a_new_vibration_starts_after_any_ramp_out(buffer):
     buffer.add(window(5.0, 0.0, 0.3), now=4.8)  # ends away from rest -> watchdog ramp (see above)
     buffer.add(window(8.0, 0.0, 0.5, tail=0.4), now=7.5)  # from rest, later: accepted, no reset needed

@@ -508,12 +508,16 @@ def test_a_blind_pause_resumes_only_below_the_limit(robot, load, resumes):
 def test_moves_slow_down_while_the_estimates_lag(robot):
     """speed_limit = blind_travel / (largest lag of the newest estimate behind the states over LAG_MEMORY_S):
     5 mm/s for 1.5 mm at 0.3 s of lag; back to fast once the lag has been small for LAG_MEMORY_S; no limit
-    before any estimate, with the guard off, or with blind_travel 0. A lag beyond max_estimate_age counts in
-    full (9 s: 0.17 mm/s)."""
+    before any estimate, with the guard off, or with blind_travel 0. A lag beyond max_estimate_age counts as
+    that age (the guard pauses a move blind that long): 9 s of lag at 0.25 s gives 6 mm/s, not 0.17."""
     stalled = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25, blind_travel=1.5e-3)
     stalled.observe([1.0], [np.zeros(6)], 1.0)
     stalled.check_estimates(10.0)
-    assert stalled.estimate_lag == pytest.approx(9.0) and stalled.speed_limit() == pytest.approx(1.5e-3 / 9.0)
+    assert stalled.estimate_lag == pytest.approx(9.0) and stalled.speed_limit() == pytest.approx(6e-3)
+    unbounded = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.0, blind_travel=1.5e-3)  # no blind pause: no cap
+    unbounded.observe([1.0], [np.zeros(6)], 1.0)
+    unbounded.check_estimates(10.0)
+    assert unbounded.speed_limit() == pytest.approx(1.5e-3 / 9.0)
     guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.5, blind_travel=1.5e-3)
     assert guard.speed_limit() == np.inf  # no estimator heard yet
     guard.observe([10.0], [np.zeros(6)], 10.0)

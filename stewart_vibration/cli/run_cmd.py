@@ -132,6 +132,8 @@ def run(args) -> int:
     except StepFailed as exc:
         status, failure = 2, str(exc)
         _log(f"FAILED: {exc}")
+        for line in runner.recent_problems():
+            _log(f"  {line}")
     finally:
         runner.stop()
     record = runner.record

@@ -219,8 +219,11 @@ class VibrationBuffer:
 
     # -- read-back ------------------------------------------------------------------------
     def _tail_at_rest(self) -> bool:
-        return bool(np.abs(self.positions[-1]).max() <= self.rest_position
-                    and np.abs(self.velocities[-1]).max() <= self.rest_velocity)
+        """The last sample is slow (rest_velocity) and where the braking past it settles is within
+        rest_position: the braking carries the units v * braking_time further than the sample itself."""
+        v_end = self.velocities[-1]
+        settled = self.positions[-1] + v_end * self.braking_time(v_end)
+        return bool(np.abs(settled).max() <= self.rest_position and np.abs(v_end).max() <= self.rest_velocity)
 
     def ramp(self) -> tuple[float | None, str]:
         """(start s, reason) of the safety ramp in force: the explicit stop, or the watchdog's ramp when

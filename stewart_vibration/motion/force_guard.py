@@ -395,14 +395,16 @@ class ForceGuard:
     def speed_limit(self) -> float:
         """Strut speed (m/s) for the next move such that the struts cover at most ``blind_travel`` m in the
         estimates' lag: a busy machine makes the guard see late, so moves go slower (inf: no limit, when the
-        guard is off, no estimator was heard or ``blind_travel`` is 0). Every lag counts in full, also one
-        beyond ``max_estimate_age`` (counting it as that age let a move run fast enough after a blind pause to
-        fail the paused-move test beside a CPU hog); one stall therefore slows the next moves for
-        LAG_MEMORY_S."""
+        guard is off, no estimator was heard or ``blind_travel`` is 0). A lag beyond ``max_estimate_age``
+        counts as that age: the guard cannot be blind longer during a move (it pauses the move), and one
+        stall -- an estimator starting late -- does not slow a whole move to a crawl (CI: a startup stall
+        planned the first move of `./tools/main --real-time-factor 2` so slowly that it did not settle in
+        120 s; beside a CPU hog a 9 s lag planned it at 0.17 mm/s, 168 s of sim time)."""
         if self.blind_travel <= 0 or not np.isfinite(self.newest_estimate) or \
                 (self.force_limit <= 0 and self.moment_limit <= 0):
             return float("inf")
-        return self.blind_travel / max(self.estimate_lag, 1e-3)
+        lag = self.estimate_lag if self.max_estimate_age <= 0 else min(self.estimate_lag, self.max_estimate_age)
+        return self.blind_travel / max(lag, 1e-3)
 
     def blind_stop_over(self, newest_state_time: float) -> bool:
         """An "estimates" trip whose stop is over (the guard watches no move) while the estimates have been

@@ -49,6 +49,9 @@ class SuiteRunner:
     def log_lines(self, node: str, marker: str) -> list[str]:
         return self.processes.log_lines(node, marker)
 
+    def recent_problems(self, per_node: int = 5) -> list[str]:
+        return self.processes.recent_problems(per_node)
+
     def supervise(self, respawn: set[str]) -> None:
         self.processes.supervise(respawn, idle=cast(SuiteClient, self.client).spin_once)
 

@@ -68,6 +68,15 @@ class SuiteProcesses:
         proc = next((p for p in self.procs if p.name == node), None)
         return [line for line in proc.log_text().splitlines() if marker in line] if proc else []
 
+    def recent_problems(self, per_node: int = 5) -> list[str]:
+        """The last ``per_node`` WARN / ERROR lines of every node's log, "name: line" (what a failed step
+        prints, so the reason is on the screen and not only in <out>/logs)."""
+        lines = []
+        for proc in self.procs:
+            marked = [line for line in proc.log_text().splitlines() if "[WARN]" in line or "[ERROR]" in line]
+            lines += [f"{proc.name}: {line.strip()}" for line in marked[-per_node:]]
+        return lines
+
     def supervise(self, respawn: set[str], idle: Callable[[], None]) -> None:
         """Keep the suite up until interrupted (--keep-running): a node that exits is reported and, when its
         name is in ``respawn``, started again with the same arguments; the others keep running. ``idle()``
