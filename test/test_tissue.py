@@ -287,14 +287,19 @@ def test_stop_plan_stays_within_the_limits_for_any_arrival_in_the_window(robot):
     assert guard.plan_stop(t_start + duration) is None  # the move has ended: nothing to stop
 
 
-SILENT_CASES = [(200.0, lag, after) for lag in (0.04, 0.12) for after in (0.1, 0.2, 0.3, 0.35, 0.4, 0.45)]
+SILENT_CASES = [(200.0, lag, after, 0.02) for lag in (0.04, 0.12) for after in (0.1, 0.2, 0.3, 0.35, 0.4, 0.45)]
 
 
-@pytest.mark.parametrize("limit, lag, silent_after", [(120.0, 0.01, None), (200.0, 0.04, None), (200.0, 0.12, None),
-                                                      *SILENT_CASES])
-def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, limit, lag, silent_after):
-    """Emulator (tissue) -> estimator -> guard with the node's view ``lag`` s behind the emulator; the stop goes
-    to the emulator (which checks it) 5 ms after the trip. Peak estimated and applied force <= limit + 10 %.
+STARVED_CASES = [(200.0, 0.04, None, gap) for gap in (0.1, 0.2, 0.3)]
+
+
+@pytest.mark.parametrize("limit, lag, silent_after, gap", [(120.0, 0.01, None, 0.02), (200.0, 0.04, None, 0.02),
+                                                           (200.0, 0.12, None, 0.02), *SILENT_CASES, *STARVED_CASES])
+def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, limit, lag, silent_after, gap):
+    """Emulator (tissue) -> estimator -> guard with the node's view ``lag`` s behind the emulator, the node
+    reading its inputs every ``gap`` s (0.02: its batch period; longer: a node starved of CPU, whose checks
+    come late: CI beside a hog reached 229.7 N against 200); the stop goes to the emulator (which checks it)
+    5 ms after the trip. Peak estimated and applied force <= limit + 10 %.
     As in the node, the guard is asked after every batch of states as well as of estimates. With the estimates
     silent from ``silent_after`` of the move on (the estimator stalled while the load is still far below the
     limit), the applied force stays within the same bound either way: the states carry the prediction on (a
@@ -323,12 +328,12 @@ def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, lim
     guard.begin_move(emu.time - lag + 0.02, duration, start, goal, robot.home_pose, target)
     seen, pending, trip = len(states), None, None
     while emu.time < duration + 1.2:
-        for _ in range(10):
+        for _ in range(round(gap / 0.002)):
             step()
-        if pending is not None and emu.time >= pending[0]:
-            stop = pending[1]
-            emu.command_struts(LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)], [np.zeros(6)])
-            pending = None
+            if pending is not None and emu.time >= pending[0]:  # the stop arrives whenever the node reads next
+                stop = pending[1]
+                emu.command_struts(LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)], [np.zeros(6)])
+                pending = None
         new = [s for s in states[seen:] if s[0] <= emu.time - lag]
         if not new:
             continue
@@ -347,12 +352,15 @@ def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, lim
     assert trip is not None and guard.tripped
     applied = np.array([s[4] for s in states])
     peak = np.linalg.norm(applied[:, :3], axis=1).max()
-    print(f"limit {limit} N, lag {lag} s, estimates silent after {silent_after}: tripped ({trip.which}) at "
-          f"{trip.force:.1f} N, predicted {trip.predicted_force:.1f} N, peak applied {peak:.1f} N, estimated "
+    print(f"limit {limit} N, lag {lag} s, gap {gap} s, estimates silent after {silent_after}: tripped ({trip.which}) "
+          f"at {trip.force:.1f} N, predicted {trip.predicted_force:.1f} N, peak applied {peak:.1f} N, estimated "
           f"{guard.peak[0]:.1f} N")
     assert peak <= 1.1 * limit
     if silent_after is None:  # estimates all along: a force trip close to the limit, its peak estimated
-        assert trip.which == "force" and peak > 0.8 * limit and guard.peak[0] <= 1.1 * limit
+        assert trip.which == "force" and guard.peak[0] <= 1.1 * limit
+        # close to the limit when the node reads at its batch period; checks 0.3 s apart (3 mm of travel) must
+        # look that far ahead and stop earlier (measured: 0.1 s and 0.2 s 176 N, 0.3 s 102 N of 200)
+        assert peak > (0.8 if gap <= 0.2 else 0.4) * limit
     elif trip.which == "force":  # by the states' progress once the estimates had stopped (or before they did)
         assert peak > 0.8 * limit
     else:
@@ -508,16 +516,12 @@ def test_a_blind_pause_resumes_only_below_the_limit(robot, load, resumes):
 def test_moves_slow_down_while_the_estimates_lag(robot):
     """speed_limit = blind_travel / (largest lag of the newest estimate behind the states over LAG_MEMORY_S):
     5 mm/s for 1.5 mm at 0.3 s of lag; back to fast once the lag has been small for LAG_MEMORY_S; no limit
-    before any estimate, with the guard off, or with blind_travel 0. A lag beyond max_estimate_age counts as
-    that age (the guard pauses a move blind that long): 9 s of lag at 0.25 s gives 6 mm/s, not 0.17."""
+    before any estimate, with the guard off, or with blind_travel 0. A lag beyond max_estimate_age counts in
+    full (9 s: 0.17 mm/s; a cap at max_estimate_age let starved moves run through their stops)."""
     stalled = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25, blind_travel=1.5e-3)
     stalled.observe([1.0], [np.zeros(6)], 1.0)
     stalled.check_estimates(10.0)
-    assert stalled.estimate_lag == pytest.approx(9.0) and stalled.speed_limit() == pytest.approx(6e-3)
-    unbounded = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.0, blind_travel=1.5e-3)  # no blind pause: no cap
-    unbounded.observe([1.0], [np.zeros(6)], 1.0)
-    unbounded.check_estimates(10.0)
-    assert unbounded.speed_limit() == pytest.approx(1.5e-3 / 9.0)
+    assert stalled.estimate_lag == pytest.approx(9.0) and stalled.speed_limit() == pytest.approx(1.5e-3 / 9.0)
     guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.5, blind_travel=1.5e-3)
     assert guard.speed_limit() == np.inf  # no estimator heard yet
     guard.observe([10.0], [np.zeros(6)], 10.0)

@@ -14,9 +14,11 @@ progress over the last ``FIT_WINDOW_S`` of estimates (quadratic, continued as an
 fit's local growth rate while the load rises: soft tissue stiffens with distraction) and extrapolated to
 the progress at which that stop would end (the travel until the emulator gets the command plus the
 braking distance). A state newer than the newest estimate moves that progress on, so estimates that lag
-do not delay the trip. It trips when the predicted force exceeds ``force_limit`` (or the moment
-``moment_limit``) and the load has risen above what it was at the move's start (a move that relieves a
-load that is already over the limit is not stopped). A limit of 0 switches that check off.
+do not delay the trip; the stop is assumed sent at the next check, which comes no sooner than the largest
+gap between the recent checks (``check_gap``: a node starved of CPU checks late). It trips when the predicted
+force exceeds ``force_limit`` (or the moment ``moment_limit``) and the load has risen above what it was at
+the move's start (a move that relieves a load that is already over the limit is not stopped). A limit of 0
+switches that check off.
 
 Stop. A leg trajectory stamped 0 (now) with one point: the struts come to rest at L0 + D sigma_f after
 T_s. The emulator departs from the state it commands when the stop arrives, which lies on the move at a
@@ -72,6 +74,7 @@ MAX_GROWTH_EXPONENT = 2.0  # the exponential continuation of the fit grows at mo
 LAG_MEMORY_S = 3.0  # the estimates' lag behind the states is remembered this long (s of sim time)
 BLIND_TRAVEL_M = 1.5e-3  # default: moves are slowed so that the struts cover at most this in the estimates' lag
 RESUME_FRESH_S = 0.5  # a blind pause ends once estimates have kept up this long (s of sim time)
+CHECK_MEMORY_S = 1.0  # the largest gap between the guard's checks over this much sim time is its look-ahead
 MAX_ESTIMATE_AGE_S = 0.25  # default: a move pauses when the newest wrench estimate is this far (s) behind the states
 _TAU = np.linspace(0.0, 1.0, 41)  # points per stop segment at which the limits are checked
 # quintic Hermite bases on _TAU for a segment of unit duration ending at rest (v1 = a1 = 0): velocity and
@@ -219,6 +222,7 @@ class ForceGuard:
         self._stop_retries = 0
         self.receipt_window = RECEIPT_WINDOW_S  # grows with the command delays measured on this robot
         self._delays = []  # measured command delays (s): the move's calibrated start - the node's "now" at sending
+        self._checks = np.zeros(0)  # the emulator times (s) at which assess ran, over the last CHECK_MEMORY_S
 
     # -- settings ---------------------------------------------------------------------------------
     def set_limits(self, force_limit: float | None = None, moment_limit: float | None = None) -> bool:
@@ -334,12 +338,16 @@ class ForceGuard:
         against the progress (the latest estimates) extrapolated to that stop's end. Called for every batch of
         estimates and for every batch of joint states: the load is a function of where the struts are, so
         a state that is newer than the newest estimate moves the prediction on (estimates that come late
-        do not delay the trip). ``time``: the trip's stamp (default ``newest_state_time``)."""
+        do not delay the trip). ``time``: the trip's stamp (default ``newest_state_time``). The next check is
+        assumed no sooner than the largest gap between the recent checks (``check_gap``): a node starved of CPU
+        checks late, and a guard that looked only ``next_check_s`` ahead tripped too late (30 % over the limit
+        at 0.2 s gaps)."""
+        self._note_check(newest_state_time)
         move = self.move
         if move is None or move.baseline is None or not move.samples or \
                 (self.trip is not None and move is self._stopping):
             return None
-        later = self.plan_stop(newest_state_time, next_check_s)
+        later = self.plan_stop(newest_state_time, max(next_check_s, self.check_gap))
         target = 1.0 if later is None else later.progress
         checks = []
         for which, column, limit, base in (("force", 2, self.force_limit, move.baseline[0]),
@@ -359,6 +367,17 @@ class ForceGuard:
                                   (float(f[1]), float(m[1])), (float(f[2]), float(m[2])), which)
                 return trip
         return None
+
+    def _note_check(self, newest_state_time: float) -> None:
+        checks = self._checks
+        self._checks = np.append(checks[checks >= newest_state_time - CHECK_MEMORY_S], newest_state_time)
+
+    @property
+    def check_gap(self) -> float:
+        """The largest gap (s of sim time) between consecutive checks over the last CHECK_MEMORY_S, at most
+        MAX_WINDOW_S (a longer silence trips the guard blind instead); 0 before two checks."""
+        gaps = np.diff(self._checks)
+        return float(min(gaps.max(), MAX_WINDOW_S)) if gaps.size else 0.0
 
     def check_estimates(self, newest_state_time: float) -> GuardTrip | None:
         """Trip ("estimates") when a move is under way and the newest wrench estimate (or the move's start, if
@@ -395,16 +414,16 @@ class ForceGuard:
     def speed_limit(self) -> float:
         """Strut speed (m/s) for the next move such that the struts cover at most ``blind_travel`` m in the
         estimates' lag: a busy machine makes the guard see late, so moves go slower (inf: no limit, when the
-        guard is off, no estimator was heard or ``blind_travel`` is 0). A lag beyond ``max_estimate_age``
-        counts as that age: the guard cannot be blind longer during a move (it pauses the move), and one
-        stall -- an estimator starting late -- does not slow a whole move to a crawl (CI: a startup stall
-        planned the first move of `./tools/main --real-time-factor 2` so slowly that it did not settle in
-        120 s; beside a CPU hog a 9 s lag planned it at 0.17 mm/s, 168 s of sim time)."""
+        guard is off, no estimator was heard or ``blind_travel`` is 0). Every lag counts in full, also one
+        beyond ``max_estimate_age``, so one stall slows the next moves for LAG_MEMORY_S (the runner waits for
+        current estimates before its first move). Counting it at most as ``max_estimate_age`` (6 mm/s) relied on
+        the blind pause, which comes late when kinematics itself is starved of CPU: beside a hog and the test
+        suite, resumed guarded moves at 6 mm/s ran through their stops to 423 N against a 200 N limit.
+        """
         if self.blind_travel <= 0 or not np.isfinite(self.newest_estimate) or \
                 (self.force_limit <= 0 and self.moment_limit <= 0):
             return float("inf")
-        lag = self.estimate_lag if self.max_estimate_age <= 0 else min(self.estimate_lag, self.max_estimate_age)
-        return self.blind_travel / max(lag, 1e-3)
+        return self.blind_travel / max(self.estimate_lag, 1e-3)
 
     def blind_stop_over(self, newest_state_time: float) -> bool:
         """An "estimates" trip whose stop is over (the guard watches no move) while the estimates have been

@@ -25,11 +25,12 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from ..emulation.vibration_status import report_from_values
+from ..motion.force_guard import LAG_MEMORY_S
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
-from .common import make_executor, pose_from_msg, pose_stamped
+from .common import make_executor, pose_from_msg, pose_stamped, stamp_seconds
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
@@ -38,6 +39,11 @@ if TYPE_CHECKING:
 
 # planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
 NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
+# before the first move the force estimates must have kept within ESTIMATES_CURRENT_S (sim s) of /clock for longer
+# than the force guard remembers a lag (it slows moves by the largest lag of the last LAG_MEMORY_S; 0.15 s still
+# allows 10 mm/s); at most ESTIMATES_CURRENT_WAIT_S of wall time, then the run goes on and says so
+ESTIMATES_CURRENT_S = 0.15
+ESTIMATES_CURRENT_WAIT_S = 60.0
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -160,9 +166,35 @@ class SuiteClient:
 
         self.spin_until(recorder_subscribed, 60, "the recorder to subscribe to legs/joint_states")
         progress("ready: mcap_recorder is recording the suite's topics")
+        self._wait_estimates_current(progress)
         for sub in self.readiness_subs:  # only the ground truth and /clock are needed from here on
             self.node.destroy_subscription(sub)
         self.readiness_subs = []
+
+    def _wait_estimates_current(self, progress) -> None:
+        """Wait until the force estimates have stayed within ESTIMATES_CURRENT_S of /clock for LAG_MEMORY_S + 0.5 s
+        of sim time (at most ESTIMATES_CURRENT_WAIT_S of wall time): an estimator still starting up makes the
+        force guard plan the first move at a crawl (CI: `--real-time-factor 2` did not settle in 120 s)."""
+        since: list[float | None] = [None]
+
+        def current() -> bool:
+            msg, clock = self.latest.get("legs/force_estimate"), self.clock
+            if msg is None or clock is None:
+                return False
+            if clock - stamp_seconds(msg.header.stamp) > ESTIMATES_CURRENT_S:
+                since[0] = None
+                return False
+            start = since[0] = clock if since[0] is None else since[0]
+            return clock - start >= LAG_MEMORY_S + 0.5
+
+        try:
+            self.spin_until(current, ESTIMATES_CURRENT_WAIT_S, "the force estimates to keep up with /clock")
+            progress("ready: the force estimates keep up with the clock")
+        except StepFailed:
+            if self.dead():
+                raise
+            progress(f"WARNING: the force estimates did not keep within {ESTIMATES_CURRENT_S} s of /clock for "
+                     f"{ESTIMATES_CURRENT_WAIT_S:.0f} s (busy machine?); going on: the force guard slows the moves")
 
     # -- what the scenario's steps use (runtime.steps.SuiteClient) ------------------------------------------
     def send_target(self, pose) -> None:
