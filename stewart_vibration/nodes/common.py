@@ -362,6 +362,14 @@ def duration_seconds(msg) -> float:
     return msg.sec + msg.nanosec * 1e-9
 
 
+# services that can be asked twice without changing anything: a client sends the request again after
+# RESEND_AFTER_S without an answer (right after discovery Fast DDS can lose the first response although the
+# service is "available": CI once waited 20 s for vibration_planner/set_parameters)
+IDEMPOTENT_SERVICES = ("/set_parameters", "/get_parameters", "/describe_parameters", "/list_parameters",
+                       "/plan_path")
+RESEND_AFTER_S = 5.0
+
+
 def stamp_seconds(stamp) -> float:
     """Seconds of a builtin_interfaces/Time stamp."""
     return stamp.sec + stamp.nanosec * 1e-9
@@ -369,6 +377,8 @@ def stamp_seconds(stamp) -> float:
 
 __all__ = [
     "STREAM_DEPTH",
+    "IDEMPOTENT_SERVICES",
+    "RESEND_AFTER_S",
     "BASE_FRAME",
     "check_frame",
     "ERROR",

@@ -30,7 +30,7 @@ from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
-from .common import make_executor, pose_from_msg, pose_stamped, stamp_seconds
+from .common import IDEMPOTENT_SERVICES, RESEND_AFTER_S, make_executor, pose_from_msg, pose_stamped, stamp_seconds
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
@@ -127,9 +127,18 @@ class SuiteClient:
         client = self.node.create_client(srv_type, name)
         try:
             self.spin_until(client.service_is_ready, timeout, f"service {name}")
-            future = client.call_async(request)
-            self.spin_until(future.done, timeout, f"answer of {name}")
-            return future.result()
+            deadline = time.monotonic() + timeout
+            resend = name.endswith(IDEMPOTENT_SERVICES)  # asked again after RESEND_AFTER_S without an answer
+            while True:
+                future = client.call_async(request)
+                left = deadline - time.monotonic()
+                try:
+                    self.spin_until(future.done, min(left, RESEND_AFTER_S) if resend else left, f"answer of {name}")
+                    return future.result()
+                except StepFailed:
+                    if not resend or time.monotonic() >= deadline or self.dead():
+                        raise
+                    client.remove_pending_request(future)
         finally:
             self.node.destroy_client(client)
 
