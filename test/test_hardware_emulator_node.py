@@ -185,3 +185,53 @@ def vib_series(states, t0, t1):
 
 def vib_between(states, t0, t1):
     return vib_series(states, t0, t1)[1]
+
+
+def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
+    """At real_time_factor 0 (as fast as possible) /clock keeps within max_consumer_lag_s of the newest
+    platform/external_wrench_estimate this test publishes; it runs past an estimator silent for 2 s; at
+    real_time_factor 1 it never waits (the hardware would not)."""
+    from geometry_msgs.msg import WrenchStamped
+    from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
+    from rcl_interfaces.srv import SetParameters
+
+    env = ros_environment(ros_domain)
+    proc = start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
+                               ["--ros-args", "-p", "real_time_factor:=0.0", "-p", "max_consumer_lag_s:=0.1"],
+                               env, tmp_path)
+    client = RosTestClient()
+    try:
+        clock = client.subscribe("/clock", Clock)
+        estimates = client.publisher("platform/external_wrench_estimate", WrenchStamped)
+        assert client.wait_for_subscribers("platform/external_wrench_estimate", timeout=30), logs([proc])
+        assert client.spin_until(lambda: len(clock) > 0, 30), logs([proc])
+
+        def estimate_at(t: float) -> None:
+            msg = WrenchStamped()
+            msg.header.stamp = Time(sec=int(t), nanosec=int(round((t % 1) * 1e9)))
+            estimates.publish(msg)
+
+        def clock_after(stamp: float, seconds: float) -> float:
+            """The newest /clock after ``seconds`` of wall time with the estimator at ``stamp``."""
+            estimate_at(stamp)
+            client.spin_for(seconds)
+            return sim_now(clock)
+
+        t0 = sim_now(clock) + 0.5
+        held = clock_after(t0, 1.5)  # as fast as possible runs ~5x: 1.5 s of wall would be ~7 s of sim
+        assert t0 - 0.1 < held <= t0 + 0.1 + 0.05, (t0, held, logs([proc]))
+        moved = clock_after(t0 + 0.5, 1.0)
+        assert t0 + 0.45 < moved <= t0 + 0.65, (t0, moved)
+        client.spin_for(3.0)  # silent for longer than a wait may last: run past
+        assert sim_now(clock) > moved + 1.0, (moved, sim_now(clock))
+
+        request = SetParameters.Request(parameters=[Parameter(name="real_time_factor", value=ParameterValue(
+            type=ParameterType.PARAMETER_DOUBLE, double_value=1.0))])
+        assert client.call(SetParameters, "hardware_emulator/set_parameters", request).results[0].successful
+        before = sim_now(clock)
+        estimate_at(before - 5.0)  # far behind, but at 1x nobody is waited for
+        client.spin_for(1.5)
+        assert sim_now(clock) - before > 1.0, (before, sim_now(clock))
+    finally:
+        client.close()
+        assert proc.stop() is not None

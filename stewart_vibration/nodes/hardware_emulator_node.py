@@ -14,7 +14,8 @@ platform/external_wrench_estimate).
 Services: hardware_emulator/reset, hardware_emulator/emergency_stop (Trigger).
 
 Physics runs in its own thread, one block of steps per state period, paced by
-``real_time_factor`` (0 = as fast as possible); commands arrive on the executor
+``real_time_factor`` (0 = as fast as possible); above real time it also waits for the
+nodes' estimates (``max_consumer_lag_s``, see emulation.consumer_pace); commands arrive on the executor
 thread and are handed over under a lock. The 500 Hz streams are published as
 serialized CDR (messages.cdr), the commands are decoded from raw bytes.
 """
@@ -41,6 +42,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..dynamics.tissue import load_tissue_option
+from ..emulation.consumer_pace import ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
@@ -66,6 +68,8 @@ from .common import (
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events are published at once)
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
+# what the emulator waits for above real time: the force guard's input and kinematics' own output (one per state)
+PACED_BY = ("platform/external_wrench_estimate", "platform/pose_estimate")
 LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
 
 
@@ -84,7 +88,7 @@ class HardwareEmulatorNode(LifecycleNode):
     the bring-up and the launch file set it false and drive the transitions themselves.
     """
 
-    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s")
+    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s", "max_consumer_lag_s")
 
     def __init__(self):
         super().__init__("hardware_emulator")
@@ -106,6 +110,10 @@ class HardwareEmulatorNode(LifecycleNode):
             read_only=ro))
         declare_float(self, "real_time_factor", 1.0, float_param(
             "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
+        declare_float(self, "max_consumer_lag_s", 0.1, float_param(
+            "above real time (real_time_factor > 1 or 0) physics waits while "
+            + " or ".join(PACED_BY) + " lag more than this behind sim time (at most 2 s per wait, then runs on "
+            "without the late node); at or below real time it never waits; 0 = never, s (live)", 0.0, 10.0))
         declare_float(self, "watchdog_s", 0.5, float_param(
             "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
             0.02, 10.0))
@@ -122,6 +130,8 @@ class HardwareEmulatorNode(LifecycleNode):
         declare_float(self, "marker_rate_hz", 10.0, float_param(
             "MarkerArray rate, sim time; 0 = none (read at configure)", 0.0, 100.0, read_only=ro))
         self.real_time_factor = self.get_parameter("real_time_factor").value
+        self.pace = ConsumerPace(self.get_parameter("max_consumer_lag_s").value)
+        self.pace_subs: list = []
         self.lock = threading.Lock()
         self.emulator: HardwareEmulator | None = None
         self.active = False
@@ -180,6 +190,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.tissue_pub = None
         if tissue is not None:
             self.tissue_pub = self.create_publisher(WrenchStamped, "platform/tissue_wrench", STREAM_DEPTH)
+        self._update_pacing()
         self.diagnostics.set(OK, "configured (inactive: commands are refused until activate)",
                              physics_rate_hz=param("physics_rate_hz").value,
                              servo_bandwidth_hz=settings.servo_bandwidth_hz,
@@ -213,6 +224,7 @@ class HardwareEmulatorNode(LifecycleNode):
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
         self._stop_physics()
+        self._update_pacing(False)
         for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub, self.tissue_pub):
             if pub is not None:
                 self.destroy_publisher(pub)
@@ -250,6 +262,9 @@ class HardwareEmulatorNode(LifecycleNode):
                 if p.name == "real_time_factor":
                     self.real_time_factor = float(p.value)
                     self._pace_reset = True
+                    self._update_pacing()
+                elif p.name == "max_consumer_lag_s":
+                    self.pace.max_lag_s = float(p.value)
                 elif p.name == "watchdog_s":  # here and below the emulator exists (see the continue above)
                     cast(HardwareEmulator, self.emulator).vibration.watchdog_s = float(p.value)
                 elif p.name == "vibration_ramp_s":
@@ -257,6 +272,26 @@ class HardwareEmulatorNode(LifecycleNode):
                 elif p.name == "max_lookahead_s":
                     cast(HardwareEmulator, self.emulator).vibration.max_lookahead_s = float(p.value)
         return SetParametersResult(successful=True)
+
+    def _update_pacing(self, wanted: bool | None = None) -> None:
+        """Subscribe to the consumers' outputs while physics paces itself by them (above real time),
+        unsubscribe otherwise: at 1x the 500 Hz streams would cost CPU for nothing."""
+        if wanted is None:
+            wanted = self.emulator is not None and paces_consumers(self.real_time_factor)
+        if wanted and not self.pace_subs:
+            self.pace_subs = [self.create_subscription(
+                PoseStamped if topic.endswith("pose_estimate") else WrenchStamped, topic,
+                lambda data, topic=topic: self._heard(topic, data), STREAM_DEPTH, raw=True) for topic in PACED_BY]
+        elif not wanted and self.pace_subs:
+            for sub in self.pace_subs:
+                self.destroy_subscription(sub)
+            self.pace_subs = []
+            self.pace.forget()
+
+    def _heard(self, topic: str, data: bytes) -> None:
+        stamp = cdr.header_stamp_ns(data)
+        if stamp is not None:
+            self.pace.heard(topic, stamp * 1e-9)
 
     # -- commands (executor thread) ------------------------------------------------------
     def on_leg_trajectory(self, data: bytes) -> None:
@@ -395,6 +430,8 @@ class HardwareEmulatorNode(LifecycleNode):
             rtf = self.real_time_factor
             if cycle % self.blocks_per_wakeup:
                 continue  # the next state period at once: one wake-up per pace period (cold caches cost more)
+            if self.pace_subs and self.pace.wait(now, lambda: self.running) > 0:
+                self._pace_reset = True  # waited for the estimates: keep the pace from here, do not race
             if self._pace_reset:
                 wall0, sim0, self._pace_reset = time.monotonic(), now, False
             elif rtf > 0:
@@ -406,7 +443,10 @@ class HardwareEmulatorNode(LifecycleNode):
                     wall0, sim0 = time.monotonic(), now
             if cycle % 500 == 0:
                 self.diagnostics.values.update(sim_time_s=f"{now:.3f}", achieved_rtf=f"{self.achieved_rtf:.2f}",
-                                               pace_resets=str(self.behind_resets))
+                                               pace_resets=str(self.behind_resets),
+                                               consumer_waits=str(self.pace.waits),
+                                               consumer_waited_s=f"{self.pace.waited_s:.2f}",
+                                               consumers_run_past=str(self.pace.gave_up))
 
     def _read_state(self):
         """(joint state tuple, (platform position, quaternion, tissue wrench), time) under the lock."""
