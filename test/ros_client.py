@@ -16,7 +16,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
-from stewart_vibration.nodes.common import IDEMPOTENT_SERVICES, RESEND_AFTER_S, make_executor
+from stewart_vibration.nodes.common import answer_with_resend, make_executor
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 
@@ -66,21 +66,15 @@ class RosTestClient:
         return self.spin_until(ready, timeout)
 
     def call(self, srv_type, name: str, request, timeout: float = 20.0):
-        """The service's answer; a request to an idempotent service is sent again every RESEND_AFTER_S without
-        an answer (see nodes.common.IDEMPOTENT_SERVICES)."""
+        """The service's answer (a request to an idempotent service is sent again, see
+        nodes.common.answer_with_resend); TimeoutError if it is not up or does not answer."""
         client = self.node.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
             raise TimeoutError(f"service {name} not available")
-        deadline = time.monotonic() + timeout
-        resend = name.endswith(IDEMPOTENT_SERVICES)
-        while True:
-            future = client.call_async(request)
-            left = deadline - time.monotonic()
-            if self.spin_until(future.done, min(left, RESEND_AFTER_S) if resend else left):
-                return future.result()
-            client.remove_pending_request(future)
-            if time.monotonic() >= deadline:
-                raise TimeoutError(f"service {name} did not answer")
+        answer = answer_with_resend(client, name, request, timeout, self.spin_until)
+        if answer is None:
+            raise TimeoutError(f"service {name} did not answer")
+        return answer
 
     def close(self) -> None:
         self.executor.shutdown()

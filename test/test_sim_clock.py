@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from stewart_vibration.runtime.sim_clock import ClockRate
+from stewart_vibration.runtime.sim_clock import ClockRate, HeldFor
 
 
 @pytest.mark.parametrize("factor", [0.5, 1.0, 3.0, 7.25])
@@ -49,3 +49,13 @@ def test_a_jump_of_the_clock_does_not_count():
         sim = 100.0 + 0.05 * k + (30.0 if k > 20 else 0.0)  # real time, with a 30 s jump
         rate.add(0.05 * k, sim)
     assert rate.rate() == pytest.approx(1.0)
+
+
+def test_held_for_needs_an_unbroken_stretch_of_sim_time():
+    held = HeldFor(0.5)
+    assert not held.update(True, 0.0)  # from sim time 0 (not mistaken for "not yet")
+    assert not held.update(True, 0.4)
+    assert not held.update(False, 0.45)  # a break starts it over
+    assert not held.update(True, 0.5)
+    assert not held.update(True, 0.99)
+    assert held.update(True, 1.0)

@@ -32,6 +32,7 @@ from std_srvs.srv import Trigger
 from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
+from stewart_vibration.runtime.sim_clock import HeldFor
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -133,17 +134,14 @@ def move_to(client, rec, pose, timeout=60.0, tolerance=10e-6) -> float:
     """Publish a target; wait until the ground truth has held it for 0.5 s of sim time (as the runner does: a
     target sent while the last move still ends is refused); returns the sim time it settled."""
     client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(pose, Time()))
-    since = [None]
+    held = HeldFor(0.5)
 
     def settled():
         if not rec["truth"]:
             return False
         err = pose_from_msg(rec["truth"][-1].pose) - pose
-        if np.abs(err[:3]).max() < tolerance and np.degrees(np.abs(err[3:]).max()) < 0.01:
-            since[0] = since[0] or stamp_of(rec["truth"][-1])
-            return stamp_of(rec["truth"][-1]) - since[0] >= 0.5
-        since[0] = None
-        return False
+        there = np.abs(err[:3]).max() < tolerance and np.degrees(np.abs(err[3:]).max()) < 0.01
+        return held.update(bool(there), stamp_of(rec["truth"][-1]))
 
     assert client.spin_until(settled, timeout), f"did not settle at {np.round(pose, 6).tolist()}"
     return sim_now(rec)
@@ -308,14 +306,11 @@ def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, su
         assert held[2] < target[2] - 0.3e-3  # held short of the target while blind
     finally:
         os.kill(estimator, signal.SIGCONT)
-    since = [None]
+    held = HeldFor(0.5)
 
     def reached():
         err = np.abs(pose_from_msg(rec["truth"][-1].pose) - target)
-        if err[:3].max() < 10e-6:
-            since[0] = since[0] or sim_now(rec)
-            return sim_now(rec) - since[0] > 0.5
-        return False
+        return held.update(bool(err[:3].max() < 10e-6), sim_now(rec))
 
     assert client.spin_until(reached, 30), logs(procs)  # resumed by itself: no new target was sent
     assert guard_values(rec["guard"][-1])["state"] == "armed"

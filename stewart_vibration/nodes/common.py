@@ -370,6 +370,23 @@ IDEMPOTENT_SERVICES = ("/set_parameters", "/get_parameters", "/describe_paramete
 RESEND_AFTER_S = 5.0
 
 
+def answer_with_resend(client, name: str, request, timeout: float, wait):
+    """The answer of service ``name`` to ``request`` through ``client`` (an rclpy Client whose service is
+    ready), or None after ``timeout`` (wall s). ``wait(predicate, seconds) -> bool`` spins until
+    ``predicate()`` or ``seconds`` pass. A request to one of IDEMPOTENT_SERVICES is sent again every
+    RESEND_AFTER_S without an answer; any other is sent once."""
+    deadline = time.monotonic() + timeout
+    resend = name.endswith(IDEMPOTENT_SERVICES)
+    while True:
+        future = client.call_async(request)
+        left = deadline - time.monotonic()
+        if wait(future.done, min(left, RESEND_AFTER_S) if resend else left):
+            return future.result()
+        client.remove_pending_request(future)
+        if not resend or time.monotonic() >= deadline:
+            return None
+
+
 def stamp_seconds(stamp) -> float:
     """Seconds of a builtin_interfaces/Time stamp."""
     return stamp.sec + stamp.nanosec * 1e-9
@@ -379,6 +396,7 @@ __all__ = [
     "STREAM_DEPTH",
     "IDEMPOTENT_SERVICES",
     "RESEND_AFTER_S",
+    "answer_with_resend",
     "BASE_FRAME",
     "check_frame",
     "ERROR",

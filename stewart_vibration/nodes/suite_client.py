@@ -28,9 +28,10 @@ from ..emulation.vibration_status import report_from_values
 from ..motion.force_guard import LAG_MEMORY_S
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
+from ..runtime.sim_clock import HeldFor
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
-from .common import IDEMPOTENT_SERVICES, RESEND_AFTER_S, make_executor, pose_from_msg, pose_stamped, stamp_seconds
+from .common import answer_with_resend, make_executor, pose_from_msg, pose_stamped, stamp_seconds
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
@@ -123,22 +124,26 @@ class SuiteClient:
         self.spin_until(lambda: cast(float, self.clock) >= end, seconds / rtf + 60, what)
 
     def call(self, srv_type, name: str, request, timeout: float = 30.0):
-        """Call service ``name`` and return its answer; StepFailed if it is not up or does not answer."""
+        """Call service ``name`` and return its answer (idempotent ones asked again, see
+        common.answer_with_resend); StepFailed if it is not up or does not answer, or a node died."""
         client = self.node.create_client(srv_type, name)
+        what = f"answer of {name}"
+
+        def wait(predicate, seconds: float) -> bool:
+            try:
+                self.spin_until(predicate, seconds, what)
+                return True
+            except StepFailed:
+                if self.dead():
+                    raise
+                return False
+
         try:
             self.spin_until(client.service_is_ready, timeout, f"service {name}")
-            deadline = time.monotonic() + timeout
-            resend = name.endswith(IDEMPOTENT_SERVICES)  # asked again after RESEND_AFTER_S without an answer
-            while True:
-                future = client.call_async(request)
-                left = deadline - time.monotonic()
-                try:
-                    self.spin_until(future.done, min(left, RESEND_AFTER_S) if resend else left, f"answer of {name}")
-                    return future.result()
-                except StepFailed:
-                    if not resend or time.monotonic() >= deadline or self.dead():
-                        raise
-                    client.remove_pending_request(future)
+            answer = answer_with_resend(client, name, request, timeout, wait)
+            if answer is None:
+                raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
+            return answer
         finally:
             self.node.destroy_client(client)
 
@@ -184,17 +189,13 @@ class SuiteClient:
         """Wait until the force estimates have stayed within ESTIMATES_CURRENT_S of /clock for LAG_MEMORY_S + 0.5 s
         of sim time (at most ESTIMATES_CURRENT_WAIT_S of wall time): an estimator still starting up makes the
         force guard plan the first move at a crawl (CI: `--real-time-factor 2` did not settle in 120 s)."""
-        since: list[float | None] = [None]
+        held = HeldFor(LAG_MEMORY_S + 0.5)
 
         def current() -> bool:
             msg, clock = self.latest.get("legs/force_estimate"), self.clock
             if msg is None or clock is None:
                 return False
-            if clock - stamp_seconds(msg.header.stamp) > ESTIMATES_CURRENT_S:
-                since[0] = None
-                return False
-            start = since[0] = clock if since[0] is None else since[0]
-            return clock - start >= LAG_MEMORY_S + 0.5
+            return held.update(clock - stamp_seconds(msg.header.stamp) <= ESTIMATES_CURRENT_S, clock)
 
         try:
             self.spin_until(current, ESTIMATES_CURRENT_WAIT_S, "the force estimates to keep up with /clock")

@@ -1,6 +1,7 @@
-"""How fast the simulation clock runs against the wall clock (pure): faster than real time
-(``real_time_factor`` > 1 or 0 = as fast as possible) a margin meant in wall time -- e.g. the time a
-command needs to reach the emulator -- is that many more sim seconds."""
+"""Sim-clock helpers (pure). ClockRate: how fast the simulation clock runs against the wall clock --
+faster than real time (``real_time_factor`` > 1 or 0 = as fast as possible) a margin meant in wall time,
+e.g. the time a command needs to reach the emulator, is that many more sim seconds. HeldFor: a
+condition that must hold without a break for a stretch of sim time (a pose settled, estimates current)."""
 
 from __future__ import annotations
 
@@ -49,3 +50,22 @@ class ClockRate:
         if rate <= 1.0:
             return seconds
         return math.ceil(seconds * rate / resolution - 1e-9) * resolution
+
+
+class HeldFor:
+    """True once a condition has held without a break for ``duration_s`` of sim time.
+
+    Feed it ``update(holds, now)`` at every check; a check where it does not hold starts it over."""
+
+    def __init__(self, duration_s: float):
+        self.duration_s = float(duration_s)
+        self.since: float | None = None  # sim time (s) since which it has held
+
+    def update(self, holds: bool, now: float) -> bool:
+        """Whether the condition, ``holds`` at sim time ``now`` (s), has held for duration_s."""
+        if not holds:
+            self.since = None
+            return False
+        if self.since is None:
+            self.since = now
+        return now - self.since >= self.duration_s

@@ -14,6 +14,7 @@ from typing import Any, Protocol, cast
 import numpy as np
 
 from .scenario import MoveStep, Scenario, VibrateStep
+from .sim_clock import HeldFor
 from .suite import DEFAULT_NAMESPACE
 
 SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
@@ -128,7 +129,7 @@ class ScenarioSteps:
         """Wait until the ground truth holds within tolerance for SETTLE_HOLD_S of sim time."""
         opts, client = self.options, self.client
         client.send_target(step.pose)
-        held_since = [None]
+        held = HeldFor(SETTLE_HOLD_S)
 
         def settled():
             pose = client.ground_truth()
@@ -136,11 +137,7 @@ class ScenarioSteps:
                 return False
             err = pose - step.pose
             ok = np.abs(err[:3]).max() < opts.settle_tolerance_m and np.abs(err[3:]).max() < opts.settle_tolerance_rad
-            if not ok:
-                held_since[0] = None
-                return False
-            held_since[0] = held_since[0] or client.clock
-            return client.clock - held_since[0] >= SETTLE_HOLD_S
+            return held.update(bool(ok), client.clock)
 
         client.spin_until(settled, opts.step_timeout_s, f"the platform to settle at {step.name}")
         err = client.ground_truth() - step.pose
