@@ -22,6 +22,7 @@ serialized CDR (messages.cdr), the commands are decoded from raw bytes.
 
 from __future__ import annotations
 
+import functools
 import threading
 import time
 import traceback
@@ -281,7 +282,7 @@ class HardwareEmulatorNode(LifecycleNode):
         if wanted and not self.pace_subs:
             self.pace_subs = [self.create_subscription(
                 PoseStamped if topic.endswith("pose_estimate") else WrenchStamped, topic,
-                lambda data, topic=topic: self._heard(topic, data), STREAM_DEPTH, raw=True) for topic in PACED_BY]
+                functools.partial(self._heard, topic), STREAM_DEPTH, raw=True) for topic in PACED_BY]
         elif not wanted and self.pace_subs:
             for sub in self.pace_subs:
                 self.destroy_subscription(sub)
