@@ -258,14 +258,15 @@ class HardwareEmulatorNode(LifecycleNode):
         """Live parameters take effect at once; read-only ones are refused by rclpy with the reason."""
         with self.lock:
             for p in params:
+                if p.name == "max_consumer_lag_s":  # held by the node, not the emulator: also before configure
+                    self.pace.max_lag_s = float(p.value)
+                    continue
                 if self.emulator is None and p.name != "real_time_factor":
                     continue  # read again at configure
                 if p.name == "real_time_factor":
                     self.real_time_factor = float(p.value)
                     self._pace_reset = True
                     self._update_pacing()
-                elif p.name == "max_consumer_lag_s":
-                    self.pace.max_lag_s = float(p.value)
                 elif p.name == "watchdog_s":  # here and below the emulator exists (see the continue above)
                     cast(HardwareEmulator, self.emulator).vibration.watchdog_s = float(p.value)
                 elif p.name == "vibration_ramp_s":

@@ -80,7 +80,7 @@ SETTLE_HOLD_S = 0.5
 MOVE_TIMEOUT_S = 120.0  # a move not settled by then no longer blocks a start
 CALL_TIMEOUT_S = 10.0
 COMMAND_POLL_S = 0.01  # the page's commands are run in the executor's thread within this time
-REASON_WAIT_S = 2.0  # how long to wait for a node's reason on /diagnostics after its refusal
+REASON_WAIT_S = 5.0  # how long to wait for a node's reason on /diagnostics after its refusal
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 EVENTS_KEPT = 30
 STREAMS_IDLE_S = 5.0  # the 500 Hz subscriptions are dropped this long after the last page closed
@@ -231,7 +231,7 @@ class PlanningUiNode(Node):
                 self._follow_recorder(values)
             move = self.move
             if node == "kinematics" and changed and move is not None and move["status"] == "moving" and \
-                    status.message.startswith("rejected target pose"):
+                    "rejected target pose" in status.message:
                 move["status"], move["reason"] = "rejected by kinematics", status.message
             self._resolve_waiters(node, status.message)
 
@@ -625,17 +625,19 @@ class PlanningUiNode(Node):
 
     def _wait_reason(self, node: str, prefix: str, reply, result: dict) -> None:
         """Reply with the reason ``node`` gave on /diagnostics (a message starting with ``prefix``) after the
-        request was sent; if it came already, at once, else when it comes (at most REASON_WAIT_S)."""
+        request was sent; if it came already, at once, else when it comes (at most REASON_WAIT_S). The prefix is
+        looked for anywhere in the message: a node whose inputs are late puts "stale: ...; " before it (a CI
+        run beside a CPU hog waited in vain for a kinematics refusal)."""
         since = getattr(self, "reason_mark", 0)
         for seq, message in self.node_history.get(node, ()):  # a later status may have replaced it already
-            if seq > since and message.startswith(prefix):
+            if seq > since and prefix in message:
                 reply({**result, "message": message})
                 return
         self.reason_waiters.append((time.monotonic() + REASON_WAIT_S, node, prefix, reply, result))
 
     def _resolve_waiters(self, node: str, message: str) -> None:
         for waiter in list(self.reason_waiters):
-            if waiter[1] == node and message.startswith(waiter[2]):
+            if waiter[1] == node and waiter[2] in message:
                 self.reason_waiters.remove(waiter)
                 waiter[3]({**waiter[4], "message": message})
 
