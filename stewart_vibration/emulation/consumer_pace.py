@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import time
 
+MAX_WAIT_S = 2.0  # wall time one wait may last before a stalled consumer is run past (s)
 
 def paces_consumers(real_time_factor: float) -> bool:
     """True where the emulator waits for its consumers: above real time, or as fast as possible (0)."""
@@ -31,7 +32,7 @@ class ConsumerPace:
         max_wait_s: wall time one wait may last before the stalled consumer is run past (s).
     """
 
-    def __init__(self, max_lag_s: float, max_wait_s: float = 2.0):
+    def __init__(self, max_lag_s: float, max_wait_s: float = MAX_WAIT_S):
         self.max_lag_s = float(max_lag_s)
         self.max_wait_s = float(max_wait_s)
         self.newest: dict[str, float] = {}  # topic -> stamp of its last message (s, sim time)

@@ -43,7 +43,7 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..dynamics.tissue import load_tissue_option
-from ..emulation.consumer_pace import ConsumerPace, paces_consumers
+from ..emulation.consumer_pace import MAX_WAIT_S, ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
@@ -70,7 +70,7 @@ STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durabil
 STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events are published at once)
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
 # what the emulator waits for above real time: the force guard's input and kinematics' own output (one per state)
-PACED_BY = ("platform/external_wrench_estimate", "platform/pose_estimate")
+PACED_BY = {"platform/external_wrench_estimate": WrenchStamped, "platform/pose_estimate": PoseStamped}
 LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
 
 
@@ -113,8 +113,8 @@ class HardwareEmulatorNode(LifecycleNode):
             "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
         declare_float(self, "max_consumer_lag_s", 0.1, float_param(
             "above real time (real_time_factor > 1 or 0) physics waits while "
-            + " or ".join(PACED_BY) + " lag more than this behind sim time (at most 2 s per wait, then runs on "
-            "without the late node); at or below real time it never waits; 0 = never, s (live)", 0.0, 10.0))
+            + " or ".join(PACED_BY) + f" lag more than this behind sim time (at most {MAX_WAIT_S:g} s per wait, then "
+            "runs on without the late node); at or below real time it never waits; 0 = never, s (live)", 0.0, 10.0))
         declare_float(self, "watchdog_s", 0.5, float_param(
             "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
             0.02, 10.0))
@@ -281,9 +281,8 @@ class HardwareEmulatorNode(LifecycleNode):
         if wanted is None:
             wanted = self.emulator is not None and paces_consumers(self.real_time_factor)
         if wanted and not self.pace_subs:
-            self.pace_subs = [self.create_subscription(
-                PoseStamped if topic.endswith("pose_estimate") else WrenchStamped, topic,
-                functools.partial(self._heard, topic), STREAM_DEPTH, raw=True) for topic in PACED_BY]
+            self.pace_subs = [self.create_subscription(msg_type, topic, functools.partial(self._heard, topic),
+                                                       STREAM_DEPTH, raw=True) for topic, msg_type in PACED_BY.items()]
         elif not wanted and self.pace_subs:
             for sub in self.pace_subs:
                 self.destroy_subscription(sub)
