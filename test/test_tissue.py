@@ -27,6 +27,8 @@ from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.motion.force_guard import (
     LAG_MEMORY_S,
     MAX_STOP_RETRIES,
+    ON_MOVE_SETTLE_S,
+    RECEIPT_DELAY_S,
     RECEIPT_WINDOW_S,
     RESUME_FRESH_S,
     ForceGuard,
@@ -554,6 +556,70 @@ def test_robot_and_tissue_cannot_be_changed_through_their_arrays(robot, tissue):
                   tissue.center, tissue.stiffness, tissue.damping):
         with pytest.raises(ValueError, match="read-only"):
             array[0] = 1.0
+
+
+def run_past_checks(robot, arrival_after_window: float | None):
+    """A blind trip 30 % into the 10 mm lift; its stop arrives ``arrival_after_window`` s after the end of the
+    receipt window (None: it never arrives) at an emulated follower, whose commanded lengths are then fed to the
+    guard every 20 ms for 1.5 s, with a missed_stop check after each batch as the kinematics node does. Returns
+    (the first stop, the emulator's verdict on it, the largest progress reached, [(time after the trip, retry)]).
+    """
+    guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
+    start, _goal, duration, traj, t_start = guarded_10mm_lift(robot, guard)
+    guard.observe([t_start], [np.zeros(6)], t_start)
+    now = t_start + 0.3 * duration
+    follower = TrajectoryFollower(start)
+    follower.replace(traj, t_start)
+    before = np.arange(t_start, now, 0.002)
+    guard.observe_states(before, follower.sample(before)[0])
+    stop = guard.check_estimates(now).stop
+    verdict = "lost"
+    if arrival_after_window is not None:
+        arrival = now + guard.receipt_window + arrival_after_window
+        cmd = build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, [stop.duration], [stop.lengths], [np.zeros(6)],
+                               [np.zeros(6)])
+        try:
+            follower.replace(checked_command(follower, cmd, arrival, robot.limits), arrival)
+            verdict = "taken"
+        except ActuatorLimitError:
+            verdict = "refused"
+    retries, reached = [], 0.0
+    for batch in np.arange(now, now + 1.5, 0.02):
+        stamps = batch + np.arange(0.002, 0.0201, 0.002)
+        guard.observe_states(stamps, follower.sample(stamps)[0])
+        reached = max(reached, float(guard._state_sigma[-1]))
+        retry = guard.missed_stop(float(stamps[-1]))
+        if retry is not None:
+            retries.append((float(stamps[-1] - now), retry))
+    return guard, stop, verdict, reached, retries
+
+
+def test_a_stop_taken_late_is_not_replaced_by_one_that_drives_on(robot):
+    """A stop the emulator takes late (still within its limits) overshoots its end on the way to rest; the
+    struts run past it but have left the move: no new stop. Before, a "ran past" stop was planned from the
+    running move and drove the braking struts on (a CPU-hog run of the tissue scenario: 301 N against a
+    200 N guard). Each accepted arrival gives no retry although the struts pass the end by more than the 0.01
+    the check allows; a stop that never arrives, or that the emulator refuses unheard, gets one, further along,
+    once the latest arrival the emulator could take has passed. ``latest_take`` agrees with the emulator's own
+    check (accepted there, refused 10 ms later)."""
+    guard, stop, _, _, _ = run_past_checks(robot, None)
+    latest = guard.latest_take(guard.move, stop)
+    late_by = latest - (stop.receipt_time - RECEIPT_DELAY_S + guard.receipt_window)  # the latest take, past the window
+    assert late_by > 0.0
+    assert run_past_checks(robot, late_by)[2] == "taken"
+    assert run_past_checks(robot, late_by + 0.01)[2] == "refused"
+    overshoots = []
+    for after in np.linspace(0.0, late_by, 5):
+        _, stop, verdict, reached, retries = run_past_checks(robot, after)
+        assert verdict == "taken" and retries == [], (after, retries)
+        overshoots.append(reached - stop.progress)
+    assert max(overshoots) > 0.01 + 0.02  # the struts did run past the stop (the check's 0.01 and more)
+    for after in (None, late_by + 0.01):
+        guard, stop, verdict, reached, retries = run_past_checks(robot, after)
+        assert verdict in ("lost", "refused") and len(retries) == 1, (after, retries)
+        when, retry = retries[0]
+        assert when >= latest - (stop.receipt_time - RECEIPT_DELAY_S) + ON_MOVE_SETTLE_S - 1e-9
+        assert retry.progress > stop.progress
 
 
 def test_a_stop_that_did_not_take_is_replanned_over_a_doubled_window(robot):

@@ -27,9 +27,11 @@ the command delays measured on the moves: each move's start is calibrated from t
 the quintic from any such departure to (sigma_f, rest) must stay within ``deceleration_scale`` x
 strut_acceleration_max and strut_velocity_max (checked on a grid of receipt times), and T_s is the
 shortest that does. If the emulator refuses the stop anyway (it arrived later still) or the measured
-struts run past it, the node asks ``missed_stop`` for another one over a doubled window. sigma_f is
-the natural stopping point of the estimated departure (velocity falling as a cubic smoothstep:
-sigma_f = sigma + T_s (sigma_dot / 2 + sigma_ddot T_s / 12)), so the stop follows the planned path. If
+struts run past it while still following the move (the stop never took), the node asks ``missed_stop``
+for another one over a doubled window; struts past it that have left the move took it late: its quintic
+overshoots the end within the limits and returns, and they get no new stop (one planned from the move would
+drive them on). sigma_f is the natural stopping point of the estimated departure (velocity falling as a
+cubic smoothstep: sigma_f = sigma + T_s (sigma_dot / 2 + sigma_ddot T_s / 12)), so the stop follows the planned path. If
 the move would end before the stop could (sigma_f >= 1), no stop is sent: the move ends at its goal.
 
 Blind. The guard is only as good as its input: while a move is under way, a newest wrench estimate
@@ -83,6 +85,10 @@ _BASES = [quintic_hermite(_TAU, 1.0, *unit, 0.0, 0.0, 0.0)[1:] for unit in ((1.0
                                                                           (0.0, 0.0, 1.0))]
 DIRECTION_TOLERANCE_M = 1e-6  # a target further along a tripped direction than this (m, pose space) is refused
 WATCH_AFTER_S = 0.3  # the guard keeps watching (and recording peaks) this long after a move or stop ends
+ON_MOVE_PROGRESS_TOL = 0.005  # measured progress this close to the move's plan: the struts still follow it
+ON_MOVE_RATE_TOL = 0.2  # ... and their progress rate within this fraction of the planned one (of its peak, near rest)
+ON_MOVE_SPAN_S = 0.03  # the measured progress rate: the slope over this much of the newest states (s)
+ON_MOVE_SETTLE_S = 0.1  # struts judged on the move only this long (s) after the latest a stop could be taken
 
 
 _S_TABLE = np.linspace(0.0, 1.0, 2001)
@@ -495,15 +501,11 @@ class ForceGuard:
         lim = self.robot.limits
         acc_max, vel_max = self.deceleration_scale * lim.strut_acceleration_max / scale, lim.strut_velocity_max / scale
 
-        (vp, ap), (vv, av), (va, aa) = _BASES
-        p0, v1, a1 = (x[:, None] for x in receipt)
 
         def peaks(duration: float):  # the quintics from every receipt to (final, rest) over ``duration``
             final = s0 + duration * (v0 / 2 + a0 * duration / 12)
-            gap = p0 - final
-            vel = gap * vp / duration + v1 * vv + a1 * va * duration
-            acc = gap * ap / duration**2 + v1 * av / duration + a1 * aa
-            return final, float(np.abs(acc).max()), float(np.abs(vel).max())
+            acc, vel = _stop_peaks(receipt, final, duration)
+            return final, float(acc.max()), float(vel.max())
 
         # the shortest duration (to STOP_RESOLUTION_S) whose worst case stays within the limits: grow, then bisect
         low, high = 0.0, max(STOP_DURATIONS_S[0], 1.5 * abs(v0) / acc_max)
@@ -524,8 +526,9 @@ class ForceGuard:
 
     def missed_stop(self, newest_state_time: float, refused: bool = False) -> StopPlan | None:
         """A new stop when the commanded one did not take: the emulator ``refused`` it (it arrived later than the
-        receipt window allowed) or the measured struts ran past it; planned from the running move for twice the
-        window; None otherwise. At most MAX_STOP_RETRIES times per trip."""
+        receipt window allowed) or the measured struts ran past it still following the move; planned from the
+        running move for twice the window; None otherwise (struts past it but off the move took the stop late
+        and brake along it). At most MAX_STOP_RETRIES times per trip."""
         trip, move = self.trip, self.move
         if trip is None or trip.stop is None or move is None or move is not self._stopping or \
                 self._stop_retries >= MAX_STOP_RETRIES:
@@ -535,11 +538,44 @@ class ForceGuard:
                 return None
             if self._state_sigma[-1] <= trip.stop.progress + 0.01:
                 return None
+            if newest_state_time < self.latest_take(move, trip.stop) + ON_MOVE_SETTLE_S or not self.follows_move(move):
+                return None  # it may still be taken, or it was (late) and the struts brake along it
         self._stop_retries += 1
         stop = self.plan_stop(newest_state_time, window_s=self.receipt_window * 2**self._stop_retries)
         if stop is not None:
             self.trip = replace(trip, stop=stop)
         return stop
+
+    def latest_take(self, move: GuardedMove, stop: StopPlan) -> float:
+        """The latest arrival (s, emulator clock) at which the emulator still takes ``stop`` off ``move``: the
+        end of the run of arrivals from ``stop.receipt_time`` (every STOP_RESOLUTION_S) whose quintic keeps
+        within strut_acceleration_max and strut_velocity_max (its own check; later ones it refuses)."""
+        scale = float(np.abs(move.delta).max())
+        lim = self.robot.limits
+        arrivals = stop.receipt_time + np.arange(0.0, 2 * MAX_WINDOW_S + stop.duration, STOP_RESOLUTION_S)
+        acc, vel = _stop_peaks(move.progress(arrivals), stop.progress, stop.duration)
+        refused = (acc * scale > lim.strut_acceleration_max) | (vel * scale > lim.strut_velocity_max)
+        first_refused = int(np.argmax(refused)) if refused.any() else arrivals.size
+        return float(arrivals[max(first_refused - 1, 0)])
+
+    def follows_move(self, move: GuardedMove) -> bool:
+        """Whether the newest measured states still follow ``move`` as planned: progress within
+        ON_MOVE_PROGRESS_TOL of the plan at their stamps, and progress rate (slope over ON_MOVE_SPAN_S) within
+        ON_MOVE_RATE_TOL of the planned rate. A stop the emulator took, however late, bends them off the plan
+        (first in rate); a stop that never took leaves them on it."""
+        t, sigma = self._state_t, self._state_sigma
+        if not t.size:
+            return True
+        recent = t >= t[-1] - ON_MOVE_SPAN_S
+        planned, rate, _ = move.progress(t[recent])
+        if abs(float(sigma[-1] - planned[-1])) > ON_MOVE_PROGRESS_TOL:
+            return False
+        if np.count_nonzero(recent) < 3:
+            return True
+        measured_rate = float(np.polyfit(t[recent], sigma[recent], 1)[0])
+        planned_rate = float(rate.mean())
+        floor = ON_MOVE_RATE_TOL * 1.875 / move.duration  # 1.875 / T: the minimum-jerk move's peak rate
+        return abs(measured_rate - planned_rate) <= max(ON_MOVE_RATE_TOL * abs(planned_rate), floor)
 
     # -- report ---------------------------------------------------------------------------------------
     def status_values(self) -> dict:
@@ -571,6 +607,17 @@ class ForceGuard:
         stop = f"struts stopped over {trip.stop.duration:.2f} s" if trip.stop else "the move ended before a stop"
         return (f"tripped at {trip.time:.3f} s: {trip.which} {self._tripped_value(trip)}; {stop}; holding; targets "
                 "further in that direction are refused until kinematics/reset_guard or a new limit")
+
+
+def _stop_peaks(departures, final: float, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """Largest |acceleration| and |velocity| [n] (progress units: 1/s^2, 1/s) of the quintics from each
+    departure state (sigma, sigma_dot, sigma_ddot, each [n]) to (``final``, rest) over ``duration`` (s)."""
+    (vp, ap), (vv, av), (va, aa) = _BASES
+    p0, v1, a1 = (np.asarray(x, float)[:, None] for x in departures)
+    gap = p0 - final
+    vel = gap * vp / duration + v1 * vv + a1 * va * duration
+    acc = gap * ap / duration**2 + v1 * av / duration + a1 * aa
+    return np.abs(acc).max(axis=1), np.abs(vel).max(axis=1)
 
 
 def _predict(samples, column: int, target_progress: float) -> tuple[float, float]:

@@ -244,8 +244,8 @@ class KinematicsNode(Node):
             self.on_trip(trip)
         retry = self.guard.missed_stop(now)
         if retry is not None:
-            self.get_logger().error("force guard: the struts ran past the commanded stop (refused or late?); "
-                                    f"stopping again over {retry.duration:.2f} s")
+            self.get_logger().error("force guard: the struts ran past the commanded stop still on the move (it did "
+                                    f"not take); stopping again over {retry.duration:.2f} s")
             self.send_stop(retry)
         if self.diagnostics.message == "waiting for legs/joint_states":
             self.diagnostics.set(OK, "tracking")
