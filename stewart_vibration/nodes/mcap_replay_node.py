@@ -12,8 +12,8 @@ the recorded /clock, if any, is replayed as recorded; true: the node publishes
 clock_rate_hz (100.0 wall Hz; 0 = the rate of the recorded /clock, 100 Hz if
 none), topics (str[], empty = all), exclude_topics (str[]),
 wait_for_subscribers_s (0.0: wait up to this long for every replay publisher
-to be matched, and then for the subscriber counts to stay unchanged for
-SUBSCRIBERS_SETTLE_S, before starting), exit_when_done (true).
+to be matched by every subscriber the ROS graph shows on its topic, and then
+for the counts to stay unchanged for SUBSCRIBERS_SETTLE_S, before starting), exit_when_done (true).
 
 A missing, empty, non-MCAP or truncated file, or a bad parameter, is one
 ``mcap_replay: error: ...`` line on stderr and exit code 2 (a truncated file
@@ -101,16 +101,20 @@ class McapReplayNode(Node):
         self._thread.start()
 
     def _wait_for_subscribers(self) -> None:
-        """Until every publisher is matched and no count has changed for SUBSCRIBERS_SETTLE_S (a second
-        subscriber still matching would miss the start: CI under load lost 1.7 s of a run's states that way),
-        or until wait_for_subscribers_s has passed."""
+        """Until every publisher is matched, by at least every subscriber the ROS graph shows on its topic, and
+        no count has changed for SUBSCRIBERS_SETTLE_S (a subscriber still matching would miss the start: CI
+        under load lost 1.7 s of a run's states that way, and a CPU-hog run 0.5 s of one subscriber's), or until
+        wait_for_subscribers_s has passed."""
         deadline = time.monotonic() + self.wait_s
         counts, since = None, time.monotonic()
         while time.monotonic() < deadline and not self._stop.is_set():
-            now_counts = [p.get_subscription_count() for p in self.pubs.values()]
+            matched = [p.get_subscription_count() for p in self.pubs.values()]
+            discovered = [self.count_subscribers(topic) for topic in self.pubs]
+            now_counts = matched + discovered
             if now_counts != counts:
                 counts, since = now_counts, time.monotonic()
-            elif all(now_counts) and time.monotonic() - since >= SUBSCRIBERS_SETTLE_S:
+            elif all(matched) and all(m >= d for m, d in zip(matched, discovered, strict=True)) and \
+                    time.monotonic() - since >= SUBSCRIBERS_SETTLE_S:
                 return
             time.sleep(0.05)
 
