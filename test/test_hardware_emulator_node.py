@@ -190,7 +190,7 @@ def vib_between(states, t0, t1):
 def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
     """At real_time_factor 0 (as fast as possible) /clock keeps within max_consumer_lag_s of the newest
     platform/external_wrench_estimate this test publishes; it runs past an estimator silent for 2 s; at
-    real_time_factor 1 it never waits (the hardware would not)."""
+    real_time_factor 1 it never waits (the hardware would not), unless ``lockstep`` is set (live)."""
     from geometry_msgs.msg import WrenchStamped
     from rcl_interfaces.msg import Parameter, ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
@@ -232,6 +232,14 @@ def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
         estimate_at(before - 5.0)  # far behind, but at 1x nobody is waited for
         client.spin_for(1.5)
         assert sim_now(clock) - before > 1.0, (before, sim_now(clock))
+
+        request = SetParameters.Request(parameters=[Parameter(name="lockstep", value=ParameterValue(
+            type=ParameterType.PARAMETER_BOOL, bool_value=True))])
+        assert client.call(SetParameters, "hardware_emulator/set_parameters", request).results[0].successful
+        assert client.wait_for_subscribers("platform/external_wrench_estimate", timeout=30), logs([proc])
+        t1 = sim_now(clock) + 0.3
+        held = clock_after(t1, 1.5)  # lockstep at 1x: held, where 1.5 s of wall would be 1.5 s of sim
+        assert t1 - 0.1 < held <= t1 + 0.1 + 0.05, (t1, held)
     finally:
         client.close()
         assert proc.stop() is not None

@@ -18,9 +18,10 @@ import time
 
 MAX_WAIT_S = 2.0  # wall time one wait may last before a stalled consumer is run past (s)
 
-def paces_consumers(real_time_factor: float) -> bool:
-    """True where the emulator waits for its consumers: above real time, or as fast as possible (0)."""
-    return real_time_factor == 0.0 or real_time_factor > 1.0
+def paces_consumers(real_time_factor: float, lockstep: bool = False) -> bool:
+    """True where the emulator waits for its consumers: above real time, as fast as possible (0), or at any
+    rate in ``lockstep`` (a busy machine then slows sim time instead of leaving the estimates behind)."""
+    return lockstep or real_time_factor == 0.0 or real_time_factor > 1.0
 
 
 class ConsumerPace:

@@ -14,9 +14,9 @@ platform/external_wrench_estimate).
 Services: hardware_emulator/reset, hardware_emulator/emergency_stop (Trigger).
 
 Physics runs in its own thread, one block of steps per state period, paced by
-``real_time_factor`` (0 = as fast as possible); above real time it also waits for the
-nodes' estimates (``max_consumer_lag_s``, see emulation.consumer_pace); commands arrive on the executor
-thread and are handed over under a lock. The 500 Hz streams are published as
+``real_time_factor`` (0 = as fast as possible); above real time (or at any rate with ``lockstep``)
+it also waits for the nodes' estimates (``max_consumer_lag_s``, see emulation.consumer_pace); commands
+arrive on the executor thread and are handed over under a lock. The 500 Hz streams are published as
 serialized CDR (messages.cdr), the commands are decoded from raw bytes.
 """
 
@@ -89,7 +89,7 @@ class HardwareEmulatorNode(LifecycleNode):
     the bring-up and the launch file set it false and drive the transitions themselves.
     """
 
-    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s", "max_consumer_lag_s")
+    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s", "max_consumer_lag_s", "lockstep")
 
     def __init__(self):
         super().__init__("hardware_emulator")
@@ -112,9 +112,13 @@ class HardwareEmulatorNode(LifecycleNode):
         declare_float(self, "real_time_factor", 1.0, float_param(
             "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
         declare_float(self, "max_consumer_lag_s", 0.1, float_param(
-            "above real time (real_time_factor > 1 or 0) physics waits while "
+            "above real time (real_time_factor > 1 or 0), or in lockstep, physics waits while "
             + " or ".join(PACED_BY) + f" lag more than this behind sim time (at most {MAX_WAIT_S:g} s per wait, then "
-            "runs on without the late node); at or below real time it never waits; 0 = never, s (live)", 0.0, 10.0))
+            "runs on without the late node); at or below real time it waits only in lockstep; 0 = never, s (live)",
+            0.0, 10.0))
+        self.declare_parameter("lockstep", False, ParameterDescriptor(
+            description="wait for late consumers (max_consumer_lag_s) at any real_time_factor, real time too: a busy "
+                        "machine then slows sim time instead of leaving the estimates behind (live)"))
         declare_float(self, "watchdog_s", 0.5, float_param(
             "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
             0.02, 10.0))
@@ -132,6 +136,7 @@ class HardwareEmulatorNode(LifecycleNode):
             "MarkerArray rate, sim time; 0 = none (read at configure)", 0.0, 100.0, read_only=ro))
         self.real_time_factor = self.get_parameter("real_time_factor").value
         self.pace = ConsumerPace(self.get_parameter("max_consumer_lag_s").value)
+        self.lockstep = bool(self.get_parameter("lockstep").value)
         self.pace_subs: list = []
         self.lock = threading.Lock()
         self.emulator: HardwareEmulator | None = None
@@ -261,6 +266,11 @@ class HardwareEmulatorNode(LifecycleNode):
                 if p.name == "max_consumer_lag_s":  # held by the node, not the emulator: also before configure
                     self.pace.max_lag_s = float(p.value)
                     continue
+                if p.name == "lockstep":
+                    self.lockstep = bool(p.value)
+                    self._pace_reset = True
+                    self._update_pacing()
+                    continue
                 if self.emulator is None and p.name != "real_time_factor":
                     continue  # read again at configure
                 if p.name == "real_time_factor":
@@ -276,10 +286,10 @@ class HardwareEmulatorNode(LifecycleNode):
         return SetParametersResult(successful=True)
 
     def _update_pacing(self, wanted: bool | None = None) -> None:
-        """Subscribe to the consumers' outputs while physics paces itself by them (above real time),
-        unsubscribe otherwise: at 1x the 500 Hz streams would cost CPU for nothing."""
+        """Subscribe to the consumers' outputs while physics paces itself by them (above real time, or in
+        lockstep), unsubscribe otherwise: at 1x the 500 Hz streams would cost CPU for nothing."""
         if wanted is None:
-            wanted = self.emulator is not None and paces_consumers(self.real_time_factor)
+            wanted = self.emulator is not None and paces_consumers(self.real_time_factor, self.lockstep)
         if wanted and not self.pace_subs:
             self.pace_subs = [self.create_subscription(msg_type, topic, functools.partial(self._heard, topic),
                                                        STREAM_DEPTH, raw=True) for topic, msg_type in PACED_BY.items()]
