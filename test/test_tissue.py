@@ -558,6 +558,26 @@ def test_robot_and_tissue_cannot_be_changed_through_their_arrays(robot, tissue):
             array[0] = 1.0
 
 
+def test_a_move_is_under_way_until_its_end_or_its_stop(robot):
+    """move_under_way: the running move's end while it runs (kinematics refuses targets then: planned from rest,
+    the emulator would refuse them and run on while the guard watched the refused move); None while it is still
+    at rest, after its end, and once a trip has stopped it (the stop ends it: targets back are taken, a blind
+    pause resumes). A move of nothing (to where the platform is) never blocks."""
+    guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
+    assert guard.move_under_way(0.0) is None  # no move yet
+    start, _, duration, _, t_start = guarded_10mm_lift(robot, guard)
+    end = t_start + duration
+    assert guard.move_under_way(t_start + 0.5 * duration) == pytest.approx(end)
+    assert guard.move_under_way(t_start) is None  # not moving yet: a target is taken
+    assert guard.move_under_way(end) is None
+    guard.observe([t_start], [np.zeros(6)], t_start)
+    trip = guard.check_estimates(t_start + 0.3 * duration)  # blind: a trip with its stop
+    assert trip is not None and trip.stop is not None
+    assert guard.move_under_way(t_start + 0.4 * duration) is None
+    guard.begin_move(20.0, 0.5, start, start, robot.home_pose, robot.home_pose)
+    assert guard.move_under_way(20.25) is None
+
+
 def run_past_checks(robot, arrival_after_window: float | None):
     """A blind trip 30 % into the 10 mm lift; its stop arrives ``arrival_after_window`` s after the end of the
     receipt window (None: it never arrives) at an emulated follower, whose commanded lengths are then fed to the

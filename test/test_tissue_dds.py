@@ -318,6 +318,38 @@ def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, su
     assert all(p.alive() for p in procs), logs(procs)
 
 
+def test_a_target_sent_during_a_move_is_refused_and_the_move_stays_guarded(robot, suite):
+    """A target while a move runs is refused with the reason (planned from rest it would be refused by the
+    emulator, which runs on, while the guard watched the refused move: seen in a CPU-hog run, the platform then
+    went on toward a 10 mm distraction unwatched). The running move goes on to its target, guarded: kinematics'
+    guard status stays armed and the ground truth settles there."""
+    procs, client, rec = suite
+    set_params(client, "kinematics", speed_scale=0.1)  # 2 mm/s: the 4 mm move lasts ~3.8 s
+    move_to(client, rec, robot.home_pose)
+    target = robot.home_pose + np.array([0.0, 0.0, 0.004, 0.0, 0.0, 0.0])  # well below the force limit
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
+    assert client.spin_until(lambda: rec["truth"] and pose_from_msg(rec["truth"][-1].pose)[2] >
+                             robot.home_pose[2] + 0.2e-3, 20), logs(procs)
+    seen = len(rec["diagnostics"])
+    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(robot.home_pose, Time()))
+
+    def refusals():
+        return [s.message for a in rec["diagnostics"][seen:] for s in a.status
+                if s.name.startswith("kinematics") and "rejected target pose" in s.message]
+
+    assert client.spin_until(lambda: any("a move is under way" in m for m in refusals()), 10), logs(procs)
+    held = HeldFor(0.5)
+
+    def reached():
+        err = np.abs(pose_from_msg(rec["truth"][-1].pose) - target)
+        return held.update(bool(err[:3].max() < 10e-6), sim_now(rec))
+
+    assert client.spin_until(reached, 30), logs(procs)
+    assert guard_values(rec["guard"][-1])["state"] == "armed"
+    move_to(client, rec, robot.home_pose)  # after the move: taken
+    assert all(p.alive() for p in procs), logs(procs)
+
+
 def test_plan_path_refuses_a_path_that_would_overload_a_strut(robot, suite):
     procs, client, rec = suite
     diagnostics = rec["diagnostics"]

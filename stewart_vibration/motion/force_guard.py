@@ -85,6 +85,8 @@ _BASES = [quintic_hermite(_TAU, 1.0, *unit, 0.0, 0.0, 0.0)[1:] for unit in ((1.0
                                                                           (0.0, 0.0, 1.0))]
 DIRECTION_TOLERANCE_M = 1e-6  # a target further along a tripped direction than this (m, pose space) is refused
 WATCH_AFTER_S = 0.3  # the guard keeps watching (and recording peaks) this long after a move or stop ends
+AT_REST_SPEED_M_S = 1e-4  # a move planned slower than this (strut, m/s) and ...
+AT_REST_ACCEL_M_S2 = 1e-3  # ... accelerating less than this (m/s^2) takes a new target (from rest)
 ON_MOVE_PROGRESS_TOL = 0.005  # measured progress this close to the move's plan: the struts still follow it
 ON_MOVE_RATE_TOL = 0.2  # ... and their progress rate within this fraction of the planned one (of its peak, near rest)
 ON_MOVE_SPAN_S = 0.03  # the measured progress rate: the slope over this much of the newest states (s)
@@ -124,6 +126,7 @@ class GuardedMove:
     goal_pose: np.ndarray
     baseline: tuple | None = None  # force and moment magnitudes at the move's start (its first estimate)
     calibrated: bool = False
+    stopped: bool = False  # a trip sent its stop: the move ends there, not at ``end``
     samples: list = field(default_factory=list)  # (t, sigma, |F|, |M|) of the estimates during the move
 
     @property
@@ -254,6 +257,21 @@ class ForceGuard:
         return self.trip is not None
 
     # -- moves and targets ----------------------------------------------------------------------------
+    def move_under_way(self, now: float) -> float | None:
+        """The end (s, emulator clock) of the move the struts run at ``now`` (s), or None: no move, it has ended,
+        a trip stopped it, or it is at rest now (planned strut speed and acceleration below AT_REST_SPEED_M_S
+        and AT_REST_ACCEL_M_S2: its start, its end, a move of nothing). A target sent while the struts move
+        would be planned from rest: the emulator refuses it and runs on, while the guard would watch the
+        refused move instead."""
+        move = self.move
+        if move is None or move.stopped or now >= move.end:
+            return None
+        scale = float(np.abs(move.delta).max())
+        _, rate, accel = (float(x[0]) for x in move.progress([now]))
+        if abs(rate) * scale < AT_REST_SPEED_M_S and abs(accel) * scale < AT_REST_ACCEL_M_S2:
+            return None
+        return move.end
+
     def check_target(self, current_pose, target_pose) -> None:
         """Raise ActuatorLimitError (limit_name "force_guard") if a trip is latched and the target lies further
         along the direction of a move the guard stopped since the last reset."""
@@ -477,6 +495,7 @@ class ForceGuard:
                               direction / norm if norm > 0 else direction, detail)
         self.blocked.append(self.trip.direction)
         self._stopping = move
+        move.stopped = stop is not None  # without a stop the move runs on to its goal
         self.peak = load
         self._stop_retries = 0
         return self.trip

@@ -381,6 +381,11 @@ class KinematicsNode(Node):
         except StewartError as exc:
             reject(self, self.diagnostics, "target pose", str(exc))
             return
+        busy_until = self.guard.move_under_way(self.emulator_now())
+        if busy_until is not None:
+            reject(self, self.diagnostics, "target pose", f"a move is under way until {busy_until:.3f} s (sim time); "
+                   "send the next target once it has ended")
+            return
         try:
             trajectory = self.plan_trajectory(self.lengths, self.pose, goal_lengths, target)
         except StewartError as exc:
