@@ -215,10 +215,16 @@ def test_guard_stops_a_move_that_would_exceed_the_limit(robot, suite):
     begin = sim_now(rec)
     target = robot.home_pose + np.array([0.0, 0.0, 0.010, 0.0, 0.0, 0.0])  # 10 mm distraction: ~410 N
     client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
-    assert client.spin_until(lambda: any(m.level == DiagnosticStatus.ERROR for m in rec["guard"][guard_before:]),
-                             30), logs(procs)
-    trip = guard_values(rec["guard"][-1])
-    assert trip["state"] == "tripped" and trip["trip_limit"] == "force"
+    # under load the guard may first pause the move while the estimates lag (an "estimates" trip that resumes by
+    # itself: run 3 of a series beside a CPU hog); the force trip is the one this test is about
+
+    def force_trips():
+        return [guard_values(m) for m in rec["guard"][guard_before:]
+                if m.level == DiagnosticStatus.ERROR and guard_values(m).get("trip_limit") == "force"]
+
+    assert client.spin_until(force_trips, 60), logs(procs)
+    trip = force_trips()[0]
+    assert trip["state"] == "tripped"
     # the stop completes and the platform holds short of the target
     assert client.spin_until(lambda: sim_now(rec) > float(trip["trip_time_s"]) + 1.5, 30)
     end = sim_now(rec)
