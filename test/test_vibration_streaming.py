@@ -101,6 +101,32 @@ def test_a_stall_past_the_lookahead_ramps_out_and_is_reported(robot, plan):
     assert buffer.status(T0 + tail + RAMP + 0.2).state == "idle"
 
 
+def test_a_stall_judged_by_its_length_agrees_with_the_units_buffer(robot, plan):
+    """check_stall (the planner's judgement on waking, before a fresh clock): interrupted exactly when the
+    units' own buffer is no longer at full amplitude where the next window would start."""
+    s = StreamSettings(duration=None, ramp_s=RAMP, lookahead_s=1.0, lead_s=0.3)
+    stream = VibrationStream(robot, plan, s)
+    buffer = VibrationBuffer(robot.vibration_unit)
+    to_buffer(buffer, stream.next_window(-1.0), T0 - 1.0)
+    seen = 0.5
+    to_buffer(buffer, stream.next_window(seen), T0 + seen)
+    for held_up in (0.0, 0.3, 0.95, 1.05, 2.0, 5.0):
+        starts_at = seen + held_up + s.lead_s  # where a window sent on waking would start
+        t = np.arange(starts_at - 0.05, starts_at, 0.0005)
+        full = np.allclose(buffer.sample(T0 + t)[0], reference_legs(robot, t), atol=1e-9)
+        try:
+            stream.check_stall(seen, held_up)
+            interrupted = False
+        except StreamInterrupted as exc:
+            interrupted = True
+            assert f"held up {held_up:.3f} s" in str(exc) and "ran out of commands" in str(exc)
+            assert exc.at == pytest.approx(stream.tail_start)
+        assert interrupted == (not full), held_up
+    assert stream.tail_start == pytest.approx(1.8)  # the cases above straddle it (1.05 and 0.95)
+    stream.stop_window(seen)
+    stream.check_stall(seen, 5.0)  # stopping: the stop window ends the vibration, nothing is left to judge
+
+
 def test_stop_ramps_out_from_a_sent_sample(robot, plan):
     s = StreamSettings(duration=None, ramp_s=RAMP)
     stream = VibrationStream(robot, plan, s)

@@ -23,8 +23,10 @@ aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN
 otherwise) and in its state -- when the emulator refuses one of its windows,
 e-stops, reports the units stopped or idle before the planned end, or when it
 was itself held up past the buffered look-ahead (the units have begun their
-ramp-out). The start answer carries the settings that run as JSON after
-"settings: " (the run summary judges against those).
+ramp-out; judged on the first tick after the stall by the wall clock at the measured sim rate,
+since the sim clock is stale until the /clock sent meanwhile is taken). The start
+answer carries the settings that run as JSON after "settings: " (the run summary
+judges against those).
 """
 
 from __future__ import annotations
@@ -103,7 +105,7 @@ class VibrationPlannerNode(Node):
         self.last_error = ""
         self.plan = None
         self.stream: VibrationStream | None = None
-        self.run = None  # dict: settings, t0 (s), next_send (s)
+        self.run = None  # dict: settings, t0 (s), next_send (s), seen (s from t0: the last tick's sim time)
         self.pose_data = None  # raw PoseStamped bytes and their receive time (monotonic wall clock, s:
         # the sim clock may be stale when this process resumes from a stall)
         self.emulator = None  # latest VibrationReport from vibration/status
@@ -242,7 +244,8 @@ class VibrationPlannerNode(Node):
         t0 = now + started.start_lead
         duration = s["duration_s"] if s["duration_s"] > 0 else None
         self.plan, self.stream = plan, stream
-        self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"]}
+        # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
+        self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"], "seen": now - t0}
         self.state, self.last_error = "running", ""
         self.seen_event = emulator.event_seq if emulator is not None else 0
         self.publish(first)
@@ -304,12 +307,17 @@ class VibrationPlannerNode(Node):
         if run is None:
             return
         if gap > STALL_S:
-            # this process was held up (SIGSTOP, a busy machine): the sim clock it sees is stale until
-            # the next /clock arrives, so decide on the next tick
+            # this process was held up (SIGSTOP, a busy machine): the sim clock it sees is stale until the
+            # /clock sent meanwhile is taken, which may not be soon. Judge by the wall clock now (at the
+            # measured sim rate) whether the units ran out of commands; the next ticks judge by the sim clock
             self.get_logger().warning(f"the planner was held up {gap:.3f} s (wall clock)")
+            try:
+                cast(VibrationStream, self.stream).check_stall(run["seen"], gap * self.clock_rate.rate())
+            except StreamInterrupted as exc:
+                self.abort(str(exc), WARN)
             return
         now = self.now_s()
-        rel = now - run["t0"]
+        rel = run["seen"] = now - run["t0"]
         # a run has its stream (both set by start)
         end = cast(VibrationStream, self.stream).planned_end if self.state == "running" else \
             cast(VibrationStream, self.stream).rest_at

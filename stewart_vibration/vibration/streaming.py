@@ -116,11 +116,7 @@ class VibrationStream:
         s = self.settings
         # the first window starts at t0 from rest (ramp-in); later ones lead_s ahead of now
         start = self._ceil(max(now + s.lead_s, 0.0)) if self.windows_sent else 0.0
-        if self.tail_start is not None and start > self.tail_start + 1e-9:
-            raise StreamInterrupted(
-                f"the next window would start at t0 + {start:.3f} s, after the last window's ramp-out began at "
-                f"t0 + {self.tail_start:.3f} s: the vibration units ran out of commands (the planner was held up "
-                f"{start - self.tail_start:.3f} s too long)", at=self.tail_start)
+        self._check_splice(start, "")
         end = s.duration
         if end is not None and end <= now + s.max_lookahead_s:
             window = self._sample(self._grid(start, end), None, final=True)
@@ -136,6 +132,30 @@ class VibrationStream:
             self.tail_start = tail
         self._sent(window)
         return window
+
+    def check_stall(self, seen: float, held_up: float) -> None:
+        """Judge a stall of the sender without a fresh clock: it last saw ``seen`` (s from t0) and was then
+        held up for ``held_up`` s of the receiver's clock (wall seconds times the clock rate).
+
+        The same rule as ``next_window``: the stream is interrupted when a window sent now, at
+        seen + held_up, would start after the last window's ramp-out began. Nothing is left to judge
+        once the final window was sent.
+
+        Raises:
+            StreamInterrupted: the stall outlasted the commands the receiver had buffered.
+        """
+        if not self.finished:
+            self._check_splice(self._ceil(max(seen + held_up + self.settings.lead_s, 0.0)),
+                               f"the planner was held up {held_up:.3f} s from t0 + {seen:.3f} s: ")
+
+    def _check_splice(self, start: float, cause: str) -> None:
+        """Raise StreamInterrupted when a window starting at ``start`` (s from t0) cannot splice onto the last
+        one: its ramp-out began before (``cause`` prefixes the message)."""
+        if self.tail_start is not None and start > self.tail_start + 1e-9:
+            raise StreamInterrupted(
+                f"{cause}the next window would start at t0 + {start:.3f} s, after the last window's ramp-out began "
+                f"at t0 + {self.tail_start:.3f} s: the vibration units ran out of commands (the planner was held up "
+                f"{start - self.tail_start:.3f} s too long)", at=self.tail_start)
 
     def stop_window(self, now: float) -> VibrationWindow | None:
         """A last window ramping out from the first sample at or after now + lead_s (s from t0), or None
