@@ -135,6 +135,11 @@ class GuardedMove:
         return self.goal_lengths - self.start_lengths
 
     @property
+    def stroke(self) -> float:
+        """The longest strut travel of the move, max |delta| (m): the scale of its progress in leg space."""
+        return float(np.abs(self.delta).max())
+
+    @property
     def end(self) -> float:
         """The move's end (s, emulator clock)."""
         return self.start_time + self.duration
@@ -266,7 +271,7 @@ class ForceGuard:
         move = self.move
         if move is None or move.stopped or now >= move.end:
             return None
-        scale = float(np.abs(move.delta).max())
+        scale = move.stroke
         _, rate, accel = (float(x[0]) for x in move.progress([now]))
         if abs(rate) * scale < AT_REST_SPEED_M_S and abs(accel) * scale < AT_REST_ACCEL_M_S2:
             return None
@@ -509,7 +514,7 @@ class ForceGuard:
         move = self.move
         if move is None:
             return None
-        scale = float(np.abs(move.delta).max())
+        scale = move.stroke
         if scale <= 0:
             return None
         newest = newest_state_time + later_s
@@ -519,7 +524,6 @@ class ForceGuard:
         receipt = move.progress(newest + np.linspace(0.0, window, 7))
         lim = self.robot.limits
         acc_max, vel_max = self.deceleration_scale * lim.strut_acceleration_max / scale, lim.strut_velocity_max / scale
-
 
         def peaks(duration: float):  # the quintics from every receipt to (final, rest) over ``duration``
             final = s0 + duration * (v0 / 2 + a0 * duration / 12)
@@ -569,7 +573,7 @@ class ForceGuard:
         """The latest arrival (s, emulator clock) at which the emulator still takes ``stop`` off ``move``: the
         end of the run of arrivals from ``stop.receipt_time`` (every STOP_RESOLUTION_S) whose quintic keeps
         within strut_acceleration_max and strut_velocity_max (its own check; later ones it refuses)."""
-        scale = float(np.abs(move.delta).max())
+        scale = move.stroke
         lim = self.robot.limits
         arrivals = stop.receipt_time + np.arange(0.0, 2 * MAX_WINDOW_S + stop.duration, STOP_RESOLUTION_S)
         acc, vel = _stop_peaks(move.progress(arrivals), stop.progress, stop.duration)
