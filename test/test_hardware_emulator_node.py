@@ -5,6 +5,8 @@ until reset -- all observed as a user would (joint states, vibration/status, /di
 
 from __future__ import annotations
 
+import time
+
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
@@ -211,16 +213,23 @@ def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
             msg.header.stamp = Time(sec=int(t), nanosec=int(round((t % 1) * 1e9)))
             estimates.publish(msg)
 
-        def clock_after(stamp: float, seconds: float) -> float:
-            """The newest /clock after ``seconds`` of wall time with the estimator at ``stamp``."""
+        def held_after(stamp: float, steady_s: float = 0.5) -> float:
+            """The /clock once it has stood still for ``steady_s`` of wall time (at most 10 s) with the
+            estimator at ``stamp``: a wait lasts at most 2 s of wall (then it is run past), so ``stamp``
+            must be ahead of the clock by less than that, yet by more than a message's delay under load."""
             estimate_at(stamp)
-            client.spin_for(seconds)
-            return sim_now(clock)
+            last, since, deadline = sim_now(clock), time.monotonic(), time.monotonic() + 10.0
+            while time.monotonic() - since < steady_s and time.monotonic() < deadline:
+                client.spin_for(0.05)
+                if sim_now(clock) != last:
+                    last, since = sim_now(clock), time.monotonic()
+            return last
 
-        t0 = sim_now(clock) + 0.5
-        held = clock_after(t0, 1.5)  # as fast as possible runs ~5x: 1.5 s of wall would be ~7 s of sim
+        # as fast as possible runs ~5x: 2 s of sim ahead is ~0.4 s of wall for the estimate to arrive first
+        t0 = sim_now(clock) + 2.0
+        held = held_after(t0)
         assert t0 - 0.1 < held <= t0 + 0.1 + 0.05, (t0, held, logs([proc]))
-        moved = clock_after(t0 + 0.5, 1.0)
+        moved = held_after(t0 + 0.5)
         assert t0 + 0.45 < moved <= t0 + 0.65, (t0, moved)
         client.spin_for(3.0)  # silent for longer than a wait may last: run past
         assert sim_now(clock) > moved + 1.0, (moved, sim_now(clock))
@@ -237,9 +246,11 @@ def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
             type=ParameterType.PARAMETER_BOOL, bool_value=True))])
         assert client.call(SetParameters, "hardware_emulator/set_parameters", request).results[0].successful
         assert client.wait_for_subscribers("platform/external_wrench_estimate", timeout=30), logs([proc])
-        t1 = sim_now(clock) + 0.3
-        held = clock_after(t1, 1.5)  # lockstep at 1x: held, where 1.5 s of wall would be 1.5 s of sim
+        t1 = sim_now(clock) + 1.0
+        held = held_after(t1)  # lockstep at 1x: held where real time would run on
         assert t1 - 0.1 < held <= t1 + 0.1 + 0.05, (t1, held)
+        client.spin_for(0.5)
+        assert sim_now(clock) == held, (held, sim_now(clock))  # still held: not the client's own stall
     finally:
         client.close()
         assert proc.stop() is not None
