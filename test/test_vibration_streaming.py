@@ -119,7 +119,7 @@ def test_a_stall_judged_by_its_length_agrees_with_the_units_buffer(robot, plan):
             interrupted = False
         except StreamInterrupted as exc:
             interrupted = True
-            assert f"held up {held_up:.3f} s" in str(exc) and "ran out of commands" in str(exc)
+            assert f"held up {held_up:.3f} s of sim time" in str(exc) and "ran out of commands" in str(exc)
             assert exc.at == pytest.approx(stream.tail_start)
         assert interrupted == (not full), held_up
     assert stream.tail_start == pytest.approx(1.8)  # the cases above straddle it (1.05 and 0.95)

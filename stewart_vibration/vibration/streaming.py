@@ -146,7 +146,7 @@ class VibrationStream:
         """
         if not self.finished:
             self._check_splice(self._ceil(max(seen + held_up + self.settings.lead_s, 0.0)),
-                               f"the planner was held up {held_up:.3f} s from t0 + {seen:.3f} s: ")
+                               f"the planner was held up {held_up:.3f} s of sim time from t0 + {seen:.3f} s: ")
 
     def _check_splice(self, start: float, cause: str) -> None:
         """Raise StreamInterrupted when a window starting at ``start`` (s from t0) cannot splice onto the last
