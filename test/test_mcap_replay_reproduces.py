@@ -92,6 +92,7 @@ def replay_into_fresh_nodes(src: Path, domain: int, work: Path, expected: dict) 
     The nodes are stopped once every estimate ``expected`` names (stamps by topic) is on disk in the
     recorder's file, or after 60 s (then ``compare`` says which are missing).
     """
+    from diagnostic_msgs.msg import DiagnosticArray
     from ros_client import RosTestClient
     from test_mcap_nodes import on_disk
 
@@ -116,6 +117,20 @@ def replay_into_fresh_nodes(src: Path, domain: int, work: Path, expected: dict) 
             lambda: client.node.count_subscribers(POSE) >= 1 and client.node.count_subscribers(FORCE) >= 1
             and client.node.count_subscribers(STATES) >= 2, 60.0)
         assert ready, "\n".join(p.log_text() for p in procs)
+        # the graph shows the recorder's subscriptions before the estimators' publishers have matched them:
+        # wait until both report (on /diagnostics) that their outputs have a matched reader -- the recorder's
+        matched: dict[str, int] = {}
+
+        def on_diagnostics(msg) -> None:
+            for status in msg.status:
+                for kv in status.values:
+                    if kv.key.startswith("matched_subscribers "):
+                        matched[kv.key.split(" ", 1)[1]] = int(kv.value)
+
+        client.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
+        outputs = ("platform/pose_estimate", "legs/force_estimate")
+        assert client.spin_until(lambda: all(matched.get(o, 0) >= 1 for o in outputs), 60.0), \
+            (matched, "\n".join(p.log_text() for p in procs))
         replay = start_python_module(
             "replay", "stewart_vibration.nodes.mcap_replay_node",
             ["--ros-args", "-p", f"path:={src}", "-p", f"topics:=[{','.join(REPLAYED)}]",

@@ -16,6 +16,7 @@ from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescri
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 
 from ..errors import InvalidInputError
 from ..kinematics.rotations import (
@@ -206,6 +207,7 @@ class Diagnostics:
         self.level, self.message, self.values = OK, "starting", {}
         self._watched: dict[str, tuple[float, float, str]] = {}  # input -> (timeout s, last seen, hint)
         self._stale: tuple = ()
+        self._outputs: dict[str, Publisher] = {}  # output name -> its publisher (matched readers are reported)
         self._started = time.monotonic()
         node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
         node.create_timer(0.25, self._check_inputs, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -214,6 +216,12 @@ class Diagnostics:
         """Expect input ``name`` at least every ``timeout_s`` (wall s) once it has started or the node has run
         that long; ``hint`` says which node provides it."""
         self._watched[name] = (timeout_s, self._started, hint)
+
+    def report_readers(self, name: str, publisher: Publisher) -> None:
+        """Report how many subscriptions ``publisher`` (output ``name``) has matched, as the value
+        "matched_subscribers <name>" of every status: who really receives it (a reader the graph shows
+        may not be matched yet)."""
+        self._outputs[name] = publisher
 
     def seen(self, name: str) -> None:
         """Input ``name`` arrived now."""
@@ -237,6 +245,8 @@ class Diagnostics:
             self.publish()
 
     def publish(self) -> None:
+        for name, publisher in self._outputs.items():
+            self.values[f"matched_subscribers {name}"] = str(publisher.get_subscription_count())
         level, message = self.level, self.message
         if self._stale:  # an ERROR of the node's own stays ERROR; the missing inputs are named either way
             level = ERROR if level == ERROR else STALE

@@ -157,6 +157,7 @@ class KinematicsNode(Node):
         self.batcher = RawBatcher(self, batch_size, period, self.process)
         self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
+        self.diagnostics.report_readers("platform/pose_estimate", self.pose_pub)
         # 1 s of states at 500 Hz: under CPU load the executor stalls > 0.1 s and depth 50 lost estimates
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))

@@ -84,6 +84,8 @@ class LegForceEstimatorNode(Node):
         self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
         self.force_pub = self.create_publisher(JointState, "legs/force_estimate", STREAM_DEPTH)
         self.wrench_pub = self.create_publisher(WrenchStamped, "platform/external_wrench_estimate", STREAM_DEPTH)
+        self.diagnostics.report_readers("legs/force_estimate", self.force_pub)
+        self.diagnostics.report_readers("platform/external_wrench_estimate", self.wrench_pub)
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 10, raw=True)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
