@@ -12,11 +12,13 @@ from collections import defaultdict
 from contextlib import contextmanager
 
 import rclpy
+from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.context import Context
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
-from stewart_vibration.nodes.common import answer_with_resend, make_executor
+from stewart_vibration.nodes.common import make_executor
+from stewart_vibration.nodes.service_calls import ServiceClients, answer_with_resend, transition_lifecycle
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 
@@ -31,6 +33,7 @@ class RosTestClient:
         self.executor.add_node(self.node)
         self.received = defaultdict(list)
         self._publishers = {}
+        self.clients = ServiceClients(self.node)
 
     def subscribe(self, topic: str, msg_type, depth: int = 1000):
         self.node.create_subscription(msg_type, topic, self.received[topic].append, depth)
@@ -66,15 +69,33 @@ class RosTestClient:
         return self.spin_until(ready, timeout)
 
     def call(self, srv_type, name: str, request, timeout: float = 20.0):
-        """The service's answer (a request to an idempotent service is sent again, see
-        nodes.common.answer_with_resend); TimeoutError if it is not up or does not answer."""
-        client = self.node.create_client(srv_type, name)
-        if not client.wait_for_service(timeout_sec=timeout):
-            raise TimeoutError(f"service {name} not available")
+        """The service's answer (one kept client per service; a request to an idempotent service is sent
+        again, see nodes.service_calls); TimeoutError if it is not up or does not answer."""
+        client = self._ready_client(srv_type, name, timeout)
         answer = answer_with_resend(client, name, request, timeout, self.spin_until)
         if answer is None:
             raise TimeoutError(f"service {name} did not answer")
         return answer
+
+    def transition(self, node: str, transition_id: int, timeout: float = 20.0) -> bool:
+        """Lifecycle transition of ``node``: True if made, False if refused (a lost answer is recovered
+        from the node's state, see nodes.service_calls.transition_lifecycle); TimeoutError otherwise."""
+        client = self._ready_client(ChangeState, f"{node}/change_state", timeout)
+        made = transition_lifecycle(client, transition_id, timeout, self.spin_until,
+                                    lambda: self.lifecycle_state(node))
+        if made is None:
+            raise TimeoutError(f"{node}/change_state did not answer")
+        return made
+
+    def lifecycle_state(self, node: str) -> str:
+        """The label of ``node``'s current lifecycle state (its get_state service)."""
+        return self.call(GetState, f"{node}/get_state", GetState.Request()).current_state.label
+
+    def _ready_client(self, srv_type, name: str, timeout: float):
+        client = self.clients.get(srv_type, name)
+        if not client.wait_for_service(timeout_sec=timeout):
+            raise TimeoutError(f"service {name} not available")
+        return client
 
     def close(self) -> None:
         self.executor.shutdown()

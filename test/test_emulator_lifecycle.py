@@ -9,7 +9,6 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState, GetState
 from ros_client import node_under_test
 from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -22,13 +21,11 @@ ARGS = ["--ros-args", "-p", "autostart:=false"]
 
 
 def change(client, transition_id):
-    request = ChangeState.Request()
-    request.transition.id = transition_id
-    return client.call(ChangeState, "hardware_emulator/change_state", request).success
+    return client.transition("hardware_emulator", transition_id)
 
 
 def state(client):
-    return client.call(GetState, "hardware_emulator/get_state", GetState.Request()).current_state.label
+    return client.lifecycle_state("hardware_emulator")
 
 
 def move(robot, delta):

@@ -1,15 +1,17 @@
-"""nodes.common.answer_with_resend: a request to an idempotent service whose answer is lost is sent
-again; any other request is sent once (rclpy Futures; the lost answer is staged, DDS cannot lose one on
-purpose)."""
+"""nodes.service_calls: a request to an idempotent service whose answer is lost is sent again; any other
+request is sent once; a lifecycle transition whose answer is lost is recovered from the node's state, never
+sent twice (rclpy Futures; the lost answer is staged, DDS cannot lose one on purpose)."""
 
 from __future__ import annotations
 
 import time
+import types
 
 import pytest
+from lifecycle_msgs.msg import Transition
 from rclpy.task import Future
 
-from stewart_vibration.nodes import common
+from stewart_vibration.nodes import service_calls as common
 
 
 class LossyClient:
@@ -23,8 +25,11 @@ class LossyClient:
         self.sent.append(request)
         future = Future()
         if len(self.sent) in self.answered:
-            future.set_result(f"answer to #{len(self.sent)}")
+            future.set_result(self.answer(len(self.sent)))
         return future
+
+    def answer(self, k):
+        return f"answer to #{k}"
 
     def remove_pending_request(self, future):
         self.removed.append(future)
@@ -68,3 +73,46 @@ def test_an_answer_in_time_is_not_asked_again():
     client = LossyClient(answered={1})
     assert common.answer_with_resend(client, "/x/get_parameters", "req", 1.0, wait) == "answer to #1"
     assert client.sent == ["req"] and not client.removed
+
+
+class LossyLifecycleNode(LossyClient):
+    """A lifecycle node's change_state: ``made`` is whether it makes the transition (its answer's
+    ``success``); the node's state label is ``state`` before and the transition's goal after a request."""
+
+    def __init__(self, answered=(), made=True, state="unconfigured"):
+        super().__init__(answered)
+        self.made, self.state, self.asked = made, state, 0
+
+    def answer(self, k):
+        return types.SimpleNamespace(success=self.made)
+
+    def call_async(self, request):
+        if self.made:
+            self.state = common.TRANSITION_GOALS[request.transition.id]
+        return super().call_async(request)
+
+    def state_label(self):
+        self.asked += 1
+        return self.state
+
+
+def test_a_transition_whose_answer_is_lost_is_recovered_from_the_nodes_state_not_sent_again():
+    node = LossyLifecycleNode(answered=())
+    made = common.transition_lifecycle(node, Transition.TRANSITION_CONFIGURE, 5.0, wait, node.state_label)
+    assert made is True and node.state == "inactive"
+    assert len(node.sent) == 1 and node.asked == 1 and len(node.removed) == 1
+
+
+def test_an_answered_transition_is_its_answer_and_the_state_is_not_asked():
+    for made in (True, False):
+        node = LossyLifecycleNode(answered={1}, made=made, state="inactive")
+        assert common.transition_lifecycle(node, Transition.TRANSITION_ACTIVATE, 5.0, wait, node.state_label) is made
+        assert len(node.sent) == 1 and node.asked == 0
+
+
+def test_a_lost_transition_the_node_did_not_make_times_out_without_a_second_request():
+    node = LossyLifecycleNode(answered=(), made=False, state="inactive")
+    start = time.monotonic()
+    assert common.transition_lifecycle(node, Transition.TRANSITION_ACTIVATE, 0.2, wait, node.state_label) is None
+    assert 0.2 <= time.monotonic() - start < 1.0
+    assert len(node.sent) == 1 and node.asked >= 5 and len(node.removed) == 1

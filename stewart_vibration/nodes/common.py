@@ -372,31 +372,6 @@ def duration_seconds(msg) -> float:
     return msg.sec + msg.nanosec * 1e-9
 
 
-# services that can be asked twice without changing anything: a client sends the request again after
-# RESEND_AFTER_S without an answer (right after discovery Fast DDS can lose the first response although the
-# service is "available": CI once waited 20 s for vibration_planner/set_parameters)
-IDEMPOTENT_SERVICES = ("/set_parameters", "/get_parameters", "/describe_parameters", "/list_parameters",
-                       "/plan_path")
-RESEND_AFTER_S = 5.0
-
-
-def answer_with_resend(client, name: str, request, timeout: float, wait):
-    """The answer of service ``name`` to ``request`` through ``client`` (an rclpy Client whose service is
-    ready), or None after ``timeout`` (wall s). ``wait(predicate, seconds) -> bool`` spins until
-    ``predicate()`` or ``seconds`` pass. A request to one of IDEMPOTENT_SERVICES is sent again every
-    RESEND_AFTER_S without an answer; any other is sent once."""
-    deadline = time.monotonic() + timeout
-    resend = name.endswith(IDEMPOTENT_SERVICES)
-    while True:
-        future = client.call_async(request)
-        left = deadline - time.monotonic()
-        if wait(future.done, min(left, RESEND_AFTER_S) if resend else left):
-            return future.result()
-        client.remove_pending_request(future)
-        if not resend or time.monotonic() >= deadline:
-            return None
-
-
 def stamp_seconds(stamp) -> float:
     """Seconds of a builtin_interfaces/Time stamp."""
     return stamp.sec + stamp.nanosec * 1e-9
@@ -404,9 +379,6 @@ def stamp_seconds(stamp) -> float:
 
 __all__ = [
     "STREAM_DEPTH",
-    "IDEMPOTENT_SERVICES",
-    "RESEND_AFTER_S",
-    "answer_with_resend",
     "BASE_FRAME",
     "check_frame",
     "ERROR",

@@ -14,7 +14,7 @@ import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import Transition
-from lifecycle_msgs.srv import ChangeState
+from lifecycle_msgs.srv import ChangeState, GetState
 from rcl_interfaces.srv import SetParameters
 from rclpy.context import Context
 from rclpy.node import Node
@@ -31,7 +31,8 @@ from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environm
 from ..runtime.sim_clock import HeldFor
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
-from .common import answer_with_resend, make_executor, pose_from_msg, pose_stamped, stamp_seconds
+from .common import make_executor, pose_from_msg, pose_stamped, stamp_seconds
+from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
@@ -62,6 +63,7 @@ class SuiteClient:
         self.context.init(domain_id=domain_id)
         self.node = Node("suite_runner", namespace=namespace, context=self.context)
         self.executor = make_executor(self.context)  # EventsExecutor: a third of the CPU per message
+        self.clients = ServiceClients(self.node)  # one kept client per service (see nodes.service_calls)
         self.executor.add_node(self.node)
         self.clock: float | None = None
         self.latest: dict = {}
@@ -125,8 +127,35 @@ class SuiteClient:
 
     def call(self, srv_type, name: str, request, timeout: float = 30.0):
         """Call service ``name`` and return its answer (idempotent ones asked again, see
-        common.answer_with_resend); StepFailed if it is not up or does not answer, or a node died."""
-        client = self.node.create_client(srv_type, name)
+        nodes.service_calls); StepFailed if it is not up or does not answer, or a node died."""
+        client = self._ready_client(srv_type, name, timeout)
+        answer = answer_with_resend(client, name, request, timeout, self._wait_answer(name))
+        if answer is None:
+            raise StepFailed(f"timed out after {timeout:.0f} s waiting for the answer of {name}")
+        return answer
+
+    # -- readiness ----------------------------------------------------------------------------------------
+    def transition(self, node: str, transition_id: int, label: str, timeout: float = 60.0) -> None:
+        """Drive a lifecycle transition of ``node`` (lifecycle_msgs ChangeState, sent once; a lost answer is
+        recovered from its get_state); StepFailed if refused or unanswered."""
+        name = f"{node}/change_state"
+        client = self._ready_client(ChangeState, name, timeout)
+        made = transition_lifecycle(client, transition_id, timeout, self._wait_answer(name),
+                                    lambda: self.call(GetState, f"{node}/get_state", GetState.Request()
+                                                      ).current_state.label)
+        if made is None:
+            raise StepFailed(f"timed out after {timeout:.0f} s waiting for {node} to '{label}' (see {self.log_dir})")
+        if not made:
+            raise StepFailed(f"{node} refused the lifecycle transition '{label}' (see {self.log_dir})")
+
+    def _ready_client(self, srv_type, name: str, timeout: float):
+        """The kept client of service ``name`` once the service is up; StepFailed if it is not."""
+        client = self.clients.get(srv_type, name)
+        self.spin_until(client.service_is_ready, timeout, f"service {name}")
+        return client
+
+    def _wait_answer(self, name: str):
+        """``wait(predicate, seconds) -> bool`` for an answer of ``name``; a died node fails at once."""
         what = f"answer of {name}"
 
         def wait(predicate, seconds: float) -> bool:
@@ -137,23 +166,7 @@ class SuiteClient:
                 if self.dead():
                     raise
                 return False
-
-        try:
-            self.spin_until(client.service_is_ready, timeout, f"service {name}")
-            answer = answer_with_resend(client, name, request, timeout, wait)
-            if answer is None:
-                raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
-            return answer
-        finally:
-            self.node.destroy_client(client)
-
-    # -- readiness ----------------------------------------------------------------------------------------
-    def transition(self, node: str, transition_id: int, label: str) -> None:
-        """Drive a lifecycle transition of ``node`` (lifecycle_msgs ChangeState); StepFailed if refused."""
-        request = ChangeState.Request()
-        request.transition.id = transition_id
-        if not self.call(ChangeState, f"{node}/change_state", request, timeout=60.0).success:
-            raise StepFailed(f"{node} refused the lifecycle transition '{label}' (see {self.log_dir})")
+        return wait
 
     def wait_ready(self, progress) -> None:
         """Configure and activate the emulator, then wait until every node works: /clock, pose and force
@@ -169,9 +182,7 @@ class SuiteClient:
         self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
         progress("ready: leg_force_estimator (force estimates)")
         for service in ("vibration_planner/start", "mcap_recorder/stop"):
-            client = self.node.create_client(Trigger, service)
-            self.spin_until(client.service_is_ready, 60, f"service {service}")
-            self.node.destroy_client(client)
+            self._ready_client(Trigger, service, 60)
         progress("ready: vibration_planner, mcap_recorder (services)")
 
         def recorder_subscribed():

@@ -1,0 +1,98 @@
+"""Service calls that survive a lost answer.
+
+Fast DDS can drop a service's response: the server sends it before it has matched the reply reader of a
+client it has just discovered (it waits 100 ms for that, then gives up with "client will not receive
+response"; ros2/rclc#390, ros2/rmw_fastrtps#706). ``wait_for_service`` only sees the client's own side, so
+the first call of a fresh client on a busy machine can go unanswered although the service ran. Three rules:
+
+- keep one client per service (``ServiceClients``): after the first call its reply reader stays matched;
+- ask an idempotent service again after RESEND_AFTER_S without an answer (``answer_with_resend``);
+- never send a lifecycle transition twice: a lost answer to one is recovered from the node's state
+  (``transition_lifecycle``).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+
+from lifecycle_msgs.msg import Transition
+from lifecycle_msgs.srv import ChangeState
+
+# services that can be asked twice without changing anything: a client sends the request again after
+# RESEND_AFTER_S without an answer (CI once waited 20 s for vibration_planner/set_parameters, and once for
+# hardware_emulator/get_state, answers lost right after discovery)
+IDEMPOTENT_SERVICES = ("/set_parameters", "/get_parameters", "/describe_parameters", "/list_parameters",
+                       "/plan_path", "/get_state", "/get_available_states", "/get_available_transitions")
+RESEND_AFTER_S = 5.0
+
+# the primary state a lifecycle transition ends in when it succeeds (lifecycle_msgs/State labels)
+TRANSITION_GOALS = {
+    Transition.TRANSITION_CONFIGURE: "inactive",
+    Transition.TRANSITION_CLEANUP: "unconfigured",
+    Transition.TRANSITION_ACTIVATE: "active",
+    Transition.TRANSITION_DEACTIVATE: "inactive",
+    Transition.TRANSITION_UNCONFIGURED_SHUTDOWN: "finalized",
+    Transition.TRANSITION_INACTIVE_SHUTDOWN: "finalized",
+    Transition.TRANSITION_ACTIVE_SHUTDOWN: "finalized",
+}
+
+Wait = Callable[[Callable[[], bool], float], bool]
+
+
+class ServiceClients:
+    """One rclpy Client per service name of ``node``, created on first use and kept."""
+
+    def __init__(self, node):
+        self.node = node
+        self._clients: dict[str, object] = {}
+
+    def get(self, srv_type, name: str):
+        """The kept Client of service ``name`` (created with ``srv_type`` the first time)."""
+        if name not in self._clients:
+            self._clients[name] = self.node.create_client(srv_type, name)
+        return self._clients[name]
+
+
+def answer_with_resend(client, name: str, request, timeout: float, wait: Wait):
+    """The answer of service ``name`` to ``request`` through ``client`` (an rclpy Client whose service is
+    ready), or None after ``timeout`` (wall s). ``wait(predicate, seconds) -> bool`` spins until
+    ``predicate()`` or ``seconds`` pass. A request to one of IDEMPOTENT_SERVICES is sent again every
+    RESEND_AFTER_S without an answer; any other is sent once."""
+    deadline = time.monotonic() + timeout
+    resend = name.endswith(IDEMPOTENT_SERVICES)
+    while True:
+        future = client.call_async(request)
+        left = deadline - time.monotonic()
+        if wait(future.done, min(left, RESEND_AFTER_S) if resend else left):
+            return future.result()
+        client.remove_pending_request(future)
+        if not resend or time.monotonic() >= deadline:
+            return None
+
+
+def transition_lifecycle(client, transition_id: int, timeout: float, wait: Wait,
+                         state_label: Callable[[], str | None]) -> bool | None:
+    """Ask a lifecycle node for transition ``transition_id`` through ``client`` (its ready change_state
+    Client). Returns the node's answer (True: made, False: refused), or None when there is neither an
+    answer nor the goal state after ``timeout`` (wall s). The request is sent once; after each
+    RESEND_AFTER_S without an answer ``state_label()`` (the node's get_state label, or None) is asked, and
+    the transition's goal state there counts as made (its answer was lost)."""
+    request = ChangeState.Request()
+    request.transition.id = transition_id
+    goal = TRANSITION_GOALS[transition_id]
+    deadline = time.monotonic() + timeout
+    future = client.call_async(request)
+    while True:
+        if wait(future.done, max(min(deadline - time.monotonic(), RESEND_AFTER_S), 0.0)):
+            return bool(future.result().success)
+        if state_label() == goal:
+            client.remove_pending_request(future)
+            return True
+        if time.monotonic() >= deadline:
+            client.remove_pending_request(future)
+            return None
+
+
+__all__ = ["IDEMPOTENT_SERVICES", "RESEND_AFTER_S", "TRANSITION_GOALS", "ServiceClients", "answer_with_resend",
+           "transition_lifecycle"]
