@@ -10,7 +10,8 @@ It implements the verbs the README uses, with ros2cli's arguments and output sha
   ros2 run PACKAGE EXECUTABLE [ARGS...]     executes <prefix>/lib/PACKAGE/EXECUTABLE from AMENT_PREFIX_PATH
 
 Stricter than ros2cli in one way: a refused ``param set`` or an unsuccessful Trigger exits 1, so a test sees
-it. ``ros2 launch`` and ``ros2 bag`` need a ROS install; they exit 2 saying so.
+it. Sturdier in one: a query (``param set``, ``get_state``, ...) whose answer Fast DDS lost is asked again
+(nodes.service_calls). ``ros2 launch`` and ``ros2 bag`` need a ROS install; they exit 2 saying so.
 """
 
 from __future__ import annotations
@@ -108,8 +109,22 @@ def topic_echo(node, args: list[str]) -> int:
     return 0
 
 
-def service_call(node, args: list[str]) -> int:
+def spinner(node):
+    """``wait(predicate, seconds) -> bool`` spinning ``node`` (for nodes.service_calls.answer_with_resend:
+    a lost answer to a query is asked again, which ros2cli does not do)."""
     import rclpy
+
+    def wait(predicate, seconds: float) -> bool:
+        deadline = time.monotonic() + seconds
+        while not predicate() and time.monotonic() < deadline:
+            with INTERRUPTS.deferred():
+                rclpy.spin_once(node, timeout_sec=0.05)
+        return bool(predicate())
+    return wait
+
+
+def service_call(node, args: list[str]) -> int:
+    from stewart_vibration.nodes.service_calls import answer_with_resend
 
     name, type_name = args[0], args[1]
     srv = message_type(type_name)
@@ -118,28 +133,29 @@ def service_call(node, args: list[str]) -> int:
     if not client.wait_for_service(timeout_sec=WAIT_S):
         raise SystemExit(f"service {name} not available after {WAIT_S:g} s")
     print(f"requester: making request: {request!r}\n")
-    future = client.call_async(request)
-    rclpy.spin_until_future_complete(node, future, timeout_sec=WAIT_S)
-    if not future.done():
+    response = answer_with_resend(client, name, request, WAIT_S, spinner(node))
+    if response is None:
         raise SystemExit(f"no response from {name} in {WAIT_S:g} s")
-    response = future.result()
     print(f"response:\n{response!r}\n")
     return 1 if getattr(response, "success", True) is False else 0
 
 
 def param_set(node, args: list[str]) -> int:
-    import rclpy
     from rcl_interfaces.srv import SetParameters
     from rclpy.parameter import Parameter
+
+    from stewart_vibration.nodes.service_calls import answer_with_resend
 
     target, name, text = args[0], args[1], args[2]
     value = yaml.safe_load(text)
     client = node.create_client(SetParameters, f"{target}/set_parameters")
     if not client.wait_for_service(timeout_sec=WAIT_S):
         raise SystemExit(f"Node not found: {target}")
-    future = client.call_async(SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()]))
-    rclpy.spin_until_future_complete(node, future, timeout_sec=WAIT_S)
-    (result,) = future.result().results
+    request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    answer = answer_with_resend(client, f"{target}/set_parameters", request, WAIT_S, spinner(node))
+    if answer is None:
+        raise SystemExit(f"no response from {target}/set_parameters in {WAIT_S:g} s")
+    (result,) = answer.results
     if result.successful:
         print("Set parameter successful")
         return 0
