@@ -82,6 +82,10 @@ class VibrationStream:
         dt = self.settings.sample_period_s
         return max(math.ceil(t / dt - 1e-9), 0) * dt
 
+    def _start_after(self, now: float) -> float:
+        """Where a window sent at ``now`` (s from t0) starts: the first sample at or after now + lead_s."""
+        return self._ceil(max(now + self.settings.lead_s, 0.0))
+
     def _grid(self, start: float, stop: float) -> np.ndarray:
         dt = self.settings.sample_period_s
         k0, k1 = math.ceil(start / dt - 1e-9), math.floor(stop / dt + 1e-9)
@@ -115,7 +119,7 @@ class VibrationStream:
             return None
         s = self.settings
         # the first window starts at t0 from rest (ramp-in); later ones lead_s ahead of now
-        start = self._ceil(max(now + s.lead_s, 0.0)) if self.windows_sent else 0.0
+        start = self._start_after(now) if self.windows_sent else 0.0
         self._check_splice(start, "")
         end = s.duration
         if end is not None and end <= now + s.max_lookahead_s:
@@ -145,7 +149,7 @@ class VibrationStream:
             StreamInterrupted: the stall outlasted the commands the receiver had buffered.
         """
         if not self.finished:
-            self._check_splice(self._ceil(max(seen + held_up + self.settings.lead_s, 0.0)),
+            self._check_splice(self._start_after(seen + held_up),
                                f"the planner was held up {held_up:.3f} s of sim time from t0 + {seen:.3f} s: ")
 
     def _check_splice(self, start: float, cause: str) -> None:
@@ -162,7 +166,7 @@ class VibrationStream:
         when the vibration already ends by then (its own ramp-out or the last window's tail). Either
         way no further window is sent."""
         s = self.settings
-        start = self._ceil(max(now + s.lead_s, 0.0))
+        start = self._start_after(now)
         ends_by = self.tail_start if self.tail_start is not None else self.rest_at - (
             s.ramp_s if s.duration is not None and self.rest_at >= s.duration - 1e-9 else 0.0)
         if start >= ends_by:
