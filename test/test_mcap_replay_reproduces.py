@@ -119,18 +119,15 @@ def replay_into_fresh_nodes(src: Path, domain: int, work: Path, expected: dict) 
         assert ready, "\n".join(p.log_text() for p in procs)
         # the graph shows the recorder's subscriptions before the estimators' publishers have matched them:
         # wait until both report (on /diagnostics) that their outputs have a matched reader -- the recorder's
-        matched: dict[str, int] = {}
+        diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
 
-        def on_diagnostics(msg) -> None:
-            for status in msg.status:
-                for kv in status.values:
-                    if kv.key.startswith("matched_subscribers "):
-                        matched[kv.key.split(" ", 1)[1]] = int(kv.value)
+        def matched(output: str) -> bool:
+            return any(kv.key == f"matched_subscribers {output}" and int(kv.value) >= 1
+                       for array in diagnostics for status in array.status for kv in status.values)
 
-        client.node.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 50)
         outputs = ("platform/pose_estimate", "legs/force_estimate")
-        assert client.spin_until(lambda: all(matched.get(o, 0) >= 1 for o in outputs), 60.0), \
-            (matched, "\n".join(p.log_text() for p in procs))
+        assert client.spin_until(lambda: all(matched(o) for o in outputs), 60.0), \
+            "\n".join(p.log_text() for p in procs)
         replay = start_python_module(
             "replay", "stewart_vibration.nodes.mcap_replay_node",
             ["--ros-args", "-p", f"path:={src}", "-p", f"topics:=[{','.join(REPLAYED)}]",
