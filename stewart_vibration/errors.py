@@ -25,15 +25,19 @@ class UnreachablePoseError(StewartError, ValueError):
 
     Attributes: ``leg`` (1..6 or None), ``sample`` (flat batch index or None),
     ``value``, ``limit`` and ``excess`` (how far past the limit, in the
-    limit's unit).
+    limit's unit); along a path also ``limit_name`` (e.g. "universal_joint_max") and ``time`` (s, when
+    the path reaches the violation).
     """
 
-    def __init__(self, message: str, *, leg=None, sample=None, value=None, limit=None):
+    def __init__(self, message: str, *, leg=None, sample=None, value=None, limit=None, limit_name=None,
+                 time=None):
         super().__init__(message)
         self.leg = leg
         self.sample = sample
         self.value = value
         self.limit = limit
+        self.limit_name = limit_name
+        self.time = time
         self.excess = None if value is None or limit is None else abs(value - limit)
 
 
@@ -56,15 +60,17 @@ class ForwardKinematicsError(StewartError):
 class LimitExceededError(StewartError, ValueError):
     """A command exceeds a hardware limit.
 
-    Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``.
+    Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``, ``time`` (s, when a command
+    reaches the limit, or None).
     """
 
-    def __init__(self, message: str, *, leg=None, limit_name=None, value=None, limit=None):
+    def __init__(self, message: str, *, leg=None, limit_name=None, value=None, limit=None, time=None):
         super().__init__(message)
         self.leg = leg
         self.limit_name = limit_name
         self.value = value
         self.limit = limit
+        self.time = time
 
 
 class VibrationLimitError(LimitExceededError):
@@ -73,3 +79,34 @@ class VibrationLimitError(LimitExceededError):
 
 class ActuatorLimitError(LimitExceededError):
     """A strut command exceeds an actuator limit (velocity, force) or the emulator is stopped."""
+
+
+class MalformedMessageError(InvalidInputError):
+    """A received message (or service answer) that cannot be read: a field missing, of the wrong type, not
+    finite, out of its range, a bad string (NUL, control characters, not UTF-8, too long), a wrong array
+    length or name, or bytes that are not the message type.
+
+    Attributes: ``field`` (the field or key, or None for the whole message) and ``kind`` (one of
+    "structure", "missing", "type", "not_finite", "range", "text", "length", "names", "frame"). ``reason``
+    (kind and field) names the class of fault without its value, for counting and rate-limited logs.
+    """
+
+    def __init__(self, message: str, *, field: str | None = None, kind: str = "structure"):
+        super().__init__(message)
+        self.field = field
+        self.kind = kind
+
+    @property
+    def reason(self) -> str:
+        """``kind`` and ``field`` (e.g. "type rejections"): the fault's class, without the offending value."""
+        return f"{self.kind} {self.field}" if self.field else self.kind
+
+
+class PhysicsFaultError(StewartError):
+    """The emulated robot's physics diverged: the fault is latched and the robot held (see
+    ``emulation.physics_guard``). Attributes: ``time`` (s, sim time of the fault) and ``reason``."""
+
+    def __init__(self, message: str, *, time=None, reason=""):
+        super().__init__(message)
+        self.time = time
+        self.reason = reason

@@ -52,7 +52,24 @@ def unit_vector(value, name: str) -> np.ndarray:
     vec = as_batch(value, 3, name)
     if vec.shape != (3,):
         raise InvalidInputError(f"{name}: expected one 3-vector, got shape {list(vec.shape)}")
-    norm = float(np.linalg.norm(vec))
-    if norm < 1e-12:
+    if safe_norm(vec) < 1e-12:
         raise InvalidInputError(f"{name}: must be a non-zero vector")
-    return vec / norm
+    scaled = vec / np.abs(vec).max()  # |vec|^2 of a finite vector may overflow (1e200) or underflow
+    return scaled / np.linalg.norm(scaled)
+
+
+def safe_norm(vec) -> float:
+    """|vec| of a finite vector without overflow or underflow of its squares ([1e200, 0, 0] -> 1e200).
+
+    Args:
+        vec: a finite vector (n,).
+
+    Returns:
+        The Euclidean norm (inf only if the norm itself exceeds the float range).
+    """
+    vec = np.asarray(vec, dtype=float)
+    scale = float(np.abs(vec).max()) if vec.size else 0.0
+    if scale == 0.0 or not np.isfinite(scale):
+        return scale
+    with np.errstate(over="ignore"):
+        return float(scale * np.linalg.norm(vec / scale))

@@ -2,7 +2,7 @@
 prefixes are looked up.
 
 In a venv (the pip world) rclpy works as installed, but ament_index needs the interpreter's prefix
-(``sys.prefix``) on $AMENT_PREFIX_PATH to find the interface packages pip put there (DESIGN.md). On a
+(``sys.prefix``) on $AMENT_PREFIX_PATH to find the interface packages pip put there (docs/architecture.md). On a
 ROS install, colcon's setup scripts set $AMENT_PREFIX_PATH and the package's config lives in
 ``<prefix>/share/stewart_vibration/config``; in a checkout or an editable install it is the source
 tree's ``config/``.

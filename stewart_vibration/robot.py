@@ -1,4 +1,7 @@
-"""Robot description loaded from config/robot.yaml (the single source of truth).
+"""Robot description from config/robot.yaml (the single source of truth): the Robot and its field checks.
+
+``kinematics.robot_config.load_robot`` reads the file (``stewart_vibration.load_robot``); ``robot_from_dict``
+here builds the Robot from the parsed tree, every value checked against its plausible range.
 
 Frames: ``base`` (origin at the base hinge-circle centre, z toward the
 platform) and ``platform`` (origin at the platform hinge-circle centre).
@@ -6,18 +9,15 @@ platform) and ``platform`` (origin at the platform hinge-circle centre).
 
 from __future__ import annotations
 
-import os
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
-from pathlib import Path
 from typing import Any, TypeVar
 
 import numpy as np
-import yaml
 
+from .config_values import Plausible, as_number, as_vector, lookup
 from .errors import ConfigError
-from .install import default_config_dir
 
 STANDARD_GRAVITY = 9.80665  # m/s^2 per g
 LEG_NAMES = tuple(f"leg_{i}" for i in range(1, 7))  # joint (and TF frame) names of the struts, legs 1..6
@@ -191,123 +191,146 @@ def combine_bodies(a: RigidBody, b: RigidBody) -> RigidBody:
     return RigidBody(mass, com, inertia)
 
 
-def _get(tree: dict, dotted: str):
-    node = tree
-    for key in dotted.split("."):
-        if not isinstance(node, dict) or key not in node:
-            raise ConfigError(f"robot config: missing field '{dotted}'")
-        node = node[key]
-    return node
+# Plausible ranges of robot.yaml's values (SI unless the key says otherwise): wide enough for any bench
+# or clinical 6-UPS robot of this kind, narrow enough that a typo (a unit amplitude of 1 km, gravity of
+# 1e300) is refused before any code uses it.
+_LENGTH = Plausible(-1.0, 1.0, "m")
+_PLAUSIBLE = {
+    "geometry.base.radius_m": Plausible(0.01, 1.0, "m"),
+    "geometry.platform.radius_m": Plausible(0.01, 1.0, "m"),
+    "geometry.base.z_m": _LENGTH,
+    "geometry.platform.z_m": _LENGTH,
+    "geometry.base.angles_deg": Plausible(-360.0, 360.0, "deg"),
+    "geometry.platform.angles_deg": Plausible(-360.0, 360.0, "deg"),
+    "limits.stroke_min_m": Plausible(0.01, 2.0, "m"),
+    "limits.stroke_max_m": Plausible(0.01, 2.0, "m"),
+    "limits.strut_velocity_max_m_s": Plausible(0.0, 1.0, "m/s", low_open=True),
+    "limits.strut_acceleration_max_m_s2": Plausible(0.0, 100.0, "m/s^2", low_open=True),
+    "limits.strut_force_max_n": Plausible(0.0, 1e5, "N", low_open=True),
+    "limits.universal_joint_max_deg": Plausible(0.0, 90.0, "deg", low_open=True),
+    "limits.spherical_joint_max_deg": Plausible(0.0, 90.0, "deg", low_open=True),
+    "limits.condition_number_max": Plausible(1.0, 1e4),
+    "vibration_unit.amplitude_max_m": Plausible(0.0, 5e-3, "m", low_open=True),
+    "vibration_unit.frequency_min_hz": Plausible(0.0, 1000.0, "Hz", low_open=True),
+    "vibration_unit.frequency_max_hz": Plausible(0.0, 1000.0, "Hz", low_open=True),
+    "vibration_unit.acceleration_max_g": Plausible(0.0, 10.0, "g", low_open=True),
+    "vibration_unit.velocity_max_m_s": Plausible(0.0, 1.0, "m/s", low_open=True),
+    "inertia.platform.mass_kg": Plausible(0.0, 100.0, "kg", low_open=True),
+    "inertia.payload.mass_kg": Plausible(0.0, 100.0, "kg", low_open=True),
+    "inertia.platform.com_m": _LENGTH,
+    "inertia.payload.com_m": _LENGTH,
+    "inertia.platform.inertia_kg_m2": Plausible(0.0, 10.0, "kg m^2", low_open=True),
+    "inertia.payload.inertia_kg_m2": Plausible(0.0, 10.0, "kg m^2", low_open=True),
+    "inertia.cylinder.mass_kg": Plausible(0.0, 10.0, "kg"),
+    "inertia.cylinder.com_from_base_hinge_m": Plausible(0.0, 1.0, "m"),
+    "inertia.cylinder.transverse_inertia_kg_m2": Plausible(0.0, 1.0, "kg m^2"),
+    "inertia.cylinder.axial_inertia_kg_m2": Plausible(0.0, 1.0, "kg m^2"),
+    "inertia.piston.mass_kg": Plausible(0.0, 10.0, "kg"),
+    "inertia.piston.com_from_platform_hinge_m": Plausible(0.0, 1.0, "m"),
+    "inertia.piston.transverse_inertia_kg_m2": Plausible(0.0, 1.0, "kg m^2"),
+    "inertia.piston.axial_inertia_kg_m2": Plausible(0.0, 1.0, "kg m^2"),
+    "inertia.vibration_unit.mass_kg": Plausible(0.0, 1.0, "kg"),
+    "gravity_m_s2": Plausible(-20.0, 20.0, "m/s^2"),
+}
+STROKE_RANGE = Plausible(0.01, 1.0, "m")  # stroke_max_m - stroke_min_m: a few cm to a metre
+GRAVITY_MAGNITUDE = Plausible(0.0, 20.0, "m/s^2")  # |gravity|: up to about 2 g
 
 
-def _number(tree: dict, dotted: str, *, positive: bool = False, nonneg: bool = False) -> float:
-    value = _get(tree, dotted)
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"robot config: '{dotted}' must be a number, got {value!r}") from None
-    if not np.isfinite(number):
-        raise ConfigError(f"robot config: '{dotted}' must be finite")
-    if positive and number <= 0:
-        raise ConfigError(f"robot config: '{dotted}' must be > 0, got {number}")
-    if nonneg and number < 0:
-        raise ConfigError(f"robot config: '{dotted}' must be >= 0, got {number}")
-    return number
+def _number(tree: dict, dotted: str, where: str) -> float:
+    return as_number(lookup(tree, dotted, where), dotted, where, _PLAUSIBLE[dotted])
 
 
-def _vector(tree: dict, dotted: str, length: int) -> np.ndarray:
-    value = _get(tree, dotted)
-    arr = np.asarray(value, dtype=float) if isinstance(value, list) else None
-    if arr is None or arr.shape != (length,) or not np.isfinite(arr).all():
-        raise ConfigError(f"robot config: '{dotted}' must be a list of {length} finite numbers")
-    return arr
+def _vector(tree: dict, dotted: str, length: int, where: str) -> np.ndarray:
+    return as_vector(lookup(tree, dotted, where), dotted, where, length, _PLAUSIBLE.get(dotted))
 
 
-def _hinges(tree: dict, which: str) -> np.ndarray:
-    radius = _number(tree, f"geometry.{which}.radius_m", positive=True)
-    angles = np.radians(_vector(tree, f"geometry.{which}.angles_deg", 6))
-    z = _number(tree, f"geometry.{which}.z_m")
+def _hinges(tree: dict, which: str, where: str) -> np.ndarray:
+    radius = _number(tree, f"geometry.{which}.radius_m", where)
+    angles = np.radians(_vector(tree, f"geometry.{which}.angles_deg", 6, where))
+    z = _number(tree, f"geometry.{which}.z_m", where)
     return np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(6, z)], axis=1)
 
 
-def _body(tree: dict, key: str) -> RigidBody:
-    mass = _number(tree, f"inertia.{key}.mass_kg", positive=True)
-    com = _vector(tree, f"inertia.{key}.com_m", 3)
-    moments = _vector(tree, f"inertia.{key}.inertia_kg_m2", 3)
-    if (moments <= 0).any():
-        raise ConfigError(f"robot config: 'inertia.{key}.inertia_kg_m2' must be > 0")
+def _body(tree: dict, key: str, where: str) -> RigidBody:
+    mass = _number(tree, f"inertia.{key}.mass_kg", where)
+    com = _vector(tree, f"inertia.{key}.com_m", 3, where)
+    moments = _vector(tree, f"inertia.{key}.inertia_kg_m2", 3, where)
+    if (moments.sum() - moments < moments).any():  # principal moments of a real body: each <= the other two
+        raise ConfigError(f"{where}: 'inertia.{key}.inertia_kg_m2' {moments.tolist()} is not a body's inertia "
+                          "(each principal moment must be at most the sum of the other two)")
     return RigidBody(mass, com, np.diag(moments))
 
 
 def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
-    """Build a Robot from the parsed YAML tree (see config/robot.yaml)."""
+    """Build a Robot from the parsed YAML tree (see config/robot.yaml), every value checked.
+
+    Each value must be a finite number inside its plausible range (``_PLAUSIBLE``), stroke_min_m <
+    stroke_max_m with a stroke of a few cm to a metre, frequency_min_hz < frequency_max_hz, |gravity| at
+    most about 2 g and the home pose above the base. That the home pose can be taken (strokes, joints,
+    conditioning) is checked by ``load_robot``, which needs the kinematics.
+
+    Args:
+        tree: the parsed YAML mapping.
+        source: where the tree comes from, for error messages and ``Robot.source``.
+
+    Returns:
+        The Robot (SI units).
+
+    Raises:
+        ConfigError: one line naming the key: missing, wrong type, non-finite or implausible.
+    """
+    where = f"robot config {source}"
     if not isinstance(tree, dict):
-        raise ConfigError(f"robot config {source}: top level must be a mapping")
-    base = _hinges(tree, "base")
-    platform = _hinges(tree, "platform")
+        raise ConfigError(f"{where}: top level must be a mapping")
+    base = _hinges(tree, "base", where)
+    platform = _hinges(tree, "platform", where)
     limits = Limits(
-        stroke_min=_number(tree, "limits.stroke_min_m", positive=True),
-        stroke_max=_number(tree, "limits.stroke_max_m", positive=True),
-        strut_velocity_max=_number(tree, "limits.strut_velocity_max_m_s", positive=True),
-        strut_acceleration_max=_number(tree, "limits.strut_acceleration_max_m_s2", positive=True),
-        strut_force_max=_number(tree, "limits.strut_force_max_n", positive=True),
-        universal_joint_max=np.radians(_number(tree, "limits.universal_joint_max_deg", positive=True)),
-        spherical_joint_max=np.radians(_number(tree, "limits.spherical_joint_max_deg", positive=True)),
-        condition_number_max=_number(tree, "limits.condition_number_max", positive=True),
+        stroke_min=_number(tree, "limits.stroke_min_m", where),
+        stroke_max=_number(tree, "limits.stroke_max_m", where),
+        strut_velocity_max=_number(tree, "limits.strut_velocity_max_m_s", where),
+        strut_acceleration_max=_number(tree, "limits.strut_acceleration_max_m_s2", where),
+        strut_force_max=_number(tree, "limits.strut_force_max_n", where),
+        universal_joint_max=np.radians(_number(tree, "limits.universal_joint_max_deg", where)),
+        spherical_joint_max=np.radians(_number(tree, "limits.spherical_joint_max_deg", where)),
+        condition_number_max=_number(tree, "limits.condition_number_max", where),
     )
     if limits.stroke_min >= limits.stroke_max:
-        raise ConfigError("robot config: stroke_min_m must be < stroke_max_m")
+        raise ConfigError(f"{where}: 'limits.stroke_min_m' {limits.stroke_min:g} must be < 'limits.stroke_max_m' "
+                          f"{limits.stroke_max:g}")
+    if limits.stroke_max - limits.stroke_min not in STROKE_RANGE:
+        raise ConfigError(f"{where}: the stroke 'limits.stroke_max_m' - 'limits.stroke_min_m' = "
+                          f"{limits.stroke_max - limits.stroke_min:g} m is outside its plausible range {STROKE_RANGE}")
     vib = VibrationUnitLimits(
-        amplitude_max=_number(tree, "vibration_unit.amplitude_max_m", positive=True),
-        frequency_min=_number(tree, "vibration_unit.frequency_min_hz", positive=True),
-        frequency_max=_number(tree, "vibration_unit.frequency_max_hz", positive=True),
-        acceleration_max=_number(tree, "vibration_unit.acceleration_max_g", positive=True)
-        * STANDARD_GRAVITY,
-        velocity_max=_number(tree, "vibration_unit.velocity_max_m_s", positive=True),
+        amplitude_max=_number(tree, "vibration_unit.amplitude_max_m", where),
+        frequency_min=_number(tree, "vibration_unit.frequency_min_hz", where),
+        frequency_max=_number(tree, "vibration_unit.frequency_max_hz", where),
+        acceleration_max=_number(tree, "vibration_unit.acceleration_max_g", where) * STANDARD_GRAVITY,
+        velocity_max=_number(tree, "vibration_unit.velocity_max_m_s", where),
     )
     if vib.frequency_min >= vib.frequency_max:
-        raise ConfigError("robot config: frequency_min_hz must be < frequency_max_hz")
-    leg = LegInertia(
-        cylinder_mass=_number(tree, "inertia.cylinder.mass_kg", nonneg=True),
-        cylinder_com_offset=_number(tree, "inertia.cylinder.com_from_base_hinge_m", nonneg=True),
-        cylinder_inertia_transverse=_number(tree, "inertia.cylinder.transverse_inertia_kg_m2", nonneg=True),
-        cylinder_inertia_axial=_number(tree, "inertia.cylinder.axial_inertia_kg_m2", nonneg=True),
-        piston_mass=_number(tree, "inertia.piston.mass_kg", nonneg=True),
-        piston_com_offset=_number(tree, "inertia.piston.com_from_platform_hinge_m", nonneg=True),
-        piston_inertia_transverse=_number(tree, "inertia.piston.transverse_inertia_kg_m2", nonneg=True),
-        piston_inertia_axial=_number(tree, "inertia.piston.axial_inertia_kg_m2", nonneg=True),
-        vibration_unit_mass=_number(tree, "inertia.vibration_unit.mass_kg", nonneg=True),
-    )
-    home = _vector(tree, "geometry.home_pose", 6)
-    if home[2] <= 0:
-        raise ConfigError("robot config: geometry.home_pose z must be > 0 (platform above base)")
+        raise ConfigError(f"{where}: 'vibration_unit.frequency_min_hz' {vib.frequency_min:g} must be < "
+                          f"'vibration_unit.frequency_max_hz' {vib.frequency_max:g}")
+    leg = LegInertia(*(_number(tree, f"inertia.{key}", where) for key in (
+        "cylinder.mass_kg", "cylinder.com_from_base_hinge_m", "cylinder.transverse_inertia_kg_m2",
+        "cylinder.axial_inertia_kg_m2", "piston.mass_kg", "piston.com_from_platform_hinge_m",
+        "piston.transverse_inertia_kg_m2", "piston.axial_inertia_kg_m2", "vibration_unit.mass_kg")))
+    home = _vector(tree, "geometry.home_pose", 6, where)
+    if not home[2] > 0:
+        raise ConfigError(f"{where}: 'geometry.home_pose' z must be > 0 (platform above base), got {home[2]:g}")
+    gravity = _vector(tree, "gravity_m_s2", 3, where)
+    if float(np.linalg.norm(gravity)) not in GRAVITY_MAGNITUDE:
+        raise ConfigError(f"{where}: 'gravity_m_s2' has magnitude {np.linalg.norm(gravity):g} m/s^2, outside its "
+                          f"plausible range {GRAVITY_MAGNITUDE}")
     return Robot(
         base_hinges=base,
         platform_hinges=platform,
         home_pose=home,
         limits=limits,
         vibration_unit=vib,
-        platform=_body(tree, "platform"),
-        payload=_body(tree, "payload"),
+        platform=_body(tree, "platform", where),
+        payload=_body(tree, "payload", where),
         leg=leg,
-        gravity=_vector(tree, "gravity_m_s2", 3),
+        gravity=gravity,
         source=source,
         characteristic_length=float(np.linalg.norm(platform[:, :2], axis=1).mean()),
     )
-
-
-def load_robot(path: str | os.PathLike | None = None) -> Robot:
-    """Load the robot from a YAML file (default: config/robot.yaml).
-
-    Raises ConfigError on a missing file, bad YAML, or a missing/invalid field.
-    """
-    path = Path(path) if path is not None else default_config_dir() / "robot.yaml"
-    try:
-        text = path.read_text()
-    except OSError as exc:
-        raise ConfigError(f"cannot read robot config {path}: {exc}") from None
-    try:
-        tree = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"robot config {path}: invalid YAML ({exc})") from None
-    return robot_from_dict(tree, str(path))

@@ -149,13 +149,13 @@ def test_config_errors(tmp_path):
         robot_from_dict(tree)
     tree = config_tree()
     tree["geometry"]["base"]["angles_deg"] = [0, 1, 2]
-    with pytest.raises(ConfigError, match="6 finite numbers"):
+    with pytest.raises(ConfigError, match="'geometry.base.angles_deg' must be a list of 6 numbers"):
         robot_from_dict(tree)
     tree = config_tree()
     tree["limits"]["stroke_min_m"] = 0.3
-    with pytest.raises(ConfigError, match="stroke_min_m must be < stroke_max_m"):
+    with pytest.raises(ConfigError, match="'limits.stroke_min_m' 0.3 must be < 'limits.stroke_max_m' 0.25"):
         robot_from_dict(tree)
     tree = config_tree()
     tree["inertia"]["platform"]["mass_kg"] = -1
-    with pytest.raises(ConfigError, match="> 0"):
+    with pytest.raises(ConfigError, match=r"'inertia.platform.mass_kg' = -1 is outside its plausible range \(0, 1"):
         robot_from_dict(tree)
