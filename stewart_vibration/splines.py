@@ -30,6 +30,21 @@ def smoothstep(x):
     return value, first, second
 
 
+def smoothstep_integral(x):
+    """S(x) = the integral of ``smoothstep`` from 0 to x: 2.5 x^4 - 3 x^5 + x^6 on [0, 1], 0 below, x - 1/2
+    above (the smoothstep is 1 there).
+
+    Args:
+        x: normalised time, any shape.
+
+    Returns:
+        S(x), the shape of ``x``.
+    """
+    x = np.asarray(x, dtype=float)
+    c = np.clip(x, 0.0, 1.0)
+    return np.where(x > 1.0, x - 0.5, c**4 * (2.5 + c * (-3.0 + c)))
+
+
 def quintic_hermite(s, h, p0, v0, a0, p1, v1, a1):
     """Quintic Hermite on s in [0, 1] over duration h -> (p, v, a)."""
     s2, s3, s4, s5 = s * s, s**3, s**4, s**5

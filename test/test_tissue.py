@@ -559,16 +559,19 @@ def test_robot_and_tissue_cannot_be_changed_through_their_arrays(robot, tissue):
 
 
 def test_a_move_is_under_way_until_its_end_or_its_stop(robot):
-    """move_under_way: the running move's end while it runs (kinematics refuses targets then: planned from rest,
-    the emulator would refuse them and run on while the guard watched the refused move); None while it is still
-    at rest, after its end, and once a trip has stopped it (the stop ends it: targets back are taken, a blind
-    pause resumes). A move of nothing (to where the platform is) never blocks."""
+    """move_under_way: the move's end from its sending until it is at rest at its end (kinematics refuses targets
+    then: planned from rest, the emulator would refuse them and run on while the guard watched the refused move;
+    before its start the struts may depart any moment); None after its end, once at rest in its tail, and once a
+    trip has stopped it (the stop ends it: targets back are taken, a blind pause resumes). A move of nothing (to
+    where the platform is) never blocks."""
     guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
     assert guard.move_under_way(0.0) is None  # no move yet
     start, _, duration, _, t_start = guarded_10mm_lift(robot, guard)
     end = t_start + duration
     assert guard.move_under_way(t_start + 0.5 * duration) == pytest.approx(end)
-    assert guard.move_under_way(t_start) is None  # not moving yet: a target is taken
+    assert guard.move_under_way(t_start - 0.01) == pytest.approx(end)  # sent, not begun: pending
+    assert guard.move_under_way(t_start) == pytest.approx(end)  # at rest at its start: about to move
+    assert guard.move_under_way(end - 1e-4 * duration) is None  # at rest at its end
     assert guard.move_under_way(end) is None
     guard.observe([t_start], [np.zeros(6)], t_start)
     trip = guard.check_estimates(t_start + 0.3 * duration)  # blind: a trip with its stop
@@ -667,3 +670,46 @@ def test_a_stop_that_did_not_take_is_replanned_over_a_doubled_window(robot):
     for _ in range(MAX_STOP_RETRIES - 1):
         assert guard.missed_stop(later, refused=True) is not None
     assert guard.missed_stop(later, refused=True) is None  # retries used up
+
+
+def paused_for_late_estimates(robot):
+    """A guard (200 N) whose 10 mm move up from home, begun at 0 s with 50 N measured, was paused at 0.3 s
+    because no estimate came after 0 s (max_estimate_age 0.25 s); returns (guard, the "estimates" trip)."""
+    guard = ForceGuard(robot, 200.0, 0.0, max_estimate_age=0.25)
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, robot.home_pose +
+                                                                                 [0, 0, 0.01, 0, 0, 0])
+    guard.observe([0.0], [[0.0, 0.0, 50.0, 0.0, 0.0, 0.0]], 0.0)
+    guard.begin_move(0.0, 2.0, start, goal, robot.home_pose, robot.home_pose + [0, 0, 0.01, 0, 0, 0])
+    return guard, guard.check_estimates(0.3)
+
+
+def test_a_robot_stopped_by_the_emulator_ends_the_move_and_its_blind_pause_without_resuming(robot):
+    """An e-stop (or deactivate, shutdown, physics fault) of the emulator during a move paused for late estimates:
+    the guard drops the move and the pause -- nothing is resumed when the estimates come back, the guard is as
+    it was before the pause (armed), and a new target is judged like any other (no move under way)."""
+    guard, blind = paused_for_late_estimates(robot)
+    assert blind is not None and blind.which == "estimates" and guard.move_under_way(0.3) is None
+    assert guard.robot_stopped()
+    assert not guard.tripped and guard.move is None
+    later = blind.stop.receipt_time + blind.stop.duration + 1.0
+    for t in np.arange(later, later + 3 * RESUME_FRESH_S, 0.02):
+        guard.observe([t], [[0.0, 0.0, 50.0, 0.0, 0.0, 0.0]], t)
+        assert not guard.blind_stop_over(t) and not guard.resume_after_blind()
+    guard.check_target(robot.home_pose, robot.home_pose + [0, 0, 0.001, 0, 0, 0])  # no refusal
+    assert not guard.robot_stopped()  # nothing left to drop
+
+
+def test_a_robot_stop_keeps_a_force_trip_latched(robot):
+    """A latched force trip (the operator must reset it; here found when estimates returned after a blind pause)
+    stays latched through an emulator stop."""
+    guard, blind = paused_for_late_estimates(robot)
+    later = blind.stop.receipt_time + blind.stop.duration + 1.0
+    over = False
+    for t in np.arange(later, later + RESUME_FRESH_S + 0.1, 0.02):
+        guard.observe([t], [[0.0, 0.0, 250.0, 0.0, 0.0, 0.0]], t)
+        over = guard.blind_stop_over(t)
+    assert over and not guard.resume_after_blind() and guard.trip.which == "force"
+    guard.robot_stopped()
+    assert guard.tripped and guard.trip.which == "force"
+    with pytest.raises(ActuatorLimitError, match="reset_guard"):
+        guard.check_target(robot.home_pose + [0, 0, 0.004, 0, 0, 0], robot.home_pose + [0, 0, 0.005, 0, 0, 0])

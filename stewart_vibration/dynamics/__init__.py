@@ -1,6 +1,6 @@
 """Dynamics of the 6-UPS platform (pure numpy; ``mujoco_validation`` also needs MuJoCo).
 
-- ``newton_euler``: axial leg forces by Newton-Euler with the full leg model (REVIEW.md steps 1-9), and
+- ``newton_euler``: axial leg forces by Newton-Euler with the full leg model (docs/dynamics.md), and
   the paper's simplified model (eqs 12-20) for comparison;
 - ``platform_trajectory``: analytic platform trajectories (pose, twist, acceleration), Euler-rate
   conversion;

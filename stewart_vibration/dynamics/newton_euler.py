@@ -1,4 +1,4 @@
-"""Inverse dynamics of the 6-UPS platform: axial leg forces by Newton-Euler (REVIEW.md steps 1-9).
+"""Inverse dynamics of the 6-UPS platform: axial leg forces by Newton-Euler (docs/dynamics.md).
 
 Full model: platform + payload (one rigid body), cylinder and piston mass and
 transverse inertia, gravity, Coriolis and centripetal terms, optional external
@@ -157,7 +157,7 @@ def _full_block(robot: Robot, p: LegBodies, pose, twist, accel, wrench, reaction
     and s.a2 = s.a_A + e2 |v_A_perp|^2 / l^2 (x_perp = x - (s.x) s).
     """
     n = pose.shape[-1]
-    # the notation of REVIEW.md: cylinder m1, e1, I_t1; piston (with the vibration unit) m2, e2, I_t2
+    # the notation of docs/dynamics.md: cylinder m1, e1, I_t1; piston (with the vibration unit) m2, e2, I_t2
     m1, e1, it1 = p.cylinder_mass, p.cylinder_com_offset, p.cylinder_inertia_transverse
     m2, e2, it2 = p.piston_mass, p.piston_com_offset, p.piston_inertia_transverse
     rot_t, r, length, inv_l, s = leg_axes(robot, pose)

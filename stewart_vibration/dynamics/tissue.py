@@ -35,17 +35,19 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, cast
 
 import numpy as np
-import yaml
 
-from ..errors import ConfigError
+from ..config_values import Plausible, as_number, as_vector, check_keys, lookup
+from ..errors import ConfigError, StewartError
 from ..input_checks import as_batch
 from ..install import default_config_dir
+from ..kinematics import check_pose
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..paper import paper_pose
 from ..robot import Robot, read_only_array
+from ..safe_yaml import load_yaml, short_repr
 
 STIFFENING_TYPES = ("none", "exponential", "piecewise_linear")
 _KEYS = {"name", "note", "rest_pose", "center_m", "axial", "lateral", "torsional", "bending", "preload_n",
@@ -286,113 +288,229 @@ def wrench_about_point(wrench, arm) -> np.ndarray:
 
 # -- configuration ----------------------------------------------------------------------------------
 
+# Plausible ranges of the tissue file's values (SI). Soft tissue around a long-bone fracture is of the
+# order of 10 N/mm and a few N m per 10 deg; these allow two orders of magnitude more, and a stiffening
+# length of at least 1 mm (the exponential spring grows e-fold per length_m: shorter makes it a wall).
+_PLAUSIBLE = {
+    "stiffness_n_m": Plausible(0.0, 1e6, "N/m"),
+    "damping_n_s_m": Plausible(0.0, 1e4, "N s/m"),
+    "stiffness_nm_rad": Plausible(0.0, 1e4, "N m/rad"),
+    "damping_nm_s_rad": Plausible(0.0, 100.0, "N m s/rad"),
+    "preload_n": Plausible(0.0, 1e3, "N"),
+    "center_m": Plausible(-0.5, 0.5, "m"),
+    "length_m": Plausible(1e-3, 1.0, "m"),
+    "breakpoints_m": Plausible(0.0, 0.5, "m"),
+    "slopes_n_m": Plausible(0.0, 1e6, "N/m"),
+}
+# The region the worst-case wrench is checked over: the tissue centre up to CHECK_TRANSLATION_M from its
+# rest position along each tissue axis and the platform up to CHECK_ROTATION_RAD from its rest rotation
+# about each (the reduction workspace the stroke is sized for), moving at the robot's fastest strut speed
+# (plus the vibration unit's).
+CHECK_TRANSLATION_M = 0.020
+CHECK_ROTATION_RAD = math.radians(15.0)
+# Within that region the tissue's force must stay below WRENCH_FACTOR times what the six struts can hold
+# together (6 strut_force_max, N), its moment below that force times the robot's characteristic length:
+# a model beyond it is not a tissue this robot can work against, and its forces would wreck the physics.
+WRENCH_FACTOR = 10.0
 
-def _number(tree: dict, key: str, source, minimum: float = 0.0, positive: bool = False) -> float:
-    value: Any = tree.get(key) if isinstance(tree, dict) else None  # float(None) raises TypeError: caught
-    try:
-        number = float(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"tissue config {source}: '{key}' must be a number, got {value!r}") from None
-    if not np.isfinite(number) or number < minimum or (positive and number <= 0):
-        raise ConfigError(f"tissue config {source}: '{key}' must be finite and {'>' if positive else '>='} "
-                          f"{minimum:g}, got {number}")
-    return number
+
+@dataclass(frozen=True)
+class WrenchBound:
+    """Upper bounds of a tissue's wrench over a region: force (N) and moment about the platform origin (N m)."""
+
+    force_n: float
+    moment_nm: float
 
 
-def _pair(tree: dict, key: str, units: tuple[str, str], source) -> tuple[float, float]:
+def tissue_wrench_bound(model: TissueModel, translation: float, rotation: float, speed: float,
+                        angular_speed: float) -> WrenchBound:
+    """An upper bound of |F| and |M| over every state with the centre's displacement from rest at most
+    ``translation`` (m) and the rotation from rest at most ``rotation`` (rad) along / about each tissue axis,
+    and the centre's velocity at most ``speed`` (m/s) and the angular velocity at most ``angular_speed``
+    (rad/s) in each component. Each spring and damper is monotone, so its largest force is at an end of
+    its range; the moment adds |c| |F| for the lever arm of the centre. Non-finite (inf) where the
+    exponential spring overflows.
+
+    Returns:
+        The WrenchBound (N, N m).
+    """
+    k, c = model.stiffness, model.damping
+    with np.errstate(over="ignore"):
+        spring = np.abs(model.axial_spring([-translation, translation])).max()
+    lateral = k[:2] * translation + c[:2] * speed
+    axial = model.preload + spring + c[2] * speed
+    force = float(np.sqrt(lateral @ lateral + axial * axial))
+    moment_t = k[3:] * rotation + c[3:] * angular_speed
+    return WrenchBound(force, float(np.linalg.norm(moment_t) + np.linalg.norm(model.center) * force))
+
+
+def robot_reach(robot: Robot, center) -> float:
+    """How far (m) a point at ``center`` (platform frame) can move between two poses the robot can take: every
+    platform hinge is within stroke_max of its base hinge, so the platform origin stays within stroke_max
+    plus the hinge radii of the base origin."""
+    radius = (robot.limits.stroke_max + np.linalg.norm(robot.base_hinges, axis=1).max()
+              + np.linalg.norm(robot.platform_hinges, axis=1).max() + float(np.linalg.norm(center)))
+    return 2.0 * float(radius)
+
+
+def check_tissue_wrench(model: TissueModel, robot: Robot, where: str) -> WrenchBound:
+    """The tissue's worst-case wrench in the check region (``CHECK_*``), refused above the plausible bound, and
+    finite wherever the robot can take the platform.
+
+    Args:
+        model: the tissue model.
+        robot: the robot (strut force and velocity limits, hinge geometry).
+        where: the file, for the message.
+
+    Returns:
+        The WrenchBound over the check region (N, N m).
+
+    Raises:
+        ConfigError: the bound exceeds WRENCH_FACTOR x 6 strut_force_max (or the moment bound that force
+            times the characteristic length), or the wrench is not finite within the robot's reach.
+    """
+    speed = robot.limits.strut_velocity_max + robot.vibration_unit.velocity_max
+    angular = speed / robot.characteristic_length
+    bound = tissue_wrench_bound(model, CHECK_TRANSLATION_M, CHECK_ROTATION_RAD, speed, angular)
+    force_max = WRENCH_FACTOR * 6 * robot.limits.strut_force_max
+    moment_max = force_max * robot.characteristic_length
+    region = (f"within {CHECK_TRANSLATION_M * 1e3:g} mm and {math.degrees(CHECK_ROTATION_RAD):g} deg of the rest "
+              f"pose at {speed:g} m/s")
+    if not bound.force_n <= force_max:
+        raise ConfigError(f"{where}: the tissue's force reaches {bound.force_n:.4g} N {region}, more than "
+                          f"{force_max:g} N ({WRENCH_FACTOR:g} x what the six struts hold): lower the stiffness or "
+                          "damping, or lengthen 'stiffening.length_m'")
+    if not bound.moment_nm <= moment_max:
+        raise ConfigError(f"{where}: the tissue's moment reaches {bound.moment_nm:.4g} N m {region}, more than "
+                          f"{moment_max:.4g} N m: lower the stiffness or damping, or move 'center_m' nearer the "
+                          "platform")
+    reach = robot_reach(robot, model.center)
+    far = tissue_wrench_bound(model, reach, math.pi, speed, angular)
+    if not (math.isfinite(far.force_n) and math.isfinite(far.moment_nm)):
+        raise ConfigError(f"{where}: the tissue's force overflows within the robot's reach ({reach:.3g} m): "
+                          "lengthen 'stiffening.length_m'")
+    return bound
+
+
+def _number(tree: dict, key: str, where: str, kind: str | None = None) -> float:
+    """The number at ``tree[key]`` in its plausible range (``kind``: the range's name, default the key)."""
+    if not isinstance(tree, dict) or key not in tree:
+        raise ConfigError(f"{where}: missing field '{key}'")
+    return as_number(tree[key], key, where, _PLAUSIBLE[kind or key])
+
+
+def _pair(tree: dict, key: str, units: tuple[str, str], where: str) -> tuple[float, float]:
+    stiffness, damping = f"stiffness_{units[0]}", f"damping_{units[1]}"
     part = tree.get(key)
     if not isinstance(part, dict):
-        raise ConfigError(f"tissue config {source}: '{key}' needs stiffness_{units[0]} and damping_{units[1]}")
-    unknown = set(part) - {f"stiffness_{units[0]}", f"damping_{units[1]}"}
-    if unknown:
-        raise ConfigError(f"tissue config {source}: '{key}' has unknown keys {sorted(unknown)}")
-    return (_number(part, f"stiffness_{units[0]}", f"{source} {key}"),
-            _number(part, f"damping_{units[1]}", f"{source} {key}"))
+        raise ConfigError(f"{where}: '{key}' needs {stiffness} and {damping}, got {short_repr(part)}")
+    check_keys(part, {stiffness, damping}, where, key)
+    return (as_number(lookup(tree, f"{key}.{stiffness}", where), f"{key}.{stiffness}", where, _PLAUSIBLE[stiffness]),
+            as_number(lookup(tree, f"{key}.{damping}", where), f"{key}.{damping}", where, _PLAUSIBLE[damping]))
 
 
-def resolve_pose(robot: Robot, value, what: str) -> np.ndarray:
+def resolve_pose(robot: Robot, value, key: str, where: str) -> np.ndarray:
     """``home``, ``paper`` or 6 numbers [x, y, z, roll, pitch, yaw] (m, rad) -> pose (6,).
 
     Args:
         robot: the robot (its home pose and the paper pose).
         value: "home", "paper", or a list of six numbers (m, rad).
-        what: where the value comes from, for the error message.
+        key: the value's key, for the error message.
+        where: the file, for the error message.
 
     Returns:
         The pose (6,) (m, rad), a new array.
 
     Raises:
-        ConfigError: ``value`` is neither "home", "paper" nor a list of six finite numbers.
-        ValueError: the list holds entries numpy cannot convert to float (not caught).
+        ConfigError: naming ``key``: ``value`` is neither "home", "paper" nor a list of six finite numbers.
     """
     if value == "home":
         return robot.home_pose.copy()
     if value == "paper":
         return paper_pose(robot)
-    pose = np.asarray(value, dtype=float) if isinstance(value, list) else None
-    if pose is None or pose.shape != (6,) or not np.isfinite(pose).all():
-        raise ConfigError(f"{what}: needs home, paper or 6 numbers [x, y, z, roll, pitch, yaw], got {value!r}")
-    return pose
+    if not (isinstance(value, list) and len(value) == 6):
+        raise ConfigError(f"{where}: '{key}' needs home, paper or 6 numbers [x, y, z, roll, pitch, yaw], got "
+                          f"{short_repr(value)}")
+    return as_vector(value, key, where, 6)
+
+
+def _stiffening(tree: dict, k_axial: float, where: str) -> tuple[str, float, np.ndarray | None, np.ndarray | None]:
+    """(type, length_m, breakpoints_m, slopes) of the ``stiffening`` section."""
+    stiff = tree.get("stiffening") or {"type": "none"}
+    if not isinstance(stiff, dict) or stiff.get("type", "none") not in STIFFENING_TYPES:
+        raise ConfigError(f"{where}: 'stiffening.type' must be one of {list(STIFFENING_TYPES)}, got "
+                          f"{short_repr(stiff.get('type') if isinstance(stiff, dict) else stiff)}")
+    kind = stiff.get("type", "none")
+    allowed = {"none": {"type"}, "exponential": {"type", "length_m"},
+               "piecewise_linear": {"type", "breakpoints_m", "stiffness_n_m"}}[kind]
+    check_keys(stiff, allowed, where, f"stiffening ({kind})")
+    if kind == "exponential":
+        return kind, as_number(lookup(stiff, "length_m", where), "stiffening.length_m", where,
+                               _PLAUSIBLE["length_m"]), None, None
+    if kind == "piecewise_linear":
+        starts, slopes = (lookup(stiff, key, where) for key in ("breakpoints_m", "stiffness_n_m"))
+        count = len(starts) if isinstance(starts, list) else 0
+        if not 1 <= count <= 100:
+            raise ConfigError(f"{where}: 'stiffening.breakpoints_m' must be a list of 1 to 100 numbers, got "
+                              f"{short_repr(starts)}")
+        starts = as_vector(starts, "stiffening.breakpoints_m", where, count, _PLAUSIBLE["breakpoints_m"])
+        slopes = as_vector(slopes, "stiffening.stiffness_n_m", where, count, _PLAUSIBLE["slopes_n_m"])
+        if starts[0] != 0.0 or (np.diff(starts) <= 0).any() or slopes[0] != k_axial:
+            raise ConfigError(f"{where}: piecewise_linear needs breakpoints_m strictly increasing from 0 and as "
+                              "many stiffness_n_m >= 0, the first equal to axial.stiffness_n_m")
+        return kind, 0.0, starts, slopes
+    return kind, 0.0, None, None
 
 
 def tissue_from_dict(tree: dict, robot: Robot, source: str = "<dict>") -> TissueModel:
     """Build a TissueModel from the parsed YAML tree (see config/tissue.yaml); ConfigError with the reason.
 
+    Every value is checked against its plausible range (``_PLAUSIBLE``), the rest pose must be one the
+    robot can take (``kinematics.check_pose``), and the worst-case wrench near the rest pose must stay
+    within the plausible bound and finite within the robot's reach (``check_tissue_wrench``).
+
     Args:
         tree: the parsed YAML mapping (keys name, note, rest_pose, center_m, axial, lateral, torsional,
             bending, preload_n, stiffening).
-        robot: the robot (for rest_pose "home" / "paper").
+        robot: the robot (for rest_pose "home" / "paper", its reach and its strut limits).
         source: where the tree comes from, for error messages and ``TissueModel.source``.
 
     Returns:
         The TissueModel (SI units).
 
     Raises:
-        ConfigError: the tree is not a mapping, has unknown keys, a bad rest_pose or center_m, a missing,
-            non-numeric, negative or non-finite stiffness, damping or preload, or a bad stiffening section.
-        ValueError: rest_pose, center_m or a piecewise-linear list holds entries numpy cannot convert to
-            float (not caught).
+        ConfigError: one line naming the key: the tree is not a mapping, has unknown keys, a missing,
+            mistyped, non-finite or implausible value, a rest pose the robot cannot take, a bad stiffening
+            section, or a worst-case wrench beyond the bound.
     """
+    where = f"tissue config {source}"
     if not isinstance(tree, dict):
-        raise ConfigError(f"tissue config {source}: top level must be a mapping")
-    unknown = set(tree) - _KEYS
-    if unknown:
-        raise ConfigError(f"tissue config {source}: unknown keys {sorted(unknown)}")
-    rest = resolve_pose(robot, tree.get("rest_pose", "home"), f"tissue config {source}: rest_pose")
-    center = np.asarray(tree.get("center_m", [0.0, 0.0, 0.0]), dtype=float)
-    if center.shape != (3,) or not np.isfinite(center).all():
-        raise ConfigError(f"tissue config {source}: center_m must be 3 finite numbers (platform frame, m)")
-    k_ax, c_ax = _pair(tree, "axial", ("n_m", "n_s_m"), source)
-    k_lat, c_lat = _pair(tree, "lateral", ("n_m", "n_s_m"), source)
-    k_tor, c_tor = _pair(tree, "torsional", ("nm_rad", "nm_s_rad"), source)
-    k_bend, c_bend = _pair(tree, "bending", ("nm_rad", "nm_s_rad"), source)
-    preload = _number(tree, "preload_n", source) if "preload_n" in tree else 0.0
-    stiff = tree.get("stiffening") or {"type": "none"}
-    if not isinstance(stiff, dict) or stiff.get("type", "none") not in STIFFENING_TYPES:
-        raise ConfigError(f"tissue config {source}: stiffening.type must be one of {STIFFENING_TYPES}")
-    kind = stiff.get("type", "none")
-    allowed = {"none": {"type"}, "exponential": {"type", "length_m"},
-               "piecewise_linear": {"type", "breakpoints_m", "stiffness_n_m"}}[kind]
-    if set(stiff) - allowed:
-        raise ConfigError(f"tissue config {source}: stiffening '{kind}' has unknown keys "
-                          f"{sorted(set(stiff) - allowed)}")
-    length, starts, slopes = 0.0, None, None
-    if kind == "exponential":
-        length = _number(stiff, "length_m", f"{source} stiffening", positive=True)
-    elif kind == "piecewise_linear":
-        starts = np.asarray(stiff.get("breakpoints_m"), dtype=float)
-        slopes = np.asarray(stiff.get("stiffness_n_m"), dtype=float)
-        if (starts.ndim != 1 or starts.shape != slopes.shape or starts.size == 0 or starts[0] != 0.0
-                or (np.diff(starts) <= 0).any() or (slopes < 0).any() or not np.isfinite(slopes).all()
-                or slopes[0] != k_ax):
-            raise ConfigError(f"tissue config {source}: piecewise_linear needs breakpoints_m strictly increasing "
-                              "from 0 and as many stiffness_n_m >= 0, the first equal to axial.stiffness_n_m")
-    return TissueModel(
+        raise ConfigError(f"{where}: top level must be a mapping")
+    check_keys(tree, _KEYS, where)
+    rest = resolve_pose(robot, tree.get("rest_pose", "home"), "rest_pose", where)
+    try:
+        check_pose(robot, rest)
+    except StewartError as exc:
+        raise ConfigError(f"{where}: 'rest_pose' {rest.tolist()} cannot be taken by the robot: "
+                          f"{type(exc).__name__}: {exc}") from None
+    center = as_vector(tree.get("center_m", [0.0, 0.0, 0.0]), "center_m", where, 3, _PLAUSIBLE["center_m"])
+    k_ax, c_ax = _pair(tree, "axial", ("n_m", "n_s_m"), where)
+    k_lat, c_lat = _pair(tree, "lateral", ("n_m", "n_s_m"), where)
+    k_tor, c_tor = _pair(tree, "torsional", ("nm_rad", "nm_s_rad"), where)
+    k_bend, c_bend = _pair(tree, "bending", ("nm_rad", "nm_s_rad"), where)
+    preload = _number(tree, "preload_n", where) if "preload_n" in tree else 0.0
+    kind, length, starts, slopes = _stiffening(tree, k_ax, where)
+    for key in ("name", "note"):
+        if not isinstance(tree.get(key, ""), str):
+            raise ConfigError(f"{where}: '{key}' must be text, got {short_repr(tree[key])}")
+    model = TissueModel(
         rest_pose=rest, center=center,
         stiffness=np.array([k_lat, k_lat, k_ax, k_bend, k_bend, k_tor]),
         damping=np.array([c_lat, c_lat, c_ax, c_bend, c_bend, c_tor]),
         preload=preload, stiffening=kind, length_m=length, breakpoints_m=starts, slopes_n_m=slopes,
         name=str(tree.get("name", "tissue")), source=source)
+    check_tissue_wrench(model, robot, where)
+    return model
 
 
 def load_tissue(path, robot: Robot) -> TissueModel:
@@ -407,18 +525,13 @@ def load_tissue(path, robot: Robot) -> TissueModel:
         The TissueModel.
 
     Raises:
-        ConfigError: the file cannot be read or is not valid YAML, a value is bad (``tissue_from_dict``), or
-            the config directory is needed and not found (``default_config_dir``).
-        ValueError: a pose or list entry cannot be converted to float (``tissue_from_dict``).
+        ConfigError: the file cannot be read safely (``safe_yaml.load_yaml``), a value is bad
+            (``tissue_from_dict``), or the config directory is needed and not found (``default_config_dir``).
     """
-    path = Path(path)
-    if not path.is_file() and not path.is_absolute() and (default_config_dir() / path).is_file():
+    path = Path(path).expanduser()
+    if not path.exists() and not path.is_absolute() and (default_config_dir() / path).exists():
         path = default_config_dir() / path
-    try:
-        tree = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read tissue config {path}: {exc}") from None
-    return tissue_from_dict(tree, robot, str(path))
+    return tissue_from_dict(load_yaml(path, "tissue config"), robot, str(path))
 
 
 def load_tissue_option(value: str | None, robot: Robot) -> TissueModel | None:
@@ -433,18 +546,20 @@ def load_tissue_option(value: str | None, robot: Robot) -> TissueModel | None:
 
     Raises:
         ConfigError: as ``load_tissue``.
-        ValueError: as ``load_tissue``.
     """
     return load_tissue(value, robot) if value else None
 
 
 __all__ = [
     "TissueModel",
+    "WrenchBound",
+    "check_tissue_wrench",
     "load_tissue",
     "load_tissue_option",
     "resolve_pose",
     "tissue_displacement",
     "tissue_from_dict",
+    "tissue_wrench_bound",
     "tissue_wrench",
     "tissue_wrench_from_state",
     "tissue_wrench_single",

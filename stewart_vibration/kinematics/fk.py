@@ -1,6 +1,6 @@
 """Forward kinematics of the 6-UPS platform: strut lengths -> poses (batched Newton, numpy).
 
-Solves g_i = |p + R a_i - b_i| - l_i = 0 (REVIEW.md, "Forward kinematics") with the analytic Jacobian,
+Solves g_i = |p + R a_i - b_i| - l_i = 0 with the analytic Jacobian,
 updating the rotation on SO(3). One warm-started solve runs the same iteration on plain Python floats
 (``fk_scalar``, low latency); large batches are split over the CPU cores.
 """

@@ -1,6 +1,6 @@
 """Leg geometry of the 6-UPS platform: leg vectors, hinge arms and joint angles (batched numpy).
 
-Notation (REVIEW.md, general form of the paper's eqs 4-11): b_i base hinge (base frame), a_i platform
+Notation (the general form of the paper's eqs 4-11): b_i base hinge (base frame), a_i platform
 hinge (platform frame), pose q = [x, y, z, roll, pitch, yaw] with p = q[:3] and
 R = Rz(yaw) Ry(pitch) Rx(roll) (eq. 3); d_i = p + R a_i - b_i (eq. 4), l_i = |d_i|, n_i = d_i / l_i.
 """

@@ -1,6 +1,6 @@
 """Inverse kinematics of the 6-UPS platform: poses -> strut lengths (batched numpy).
 
-l_i = |p + R a_i - b_i| (paper eqs 4-5 in the general form of REVIEW.md), closed form. Small batches run
+l_i = |p + R a_i - b_i| (paper eqs 4-5 in their general form), closed form. Small batches run
 directly; large ones run through a cache-sized chunked path split over the CPU cores
 (``parallel.map_row_ranges``). Every pose is checked against the robot's limits (``limits``).
 """

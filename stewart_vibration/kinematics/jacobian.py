@@ -1,6 +1,6 @@
 """The leg-length Jacobian and its dimensionally homogeneous condition number (batched numpy).
 
-Rows [n_i, (R a_i) x n_i] (REVIEW.md, the corrected eq. 11): dl = J [dp; dphi] with dp the
+Rows [n_i, (R a_i) x n_i] (the paper's eq. 11, corrected): dl = J [dp; dphi] with dp the
 displacement of the platform origin and dphi a small rotation vector, both in the base frame; J^T maps
 axial leg forces to the platform wrench (force, moment about the platform origin).
 """

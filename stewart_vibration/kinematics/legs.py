@@ -1,4 +1,4 @@
-"""Leg (strut) velocities and accelerations from the platform motion (REVIEW.md Dynamics, steps 1-3).
+"""Leg (strut) velocities and accelerations from the platform motion (Newton-Euler, docs/dynamics.md).
 
 Frames and units: everything in the base frame, SI (m, rad, s). The platform
 twist is [v, w]: v the velocity of the platform-frame origin, w the angular

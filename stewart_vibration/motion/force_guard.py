@@ -256,6 +256,16 @@ class ForceGuard:
         self._before_blind = None
         return was
 
+    def robot_stopped(self) -> bool:
+        """The robot was stopped outside this guard (the emulator's e-stop, deactivate, shutdown or physics
+        fault): the move it watched is over, and a pause for late estimates ends without resuming it (the
+        guard is as it was before that pause). Returns whether a move was dropped."""
+        dropped = self.move is not None or self._before_blind is not None
+        self.move, self._stopping, self._fresh_since = None, None, None
+        if self._before_blind is not None:
+            self._end_pause()
+        return dropped
+
     @property
     def tripped(self) -> bool:
         """Whether a trip is latched (until reset or new limits)."""
@@ -263,17 +273,23 @@ class ForceGuard:
 
     # -- moves and targets ----------------------------------------------------------------------------
     def move_under_way(self, now: float) -> float | None:
-        """The end (s, emulator clock) of the move the struts run at ``now`` (s), or None: no move, it has ended,
-        a trip stopped it, or it is at rest now (planned strut speed and acceleration below AT_REST_SPEED_M_S
-        and AT_REST_ACCEL_M_S2: its start, its end, a move of nothing). A target sent while the struts move
-        would be planned from rest: the emulator refuses it and runs on, while the guard would watch the
-        refused move instead."""
+        """The end (s, emulator clock) of the move sent last while it is pending or running at ``now`` (s), or
+        None: no move, it has ended, a trip stopped it, it is a move of nothing (planned peak strut speed below
+        AT_REST_SPEED_M_S), or it is in its second half and at rest already (planned strut speed and
+        acceleration below AT_REST_SPEED_M_S and AT_REST_ACCEL_M_S2: its end). A target sent while the struts
+        move would be planned from rest: the emulator refuses it and runs on, while the guard would watch the
+        refused move instead. Before its estimated start and while it is still at rest at its start the move
+        counts as under way too: the struts may depart any moment (the emulator takes a command when it gets
+        it), and a train of targets each arriving before the last one's start would otherwise all be taken."""
         move = self.move
         if move is None or move.stopped or now >= move.end:
             return None
         scale = move.stroke
+        if 1.875 * scale / move.duration < AT_REST_SPEED_M_S:  # 1.875 / T: a minimum-jerk move's peak rate
+            return None
         _, rate, accel = (float(x[0]) for x in move.progress([now]))
-        if abs(rate) * scale < AT_REST_SPEED_M_S and abs(accel) * scale < AT_REST_ACCEL_M_S2:
+        past_middle = now >= move.start_time + 0.5 * move.duration
+        if past_middle and abs(rate) * scale < AT_REST_SPEED_M_S and abs(accel) * scale < AT_REST_ACCEL_M_S2:
             return None
         return move.end
 
@@ -486,9 +502,17 @@ class ForceGuard:
                                 detail=f"found when estimates returned after a blind stop ({trip.detail})")
             self._before_blind = None
             return False
-        self.trip, self.blocked, self.peak = self._before_blind
-        self._before_blind = None
+        self._end_pause()
         return True
+
+    def _end_pause(self) -> None:
+        """The guard as it was before the current "estimates" pause; an earlier pause restored with it ends too
+        (a pause whose move is gone has nothing to resume, and would otherwise stay latched)."""
+        if self._before_blind is not None:
+            self.trip, self.blocked, self.peak = self._before_blind
+        self._before_blind = None
+        if self.trip is not None and self.trip.which == "estimates":
+            self.trip, self.blocked, self.peak = None, [], (0.0, 0.0)
 
     def _trip(self, move: GuardedMove, time: float, newest_state_time: float, load: tuple[float, float],
               predicted: tuple[float, float], which: str, detail: str = "") -> GuardTrip:
