@@ -3,11 +3,13 @@
 The nodes publish and subscribe these topics raw (bytes), which skips rclpy's per-field Python
 object construction: encoding a JointState here costs a few microseconds instead of ~25.
 Covered types: sensor_msgs/JointState, geometry_msgs/PoseStamped, geometry_msgs/WrenchStamped,
-rosgraph_msgs/Clock, trajectory_msgs/JointTrajectory. Layout (XCDR1): a 4-byte encapsulation
-header (00 01 00 00), then the fields, each aligned to its size relative to the end of that
-header; strings are a uint32 length (with the NUL), the bytes and a NUL; sequences a uint32
-count and the elements. Decoders check every length against the buffer and raise
-InvalidInputError on malformed data.
+rosgraph_msgs/Clock, trajectory_msgs/JointTrajectory; decoded only: diagnostic_msgs/DiagnosticStatus
+and DiagnosticArray (read raw so a string's bytes after a NUL, which rclpy's conversion drops, are
+seen). Layout (XCDR1): a 4-byte encapsulation header (00 01 00 00), then the fields, each aligned to
+its size relative to the end of that header; strings are a uint32 length (with the NUL), the bytes
+and a NUL; sequences a uint32 count and the elements. Decoders check every length against the
+buffer, that strings are UTF-8 and NUL-terminated (a NUL inside is kept, for the readers to refuse)
+and that a stamp's nanosec is below 1e9, and raise InvalidInputError on malformed data.
 """
 
 # The dtype builders append to three lists as one tuple statement per field (the tuple of Nones is discarded):
@@ -28,6 +30,8 @@ _U32 = struct.Struct("<I")
 _STAMP = struct.Struct("<iI")
 _STAMP_BE = struct.Struct(">iI")  # header stamps of big-endian CDR (header_stamp_ns reads any encoding)
 _F8 = np.dtype("<f8")
+_STAMP_DTYPE = np.dtype([("sec", "<i4"), ("nanosec", "<u4")])
+NANOSEC_PER_SEC = 1_000_000_000
 
 
 def _align(offset: int, size: int) -> int:
@@ -101,10 +105,18 @@ class _Reader:
         self.pos += 4
         return value
 
+    def u8(self) -> int:
+        self.need(1)
+        value = self.data[self.pos]
+        self.pos += 1
+        return value
+
     def stamp(self) -> tuple[int, int]:
         self.pad(4)
         self.need(8)
         value = _STAMP.unpack_from(self.data, self.pos)
+        if value[1] >= NANOSEC_PER_SEC:
+            raise InvalidInputError(f"{self.what}: a time's nanosec {value[1]} is not below 1e9 (byte {self.pos})")
         self.pos += 8
         return value
 
@@ -339,6 +351,8 @@ def _stack_uniform(messages, first: JointStateData, counts):
     table = np.frombuffer(b"".join(bytes(m) for m in messages), dtype=dtype)
     if any((table[f"n_{f}"] != c).any() for f, c in zip(("position", "velocity", "effort"), counts, strict=True)):
         return None  # same size and names but the arrays are split differently: decode one by one
+    if (table["nanosec"] >= NANOSEC_PER_SEC).any():
+        raise InvalidInputError("JointState: a stamp's nanosec is not below 1e9")
     stamps = table["sec"] + table["nanosec"] * 1e-9
     arrays = [table[f].copy() if c else np.full((len(messages), k), np.nan)
               for f, c in zip(("position", "velocity", "effort"), counts, strict=True)]
@@ -398,6 +412,80 @@ def decode_wrench_stamped(data) -> tuple[float, str, np.ndarray]:
     sec, nanosec = r.stamp()
     frame = r.string()
     return stamp_seconds(sec, nanosec), frame, r.fixed_doubles(6)
+
+
+def decode_stamped_doubles(messages, count: int, what: str) -> tuple[np.ndarray, list, np.ndarray, np.ndarray, list]:
+    """Decode many raw messages laid out as Header + ``count`` float64 (PoseStamped: 7, WrenchStamped: 6).
+
+    Messages of one size whose bytes up to the doubles equal the first's but for the stamp (a publisher's stream:
+    same frame) are decoded together through numpy views of the joined bytes; the others one by one.
+
+    Args:
+        messages: the raw messages (bytes).
+        count: the float64 fields after the header.
+        what: the type's name for error messages.
+
+    Returns:
+        (stamps [m] (s), frame_ids [m] (str), values [m, count], kept [m] (indices of the decoded messages, in
+        order), errors (InvalidInputError of each message that could not be decoded)).
+    """
+    by_size: dict[int, list[int]] = {}
+    for i, data in enumerate(messages):
+        by_size.setdefault(len(data), []).append(i)
+    stamps, frames, values, kept, errors = [], [], [], [], []
+    for size, group in by_size.items():
+        start = None
+        try:
+            r = _Reader(messages[group[0]], what)
+            r.stamp()
+            frame = r.string()
+            r.pad(8)
+            r.need(8 * count)
+            start = r.pos
+        except InvalidInputError:
+            pass  # decoded one by one below, which reports it
+        if start is not None and len(group) > 1:
+            n = len(group)
+            joined = b"".join([messages[i] for i in group])
+            header = np.ndarray((n, start), np.uint8, joined, 0, (size, 1))
+            differs = header != header[0]
+            differs[:, 4:12] = False  # the stamp may differ
+            times = np.ndarray((n,), _STAMP_DTYPE, joined, 4, (size,))
+            uniform = ~differs.any(axis=1) & (times["nanosec"] < NANOSEC_PER_SEC)
+            table = np.ndarray((n, count), _F8, joined, start, (size, 8))
+            if uniform.all():
+                stamps.append(times["sec"] + times["nanosec"] * 1e-9)
+                values.append(table.copy())
+                frames.extend([frame] * n)
+                kept.append(np.asarray(group))
+                continue
+            stamps.append(times["sec"][uniform] + times["nanosec"][uniform] * 1e-9)
+            values.append(table[uniform])
+            frames.extend([frame] * int(uniform.sum()))
+            kept.append(np.asarray(group)[uniform])
+            group = [group[j] for j in np.flatnonzero(~uniform)]
+        for i in group:  # the rest one by one
+            try:
+                r = _Reader(messages[i], what)
+                sec, nanosec = r.stamp()
+                frame_i = r.string()
+                row = r.fixed_doubles(count)
+            except InvalidInputError as exc:
+                errors.append(exc)
+                continue
+            frames.append(frame_i)
+            stamps.append(np.array([stamp_seconds(sec, nanosec)]))
+            values.append(row[None, :])
+            kept.append(np.array([i]))
+    if not kept:
+        return np.empty(0), [], np.empty((0, count)), np.empty(0, int), errors
+    if len(kept) == 1:
+        return stamps[0], frames, values[0], kept[0], errors
+    indices = np.concatenate(kept)
+    order = np.argsort(indices, kind="stable")
+    if (order != np.arange(len(order))).any():  # one-by-one rows among the others: back in arrival order
+        frames = [frames[j] for j in order]
+    return np.concatenate(stamps)[order], frames, np.concatenate(values)[order], indices[order], errors
 
 
 def encode_clock(stamp_s: float) -> bytes:
@@ -545,6 +633,8 @@ def decode_joint_trajectory(data) -> TrajectoryData:
             views, used = uniform
             table = {f: np.empty((count, c)) for f, c in zip(_POINT_FIELDS, counts, strict=True)}
             for view, index in views:
+                if (view["nanosec"] >= NANOSEC_PER_SEC).any():
+                    raise InvalidInputError("JointTrajectory: a time_from_start's nanosec is not below 1e9")
                 for field, c in zip(_POINT_FIELDS, counts, strict=True):
                     if c:
                         table[field][index] = view[field]
@@ -570,3 +660,42 @@ def decode_joint_trajectory(data) -> TrajectoryData:
         out = dict.fromkeys(_POINT_FIELDS)
     return TrajectoryData(stamp_seconds(sec, nanosec), frame, names, times, out["positions"], out["velocities"],
                           out["accelerations"])
+
+
+# -- diagnostic_msgs/DiagnosticStatus, DiagnosticArray (decode only) --------------------------------------
+@dataclass(frozen=True)
+class DiagnosticStatusData:
+    """A decoded DiagnosticStatus as it is on the wire (strings with any NUL kept, not yet checked):
+    level (the byte, 0..255), name, message, hardware_id, values ((key, value) pairs in order)."""
+
+    level: int
+    name: str
+    message: str
+    hardware_id: str
+    values: tuple
+
+
+def _diagnostic_status(r: _Reader) -> DiagnosticStatusData:
+    level = r.u8()
+    name, message, hardware_id = r.string(), r.string(), r.string()
+    count = r.u32()
+    if count > len(r.data):
+        raise InvalidInputError(f"{r.what}: sequence of {count} key/values cannot fit")
+    values = tuple((r.string(), r.string()) for _ in range(count))
+    return DiagnosticStatusData(level, name, message, hardware_id, values)
+
+
+def decode_diagnostic_status(data) -> DiagnosticStatusData:
+    """Decode DiagnosticStatus bytes (InvalidInputError on malformed data)."""
+    return _diagnostic_status(_Reader(data, "DiagnosticStatus"))
+
+
+def decode_diagnostic_array(data) -> tuple[float, str, list[DiagnosticStatusData]]:
+    """(stamp s, frame_id, statuses) of DiagnosticArray bytes (InvalidInputError on malformed data)."""
+    r = _Reader(data, "DiagnosticArray")
+    sec, nanosec = r.stamp()
+    frame = r.string()
+    count = r.u32()
+    if count > len(r.data):
+        raise InvalidInputError(f"DiagnosticArray: sequence of {count} statuses cannot fit")
+    return stamp_seconds(sec, nanosec), frame, [_diagnostic_status(r) for _ in range(count)]

@@ -69,3 +69,35 @@ class StreamHealth:
         return {f"{prefix}_received": str(self.received), f"{prefix}_processed": str(self.processed),
                 f"{prefix}_lost": str(self.lost), f"{prefix}_rejected": str(self.rejected),
                 f"{prefix}_lag_p50_ms": f"{p50:.2f}", f"{prefix}_lag_p99_ms": f"{p99:.2f}"}
+
+
+class SequenceGaps:
+    """Samples missing from the publication sequence numbers of each topic's one publisher (pure counter).
+
+    A DDS writer numbers its samples 1, 2, 3, ...; a reader that sees n after m lost n - m - 1 of them. A
+    number lower than the last one is a new publisher (a restarted node): counting starts again from it.
+    Only meaningful for topics with a single publisher (the numbers of several writers interleave).
+    """
+
+    def __init__(self) -> None:
+        self._last: dict[str, int] = {}
+        self._missing: dict[str, int] = {}
+
+    def seen(self, topic: str, sequence) -> None:
+        """The sample numbered ``sequence`` of ``topic`` arrived (None or a non-integer: ignored)."""
+        if not isinstance(sequence, int) or isinstance(sequence, bool) or sequence <= 0:
+            return
+        last = self._last.get(topic)
+        if last is not None and sequence > last + 1:
+            self._missing[topic] = self._missing.get(topic, 0) + sequence - last - 1
+        self._last[topic] = sequence
+
+    @property
+    def total(self) -> int:
+        """Samples missing over every topic."""
+        return sum(self._missing.values())
+
+    def per_topic(self) -> dict[str, int]:
+        """{topic: samples missing} of the topics that missed any."""
+        return {t: n for t, n in self._missing.items() if n}
+
