@@ -19,8 +19,8 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from stewart_vibration.emulation.vibration_status import report_from_values
 from stewart_vibration.messages import cdr
+from stewart_vibration.messages.status_values import status_from_msg, vibration_report
 from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import VIB_NAMES
@@ -175,7 +175,7 @@ def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
 
 
 def report(msg):
-    return report_from_values("ok", {kv.key: kv.value for kv in msg.values})
+    return vibration_report(status_from_msg(msg))
 
 
 def vib_series(states, t0, t1):

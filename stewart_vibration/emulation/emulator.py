@@ -1,5 +1,6 @@
-"""The emulated robot (no rclpy): MuJoCo model + strut servos + strut trajectory follower +
-vibration command buffer + safety. The hardware_emulator node only converts messages.
+"""The emulated robot (no rclpy): MuJoCo model + strut servos + the robot's safety layer (``safety_controller``:
+strut trajectory follower, vibration command buffer, every command check and stop) + the divergence detector
+(``physics_guard``). The hardware_emulator node only converts messages.
 
 Each leg is strut + vibration unit in series: the simulated slide is the total hinge-to-hinge
 length; the joint state reports leg_i = total - vib_i (strut) and vib_i (the unit's displacement),
@@ -27,30 +28,25 @@ import mujoco
 import numpy as np
 
 from ..dynamics.tissue import TissueModel, tissue_wrench_single
-from ..errors import ActuatorLimitError
-from ..kinematics import inverse_kinematics
-from ..motion.profiles import minimum_jerk, minimum_jerk_duration
+from ..kinematics import check_pose
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..sim.mjcf import SimulationSettings
 from ..sim.mujoco_sim import StewartSim
+from .physics_guard import PhysicsFault, PhysicsGuard
+from .safety_controller import SafetyController
 from .servo_drive import ServoDrive
-from .strut_trajectory import (
-    MAX_START_DELAY_S,
-    STEP_SPEED,
-    JointTrajectory,
-    TrajectoryFollower,
-    build_trajectory,
-    checked_command,
-    controlled_stop,
-)
+from .strut_trajectory import MAX_START_DELAY_S, JointTrajectory, TrajectoryFollower
 from .vibration_buffer import VibrationBuffer
-from .vibration_status import EMERGENCY_STOP, VibrationReport, VibrationStatusTracker
+from .vibration_status import VibrationReport, VibrationStatusTracker
 
 
 class HardwareEmulator:
     """Step the robot in MuJoCo while following strut and vibration commands safely.
 
-    Time is simulation time (s, starts at 0). Commands take effect from the next block.
+    The commands and every safety rule live in ``safety``, a ``SafetyController`` (the robot's own safety
+    layer); this class adds the physics: the MuJoCo model, the strut servos and the divergence detector
+    (``physics_guard``). Time is simulation time (s, starts at 0, never goes back). Commands take effect from
+    the next block.
     """
 
     _refs: tuple[int, float, tuple[np.ndarray, ...]] | None
@@ -61,7 +57,6 @@ class HardwareEmulator:
                  reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,
                  tissue: TissueModel | None = None):
         self.robot = robot
-        self.max_start_delay_s = float(max_start_delay_s)
         self.sim = StewartSim(robot, replace(settings, integrator=settings.emulator_integrator))
         self.sim.reset(robot.home_pose)
         self.tissue = tissue
@@ -72,14 +67,11 @@ class HardwareEmulator:
         self._apply_tissue()
         self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio, gain_interval,
                                 load_body=self._platform_body if tissue is not None else None)
-        self.home_lengths = inverse_kinematics(robot, robot.home_pose)
-        self.struts = TrajectoryFollower(self.home_lengths)
-        self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s)
-        self.status = VibrationStatusTracker()
+        self.guard = PhysicsGuard(self.sim.model, self.sim.data, self.sim.slide_qpos, self.sim.slide_dof)
+        self.safety = SafetyController(robot, self.dt, watchdog_s, vibration_ramp_s, max_lookahead_s,
+                                       max_start_delay_s)
         self.forces = np.zeros(6)
-        self.estopped = False
         self.reference_horizon_s = float(reference_horizon_s)
-        self._version = 0  # bumped by every accepted command: cached references and planned controls are stale
         self._refs = None  # (version, first step time, arrays) of the sampled references
         self._planned = None  # (version, time, controls) for the block starting at ``time``
 
@@ -93,9 +85,41 @@ class HardwareEmulator:
         """The physics step (s)."""
         return float(self.sim.model.opt.timestep)
 
-    # -- commands ----------------------------------------------------------------
-    def command_struts(self, names, start, times, positions, velocities=None, accelerations=None) -> JointTrajectory:
-        """Validate and run a leg_* trajectory (replaces the running one); returns it as it runs.
+    # the safety controller's state, as the node and the tests read it
+    @property
+    def struts(self) -> TrajectoryFollower:
+        """The strut trajectory follower (the commanded strut lengths)."""
+        return self.safety.struts
+
+    @property
+    def vibration(self) -> VibrationBuffer:
+        """The vibration command buffer (the commanded unit displacements)."""
+        return self.safety.vibration
+
+    @property
+    def status(self) -> VibrationStatusTracker:
+        """The vibration status tracker."""
+        return self.safety.status
+
+    @property
+    def estopped(self) -> bool:
+        """True while the e-stop (or a physics fault) is latched."""
+        return self.safety.estopped
+
+    @property
+    def fault(self) -> PhysicsFault | None:
+        """The latched physics fault, or None."""
+        return self.safety.fault
+
+    @property
+    def home_lengths(self) -> np.ndarray:
+        """The strut lengths at the home pose (6,) (m)."""
+        return self.safety.home_lengths
+
+    # -- commands (``SafetyController``, at the emulator's time) -----------------------------------
+    def command_struts(self, names, start, times, positions, velocities=None, accelerations=None,
+                       lock=None) -> JointTrajectory:
+        """Validate and run a leg_* trajectory (``SafetyController.command_struts``); returns it as it runs.
 
         joint_trajectory_controller rules with the limits enforced on what will actually be followed:
         start 0 = now; points already in the past are dropped and the motion departs from the state
@@ -103,74 +127,71 @@ class HardwareEmulator:
         finite-difference velocities (zero at its first and last point) and cubic segments instead of
         linear ones (a linear one steps the velocity at every point). The spline from the departure
         state through every point must stay within the stroke, strut_velocity_max and
-        strut_acceleration_max and end at rest (the last point is held); a start more than
-        ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused. Until
-        a future start the running command goes on (``trajectory.checked_command``). Raises
-        InvalidInputError, StrokeLimitError or ActuatorLimitError with the reason; nothing moves then.
+        strut_acceleration_max and end at rest (the last point is held), keep the six struts together inside
+        the workspace and leave room for a controlled stop (``strut_acceptance``); a start more than
+        ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused.
+        Until a future start the running command goes on. At most MAX_TRAJECTORY_POINTS points.
+
+        ``lock``: the lock the caller shares with the physics thread (``advance``); the checks then run outside
+        it and only the commit takes it. Raises the typed reason (InvalidInputError, StrokeLimitError,
+        ActuatorLimitError, UnreachablePoseError, JointLimitError, SingularPoseError, PhysicsFaultError);
+        nothing moves then.
         """
-        if self.estopped:
-            raise ActuatorLimitError("emergency stop is active: call reset first", limit_name="emergency_stop")
-        traj = build_trajectory(names, LEG_NAMES, start, times, positions, velocities, accelerations)
-        running = checked_command(self.struts, traj, self.time, self.robot.limits, self.max_start_delay_s,
-                                  STEP_SPEED * self.robot.limits.strut_acceleration_max * self.dt)
-        self._changed()
-        return self.struts.replace(running, self.time)
+        return self.safety.command_struts(self.time, names, start, times, positions, velocities, accelerations,
+                                          pose=self.platform_pose, clock=lambda: self.time, lock=lock)
 
     def command_vibration(self, names, start, times, positions, velocities=None, accelerations=None) -> float:
-        """Validate and splice a vib_* window onto the buffer; returns the splice time (s). Raises
-        InvalidInputError / VibrationLimitError / ActuatorLimitError (e-stop active) with the reason;
-        the refusal is also recorded in the vibration status."""
-        now = self.time
-        try:
-            if self.estopped:
-                raise ActuatorLimitError("emergency stop is active: call hardware_emulator/reset first",
-                                         limit_name="emergency_stop")
-            traj = build_trajectory(names, VIB_NAMES, start, times, positions, velocities, accelerations)
-            splice = self.vibration.add(traj, now)
-        except Exception as exc:
-            self.status.refused(now, float(start), str(exc))
-            raise
-        self.status.accepted(now, float(start))
-        self._changed()
-        return splice
+        """Validate and splice a vib_* window (``SafetyController.command_vibration``); returns the splice time."""
+        return self.safety.command_vibration(self.time, names, start, times, positions, velocities, accelerations)
 
     def emergency_stop(self) -> None:
-        """Ramp the vibration to zero and bring the struts to rest within strut_acceleration_max (a controlled
-        stop from the state commanded now, see ``controlled_stop``), then hold; latched until reset()."""
-        now = self.time
-        self.vibration.stop(now, EMERGENCY_STOP)
-        if not self.estopped:
-            stop = controlled_stop(self.struts, now, self.robot.limits.strut_acceleration_max)
-            if stop is None:
-                self.struts.hold(self.struts.sample([now])[0][0])
-            else:
-                self.struts.replace(stop, now)
-        if not self.estopped:
-            self.status.safety_ramp(now, EMERGENCY_STOP)
-        self.estopped = True
-        self._changed()
+        """Ramp the vibration to zero and bring the struts to rest along their commanded path within
+        strut_acceleration_max (``TrajectoryFollower.brake``), then hold; latched until reset()."""
+        self.safety.emergency_stop(self.time)
+
+    def halt(self, reason: str) -> None:
+        """A safety stop that does not latch (lifecycle deactivate, shutdown; ``SafetyController.halt``)."""
+        self.safety.halt(self.time, reason)
+
+    def at_rest(self) -> bool:
+        """True when the commanded struts and vibration units are at rest from now on."""
+        return self.safety.at_rest(self.time)
 
     def reset(self) -> float:
-        """Clear a latched e-stop and move smoothly home; returns the move's duration (s).
+        """Clear a latched e-stop and move home from where its stop comes to rest (``SafetyController.reset``);
+        returns the time until home (s)."""
+        return self.safety.reset(self.time, self.platform_pose())
 
-        Raises ActuatorLimitError (limit_name "reset") when no e-stop is latched: reset moves the
-        robot, so it only acts as the way out of an e-stop."""
-        if not self.estopped:
-            raise ActuatorLimitError("no emergency stop is latched: reset only clears an e-stop (it moves the "
-                                     "robot home)", limit_name="reset")
+    def place_at_rest(self, pose=None) -> None:
+        """Put the robot at rest at ``pose`` (m, rad; default home) now, a fresh start state for a bench or a test
+        (not a command: nothing moves there, the state is set): the struts hold its lengths, the vibration
+        buffer is emptied, a latched e-stop is cleared; time goes on. Raises PhysicsFaultError after a fault and
+        the pose checks' errors (``check_pose``)."""
+        pose = self.robot.home_pose if pose is None else np.asarray(pose, dtype=float)
+        lengths = check_pose(self.robot, pose)
+        self.safety.place_at_rest(lengths)
+        self.sim.set_state(pose)
+        self.drive.restart()
+        self._apply_tissue()
+        self.guard.check(lengths)  # the new last good state
+
+    def latch_fault(self, reason: str) -> None:
+        """Latch a physics fault now (the divergence detector, or an exception in the physics thread): the last
+        good state is held at rest, the vibration dropped, every command refused until the emulator is rebuilt;
+        time goes on."""
+        if self.fault is not None:
+            return
         now = self.time
-        self.estopped = False
-        current = self.struts.sample([now])[0][0]
-        duration = minimum_jerk_duration(current, self.home_lengths, 0.5 * self.robot.limits.strut_velocity_max, 0.5)
-        times = np.linspace(duration / 50, duration, 50)
-        pos, vel, acc = minimum_jerk(current, self.home_lengths, duration, times)
-        self.struts.hold(current)
-        self.struts.replace(build_trajectory(LEG_NAMES, LEG_NAMES, 0.0, times, pos, vel, acc), now)
-        self._changed()
-        return duration
+        self.guard.hold(now)
+        self.drive.restart()  # at rest: no acceleration in the reported rates
+        self.safety.latch_physics_fault(now, reason, self.drive.lengths())
+
+    @property
+    def _version(self) -> int:
+        return self.safety.version
 
     def _changed(self) -> None:
-        self._version += 1
+        self.safety.changed()
 
     def _apply_tissue(self) -> None:
         """Evaluate the tissue wrench at the current state and apply it until the next call (xfrc_applied)."""
@@ -218,32 +239,56 @@ class HardwareEmulator:
         self._refs = (self._version, time, arrays)
         return tuple(a[:steps + 1] for a in arrays)
 
-    def _controls(self, time: float, steps: int) -> np.ndarray:
+    def _controls(self, time: float, steps: int, references=None) -> np.ndarray:
         planned = self._planned
         if planned is not None and planned[0] == self._version and planned[1] == time and len(planned[2]) == steps:
             return planned[2]
-        lengths, rates_half, accels, _, _ = self._references(time, steps)
+        lengths, rates_half, accels, _, _ = self._references(time, steps) if references is None else references
         return self.drive.plan(time, lengths[:steps], rates_half[:steps], accels[:steps])
 
     def advance(self, duration: float) -> int:
         """Run round(duration / dt) physics steps as one block; returns the number of steps.
 
         Afterwards ``forces`` holds the axial forces at the new time: those of the step that starts
-        there (the next block's controls are planned now and reused if no command arrives).
+        there (the next block's controls are planned now and reused if no command arrives). The new state is
+        checked (``physics_guard``); a divergence latches ``fault`` (see ``latch_fault``). With a fault latched
+        the robot is held and only time goes on.
         """
         steps = max(int(round(duration / self.dt)), 1)
-        self.drive.run(self._controls(self.time, steps))
-        self._apply_tissue()  # the tissue's wrench over the next block, from the state now
-        now = self.time
-        controls = self._controls(now, steps)
+        if self.fault is not None:
+            self.sim.data.time = self.time + steps * self.dt
+            return steps
+        start = self.time
+        try:
+            self.drive.run(self._controls(start, steps))
+            now = self.time
+            references = self._references(now, steps)  # the next block's; its first row: the commanded lengths now
+            reason = self.guard.check(references[0][0])
+            if reason is None:
+                self._apply_tissue()  # the tissue's wrench over the next block, from the state now
+                controls = self._controls(now, steps, references)
+                forces = self.drive.first_force(controls)
+                if not np.isfinite(forces).all():
+                    reason = "non-finite strut forces planned"
+        except (mujoco.FatalError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
+            reason = f"{type(exc).__name__}: {exc}"
+        if reason is not None:
+            self.sim.data.time = start + steps * self.dt
+            self.latch_fault(reason)
+            return steps
         self._planned = (self._version, now, controls)
-        self.forces = self.drive.first_force(controls)
+        self.forces = forces
         return steps
 
     # -- read-back ---------------------------------------------------------------
     def joint_state(self):
-        """(names, positions, velocities, efforts) for leg_1..6, vib_1..6 at the current time."""
+        """(names, positions, velocities, efforts) for leg_1..6, vib_1..6 at the current time (after a physics
+        fault: the held lengths at rest, the vibration units at zero, the last good forces)."""
         total, rate = self.drive.lengths(), self.drive.rates()
+        if self.fault is not None:
+            zeros = np.zeros(6)
+            return LEG_NAMES + VIB_NAMES, np.concatenate([total, zeros]), np.zeros(12), np.concatenate(
+                [self.forces, self.forces])
         _, _, _, vib, vib_rate = self._references(self.time, 0)
         vib, vib_rate = vib[0], vib_rate[0]
         positions = np.concatenate([total - vib, vib])
@@ -257,4 +302,4 @@ class HardwareEmulator:
 
     def vibration_report(self) -> tuple[VibrationReport, bool]:
         """(report, state changed) of what the vibration units do now (see vibration_status)."""
-        return self.status.update(self.vibration.status(self.time), self.estopped, self.time)
+        return self.safety.vibration_report(self.time)

@@ -67,6 +67,14 @@ class ServoDrive:
         self._gain: np.ndarray | None = None
         self._last_step = None  # (start time, leg accelerations, forces) of the last step
         self.last_accel = np.zeros(6)  # leg accelerations of the last step (m/s^2)
+        self._accel_before = np.zeros(6)  # ... and of the step before it
+
+    def restart(self) -> None:
+        """Forget the previous blocks (after the state was set from outside): the next plan refreshes the gains
+        and evaluates b directly."""
+        self._inverse_gain, self._last_base, self._last_step = None, None, None
+        self.last_accel = np.zeros(6)
+        self._accel_before = np.zeros(6)
 
     def _apply_gains(self) -> None:
         self.model.actuator_biasprm[:6, 0] = 0.0
@@ -83,8 +91,11 @@ class ServoDrive:
         return self.data.qpos[self.slide_q].copy()
 
     def rates(self) -> np.ndarray:
-        """Leg length rates at the current time (m/s): the stored (dt/2-lagging) velocity + a dt/2."""
-        return self.data.qvel[self.slide_v] + 0.5 * self.dt * self.last_accel
+        """Leg length rates at the current time (m/s). Semi-implicit Euler moves the positions with the stored
+        velocity v = (L_k+1 - L_k) / dt, so by Taylor the rate at t_k+1 is v + dt a / 2 - dt^2 j / 6 there; with
+        a(t_k+1) = a_k + dt j and j = (a_k - a_k-1) / dt from the last two steps: v + dt (5 a_k - 2 a_k-1) / 6
+        (v + dt a_k / 2 alone left 0.6 mm/s of a 120 Hz vibration in the strut rates)."""
+        return self.data.qvel[self.slide_v] + self.dt * (5.0 * self.last_accel - 2.0 * self._accel_before) / 6.0
 
     def _zero_force_accel(self) -> np.ndarray:
         """Leg accelerations with zero actuator force at the current state (runs mj_forward)."""
@@ -168,9 +179,12 @@ class ServoDrive:
         if self.load_body is not None:
             self._run_load = d.xfrc_applied[self.load_body].copy()
         ctrl, step = d.ctrl, mujoco.mj_step
-        for row in controls:
+        for row in controls[:-1]:
             ctrl[:] = row
             step(m, d)
+        self._accel_before = d.qacc[self.slide_v].copy() if len(controls) > 1 else self.last_accel
+        ctrl[:] = controls[-1]
+        step(m, d)
         self.last_accel = d.qacc[self.slide_v].copy()
         # acceleration and force of the last step, at its start time (for b without an mj_forward)
         self._last_step = (d.time - self.dt, self.last_accel, d.actuator_force[:6].copy())

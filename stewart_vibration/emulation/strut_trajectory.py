@@ -20,6 +20,7 @@ import numpy as np
 from ..errors import ActuatorLimitError, InvalidInputError
 from ..kinematics.limits import check_stroke
 from ..splines import cubic_hermite, quintic_hermite, spline_extremes
+from .strut_stop import StrutStop, braked, controlled_stop
 
 
 @dataclass(frozen=True)
@@ -127,6 +128,7 @@ class TrajectoryFollower:
 
     _active: JointTrajectory | None
     _before: TrajectoryFollower | None
+    _brake: StrutStop | None
 
     def __init__(self, initial_positions):
         self.hold(initial_positions)
@@ -136,12 +138,46 @@ class TrajectoryFollower:
         """The commanded trajectory (absolute start; it may still wait for its start), or None while holding."""
         return self._active
 
+    @property
+    def stop(self) -> StrutStop | None:
+        """The controlled stop in force (``brake``), or None."""
+        return self._brake
+
     def hold(self, positions) -> None:
-        """Drop any trajectory and hold ``positions`` at rest (reset, e-stop)."""
+        """Drop any trajectory and hold ``positions`` at rest (the start state)."""
         positions = np.asarray(positions, dtype=float).copy()
         self._active = None
         self._before = None  # the replaced command, sampled before the active trajectory's start
+        self._brake = None
         self._from = (positions, np.zeros_like(positions), np.zeros_like(positions))
+
+    def brake(self, at: float, acceleration_max: float) -> StrutStop | None:
+        """Bring the command to rest from ``at`` (s) along its own path (``strut_stop.controlled_stop``); a
+        command still waiting for its start is dropped first. A stop already in force at ``at`` is kept (it
+        is a stop within the limits already). Returns the stop in force, or None when at rest."""
+        if self._brake is not None and at < self._brake.end:
+            return self._brake
+        if self._active is not None and self._active.start > at:  # waiting: what runs now is the replaced command
+            before = self._before
+            if before is None:
+                self.hold(self._from[0])
+            else:
+                self._active, self._before, self._brake, self._from = (before._active, before._before, before._brake,
+                                                                      before._from)
+            if self._brake is not None and at < self._brake.end:
+                return self._brake
+        stop = controlled_stop(self, at, acceleration_max)
+        if stop is not None:
+            self._brake = stop
+        elif not self.finished(at):  # at rest this instant but moving on later: hold here
+            self.hold(self.sample([at])[0][0])
+        return stop
+
+    def rest_time(self) -> float:
+        """From when (s) the command is at rest: the end of the stop or of the trajectory (-inf when holding)."""
+        if self._brake is not None:
+            return self._brake.end
+        return -np.inf if self._active is None else self._active.end
 
     def replace(self, traj: JointTrajectory, now: float) -> JointTrajectory:
         """Make ``traj`` the running trajectory (start 0 = now); it departs from the
@@ -162,16 +198,27 @@ class TrajectoryFollower:
                 before._before._before = None
         self._before = before
         self._from = (p[0], v[0], a[0])
+        self._brake = None
         self._active = JointTrajectory(start, traj.times, traj.positions, traj.velocities, traj.accelerations)
         return self._active
 
     def finished(self, now: float) -> bool:
-        """True when nothing runs or ``now`` (s) is at or past the active trajectory's end."""
-        return self._active is None or now >= self._active.end
+        """True when nothing runs or ``now`` (s) is at or past the end of the active trajectory or stop."""
+        return now >= self.rest_time()
 
     def sample(self, times):
         """Commanded (positions, velocities, accelerations), each [n, dof], at absolute times [n] (s)."""
         times = np.atleast_1d(np.asarray(times, dtype=float))
+        stop = self._brake
+        if stop is None or not (times >= stop.at).any():
+            return self._sample_command(times)
+        p, v, a = self._sample_command(times)
+        later = times >= stop.at
+        p[later], v[later], a[later] = braked(stop, self._sample_command, times[later])
+        return p, v, a
+
+    def _sample_command(self, times):
+        """The command without its stop: (p, v, a) [n, dof] at absolute times [n] (s)."""
         p0, v0, a0 = self._from
         p = np.tile(p0, (times.size, 1))
         v = np.tile(v0, (times.size, 1))
@@ -281,13 +328,21 @@ def checked_command(follower: TrajectoryFollower, traj: JointTrajectory, now: fl
     return running
 
 
+def check_departure(follower: TrajectoryFollower, running: JointTrajectory, limits, step_speed: float = 0.0) -> None:
+    """The checks of ``checked_command`` for the departure segment alone (the state commanded at the start
+    to the first point): what changes when an accepted ``running`` trajectory (absolute start) departs
+    from another commanded state than it was checked from. Raises as ``checked_command``."""
+    _check_limits(follower, running, limits, step_speed, late=False, late_by=0.0, departure_only=True)
+
+
 def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step_speed: float, late: bool,
-                  late_by: float) -> None:
+                  late_by: float, departure_only: bool = False) -> None:
     """Stroke, velocity and acceleration of the spline the follower will run: from the state
-    commanded at the trajectory's start through its points (absolute start, see checked_command)."""
+    commanded at the trajectory's start through its points (absolute start, see checked_command);
+    ``departure_only``: its first segment only."""
     # traj.velocities: never None here (checked_command fills in missing velocities)
     end_speed = np.abs(cast(np.ndarray, traj.velocities)[-1])
-    if end_speed.max() > step_speed:
+    if end_speed.max() > step_speed and not departure_only:
         leg = int(np.argmax(end_speed))
         raise ActuatorLimitError(f"leg_{leg + 1}: the trajectory ends moving at {end_speed[leg]:.4g} m/s; its last "
                                  f"point is held, so it must end at rest (velocity 0)", leg=leg + 1,
@@ -313,6 +368,11 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
                 f"leg_{leg + 1}: the first point is at the start time but its velocity differs by "
                 f"{jump[leg]:.4g} m/s from the commanded velocity (a velocity step)",
                 leg=leg + 1, limit_name="strut_acceleration_max", value=float(jump[leg]))
+    if departure_only:
+        if traj.times[0] < 1e-9:  # no departure segment: the step checks above were all of it
+            return
+        knots_t, knots_p, knots_v = knots_t[:2], knots_p[:2], knots_v[:2]
+        knots_a = None if knots_a is None else knots_a[:2]
     low, high, speed, accel = spline_extremes(
         knots_t, knots_p, knots_v, knots_a, position_bounds=(lim.stroke_min, lim.stroke_max),
         velocity_bound=lim.strut_velocity_max, acceleration_bound=lim.strut_acceleration_max)
@@ -325,39 +385,3 @@ def _check_limits(follower: TrajectoryFollower, traj: JointTrajectory, lim, step
             raise ActuatorLimitError(
                 f"leg_{leg + 1}: {name.split('_')[1]} {values[leg]:.4g} {unit} exceeds {name} {limit:.4g} "
                 f"{unit}{why}", leg=leg + 1, limit_name=name, value=float(values[leg]), limit=limit)
-
-
-def controlled_stop(follower: TrajectoryFollower, at: float, acceleration_max: float) -> JointTrajectory | None:
-    """What an emergency stop commands the struts at ``at`` (s): from the state commanded there
-    (position, velocity, acceleration), one quintic segment to rest whose acceleration stays within
-    ``acceleration_max`` (m/s^2) -- a stop-category-2 stop, not a velocity step (leadscrew struts
-    cannot stop at once; holding the position would demand an unbounded acceleration).
-
-    The rest position is p0 + v0 T / 2 + a0 T^2 / 12 (the quintic's natural travel); the duration T
-    is the shortest on a 10 % grid from |v0| / acceleration_max whose sampled acceleration is within
-    the limit.
-
-    Args:
-        follower: the follower whose commanded state at ``at`` the stop departs from.
-        at: the stop time (s, absolute).
-        acceleration_max: the strut acceleration limit (m/s^2).
-
-    Returns:
-        A JointTrajectory with the absolute start ``at`` and one point at T (s): rest positions [1, dof]
-        (m), zero velocities and accelerations; or None when the struts are already at rest (the caller
-        holds the position).
-    """
-    p, v, a = (x[0] for x in follower.sample(np.array([at])))
-    if np.abs(v).max() < 1e-9 and np.abs(a).max() < 1e-9:
-        return None
-    s = np.linspace(0.0, 1.0, 201)[:, None]
-    limit = max(acceleration_max, np.abs(a).max()) * (1 + 1e-9)  # the commanded state itself is within limits
-    duration = max(np.abs(v).max() / acceleration_max, 1e-3)
-    for _ in range(300):
-        end = p + v * duration / 2 + a * duration**2 / 12
-        _, _, acc = quintic_hermite(s, duration, p, v, a, end, np.zeros_like(p), np.zeros_like(p))
-        if np.abs(acc).max() <= limit:
-            break
-        duration *= 1.1
-    zeros = np.zeros((1, p.size))
-    return JointTrajectory(float(at), np.array([duration]), end[None, :], zeros, zeros.copy())

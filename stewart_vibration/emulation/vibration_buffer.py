@@ -19,7 +19,8 @@ the vibration planner's windows), cubic otherwise. Protocol:
   is at rest, so a first window must start from rest (a ramp-in). A discontinuous splice is
   refused with the reason; nothing is ever latched: once the output is back at rest, any window
   that starts from rest is accepted.
-- Safety ramps (quintic smoothstep to zero over ``ramp_s``, no step): ``stop`` (e-stop, reset)
+- Safety ramps (quintic smoothstep to zero over ``ramp_s``, no step; longer where ``ramp_s`` is too short for the
+  unit's limits, see ``ramp_duration``): ``stop`` (e-stop, reset)
   starts one at a given time; and when the buffer runs out with the units not at rest (a window
   that does not end in a ramp to zero), they brake to a stop (exponential, starting at the
   acceleration limit) and the watchdog ramps the held offset to zero once no new window has arrived
@@ -45,6 +46,10 @@ from ..vibration.waveform import fade_out, product_rule
 from .strut_trajectory import JointTrajectory
 
 HISTORY_S = 1.0  # buffered samples kept behind the newest window's first sample
+RAMP_GROWTH = 1.2  # ratio between the safety-ramp lengths tried
+RAMP_MAX_S = 2.0  # the longest safety ramp tried (s)
+RAMP_SAMPLE_S = 1e-4  # a tried ramp is sampled this often (s): within 0.07 % of the peak of a 120 Hz sinusoid
+RAMP_MIN_SAMPLES = 64
 STATUS_SPAN_S = 0.1  # span behind/ahead of "now" over which the status measures the amplitude envelope
 
 
@@ -103,6 +108,8 @@ class VibrationBuffer:
         # "at rest": within 0.1 % of the unit's amplitude and of its largest vibration velocity
         self.rest_position = 1e-3 * limits.amplitude_max
         self.rest_velocity = 1e-3 * limits.velocity_max
+        self._version = 0  # bumped whenever the buffered command changes (the ramp lengths depend on it)
+        self._ramp_cache: tuple[tuple, float] = ((), 0.0)
         self.clear()
 
     def clear(self) -> None:
@@ -114,6 +121,7 @@ class VibrationBuffer:
         self.last_receive = -np.inf
         self.stop_start: float | None = None
         self.stop_reason = ""
+        self._version += 1
 
     # -- commands -----------------------------------------------------------------------
     @property
@@ -121,9 +129,11 @@ class VibrationBuffer:
         """Time of the last buffered sample (s); -inf if empty."""
         return float(self.times[-1]) if self.times.size else -np.inf
 
-    def add(self, traj: JointTrajectory, now: float) -> float:
+    def add(self, traj: JointTrajectory, now: float, check_splice: bool = True) -> float:
         """Accept a vib_* window (start 0 = now) received at ``now``; returns the splice time (s).
 
+        ``check_splice`` False (a mirror that starts mid-vibration and trusts another's acceptance): the
+        window replaces the whole buffer, unchecked against it (its limits are still checked).
         Raises VibrationLimitError with the reason (limit_name amplitude_max / velocity_max /
         acceleration_max / max_lookahead_s / splice) and changes nothing then.
         """
@@ -136,11 +146,11 @@ class VibrationBuffer:
             raise VibrationLimitError(
                 f"window ended {now - times[-1]:.3f} s before it arrived (its first sample is "
                 f"{now - times[0]:.3f} s old)", limit_name="splice", value=float(now - times[-1]), limit=0.0)
-        keep = (self.times < times[0]) & (self.times >= times[0] - HISTORY_S)
+        keep = (self.times < times[0]) & (self.times >= times[0] - HISTORY_S) & check_splice
         if self.stop_start is not None:
             keep &= self.times < self.stop_start  # faded out by a stop: never to run again once it is lifted
         kept = [self.times[keep], self.positions[keep], self.velocities[keep], self.accelerations[keep]]
-        if times[0] > now and self.times.size and not (kept[0].size and kept[0][-1] >= now):
+        if check_splice and times[0] > now and self.times.size and not (kept[0].size and kept[0][-1] >= now):
             # the join segment to the window's first sample would start at a past sample and change what the
             # units do now (they brake, ramp out or rest there): it starts now, from the commanded state
             kept = [np.append(kept[0], now)] + [np.vstack([k, x]) for k, x in zip(kept[1:], self.sample([now]),
@@ -150,13 +160,14 @@ class VibrationBuffer:
         new_v = np.vstack([kept[2], vel])
         new_a = np.vstack([kept[3], acc])
         splice = max(now, float(times[0]))
-        self._check_splice(splice, times, pos, vel, acc, now)
+        if check_splice:
+            self._check_splice(splice, times, pos, vel, acc, now)
         if self.check_limits:
             # the spline that will be followed, from the last kept sample (the join segment) on -- less the
             # leading samples that repeat buffered ones exactly (checked when they came: a streamed window
             # repeats three quarters of the last) -- and where the units come to a stop if nothing follows
             # (braking at the acceleration limit)
-            same = self._repeated_prefix(times, pos, vel, acc)
+            same = self._repeated_prefix(times, pos, vel, acc) if check_splice else 0
             first = kept[0].size + same - 1 if same else max(kept[0].size - 1, 0)
             check_command_limits(self.limits, new_t[first:], new_p[first:], new_v[first:], new_a[first:])
             settle = np.abs(pos[-1] + vel[-1] * self.braking_time(vel[-1]))
@@ -172,6 +183,7 @@ class VibrationBuffer:
         self.stop_start, self.stop_reason = None, ""
         self.times, self.positions, self.velocities, self.accelerations = new_t, new_p, new_v, new_a
         self.last_receive = now
+        self._version += 1
         return splice
 
     def _repeated_prefix(self, times, pos, vel, acc) -> int:
@@ -208,7 +220,7 @@ class VibrationBuffer:
                 leg=leg + 1, limit_name="splice", value=float(jump_p[leg]), limit=self.rest_position)
 
     def stop(self, when: float, reason: str = "stop") -> None:
-        """Ramp the output to zero from ``when`` (s) over ramp_s (unless a ramp already started earlier)."""
+        """Ramp the output to zero from ``when`` (s) over ``ramp_duration`` (unless a ramp already started earlier)."""
         if self.stop_start is None or self.stop_start > when:
             self.stop_start, self.stop_reason = float(when), reason
 
@@ -244,11 +256,43 @@ class VibrationBuffer:
         start, _ = self.ramp()
         if start is None:
             return self.end
-        return start + self.ramp_s if not self._tail_at_rest() else min(self.end, start + self.ramp_s)
+        ramp = self.ramp_duration(start)
+        return start + ramp if not self._tail_at_rest() else min(self.end, start + ramp)
+
+    def ramp_duration(self, start: float) -> float:
+        """Length (s) of a safety ramp starting at ``start`` (s): ``ramp_s``, stretched by RAMP_GROWTH steps
+        until the faded output -- g x with g'' x + 2 g' x' + g x'' as its acceleration, x the command -- stays
+        within the unit's velocity_max and acceleration_max on samples RAMP_SAMPLE_S apart (a short ramp of a
+        strong vibration would exceed them: 0.005 s at 49 Hz / 0.9 g gives 1.4 g); at most RAMP_MAX_S (the
+        longest is taken if none fits). Cached per buffered command, start and ramp_s."""
+        key = (self._version, float(start), self.ramp_s)
+        if self._ramp_cache[0] == key:
+            return self._ramp_cache[1]
+        lim = self.limits
+        count = max(int(np.ceil(np.log(max(RAMP_MAX_S / self.ramp_s, 1.0)) / np.log(RAMP_GROWTH))), 0) + 1
+        chosen = max(self.ramp_s, RAMP_MAX_S) if count > 1 else self.ramp_s
+        for duration in self.ramp_s * RAMP_GROWTH ** np.arange(count):
+            times = np.linspace(start, start + duration, max(RAMP_MIN_SAMPLES, int(np.ceil(duration / RAMP_SAMPLE_S))))
+            fade = tuple(x[:, None] for x in fade_out(times, start, duration))
+            _, vel, acc = product_rule(self._unfaded(times), fade)
+            if np.abs(acc).max() <= lim.acceleration_max * (1 + 1e-6) and np.abs(vel).max() <= lim.velocity_max:
+                chosen = float(duration)
+                break
+        self._ramp_cache = (key, chosen)
+        return chosen
 
     def sample(self, times):
         """(displacement, velocity, acceleration) [n, 6] (m, m/s, m/s^2) at absolute times [n] (s)."""
         times = np.atleast_1d(np.asarray(times, dtype=float))
+        pos, vel, acc = self._unfaded(times)
+        start, _ = self.ramp()
+        if start is not None and self.times.size:
+            fade = tuple(x[:, None] for x in fade_out(times, start, self.ramp_duration(start)))
+            pos, vel, acc = product_rule((pos, vel, acc), fade)
+        return pos, vel, acc
+
+    def _unfaded(self, times):
+        """The buffered command without its safety ramp: (p, v, a) [n, 6] at absolute times [n] (s)."""
         pos = np.zeros((times.size, 6))
         vel = np.zeros((times.size, 6))
         acc = np.zeros((times.size, 6))
@@ -271,10 +315,6 @@ class VibrationBuffer:
             pos[after] = self.positions[-1] + v_end * tau * (1.0 - decay)
             vel[after] = v_end * decay
             acc[after] = -v_end / tau * decay
-        start, _ = self.ramp()
-        if start is not None:
-            fade = tuple(x[:, None] for x in fade_out(times, start, self.ramp_s))
-            pos, vel, acc = product_rule((pos, vel, acc), fade)
         return pos, vel, acc
 
     def status(self, now: float) -> BufferStatus:
@@ -290,7 +330,7 @@ class VibrationBuffer:
             mid = np.searchsorted(self.times, now, side="right")
             values = np.abs(self.positions[lo:hi])
             if start is not None and hi > lo:
-                values = values * fade_out(self.times[lo:hi], start, self.ramp_s)[0][:, None]
+                values = values * fade_out(self.times[lo:hi], start, self.ramp_duration(start))[0][:, None]
             edges = np.abs(self.sample([now - span, now, now + span, min(max(self.end, now - span), now + span)])[0])
             tail = edges[3] if self.end < now else np.zeros(6)
             tail_ahead = edges[3] if now <= self.end <= now + span else np.zeros(6)

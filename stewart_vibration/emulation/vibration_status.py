@@ -7,7 +7,8 @@ event counter, so a reader (planner, runner, estimator, UI) can tell a normal en
 an e-stop or a refused window.
 
 States: idle, pending (a window starts later), ramping_in, running, ramping_out, stopped (at rest
-after a safety ramp: watchdog, stop), estopped (latched until reset).
+after a safety ramp: watchdog, stop), estopped (latched until reset; also after a physics fault, which the
+``fault`` value names).
 """
 
 from __future__ import annotations
@@ -20,6 +21,10 @@ from .vibration_buffer import BufferStatus
 
 OK, WARN, ERROR = "ok", "warn", "error"
 EMERGENCY_STOP = "emergency stop"  # the reason of the e-stop's safety ramp (ramp_reason)
+DEACTIVATED = "deactivated"  # lifecycle deactivate: a safety stop without the e-stop's latch
+SHUTDOWN = "shutdown"  # the emulator stopping: the robot brakes to rest first
+PHYSICS_FAULT = "physics fault"  # the divergence detector latched (the robot is held)
+STRUT_STOPS = (EMERGENCY_STOP, DEACTIVATED, SHUTDOWN)  # safety ramps that also brake the struts to rest
 
 
 @dataclass(frozen=True)
@@ -41,6 +46,7 @@ class VibrationReport:
     event_time: float | None = None
     accepted: int = 0
     refused: int = 0
+    fault: str = ""  # a latched physics fault's reason ("" if none)
 
     @property
     def message(self) -> str:
@@ -48,7 +54,7 @@ class VibrationReport:
         return f"{self.state}: {self.reason}" if self.reason else self.state
 
     def as_values(self) -> dict[str, str]:
-        """Key/value strings (DiagnosticStatus values)."""
+        """Key/value strings (DiagnosticStatus values; read back by messages.status_values.vibration_report)."""
         def num(x):
             return "" if x is None or not np.isfinite(x) else f"{x:.6f}"
 
@@ -58,37 +64,8 @@ class VibrationReport:
             "commanded_until_s": num(self.commanded_until), "ramp_start_s": num(self.ramp_start),
             "ramp_reason": self.ramp_reason, "event_seq": str(self.event_seq), "event": self.event,
             "event_stamp_s": num(self.event_stamp), "event_time_s": num(self.event_time),
-            "accepted_windows": str(self.accepted), "refused_windows": str(self.refused),
+            "accepted_windows": str(self.accepted), "refused_windows": str(self.refused), "fault": self.fault,
         }
-
-
-def report_from_values(level: str, values: dict[str, str]) -> VibrationReport:
-    """Inverse of ``VibrationReport.as_values`` (for readers of vibration/status).
-
-    Missing or empty values take the report's defaults (amplitude zeros, times 0 or None).
-
-    Args:
-        level: the DiagnosticStatus level ("ok", "warn", "error").
-        values: the key/value strings of ``VibrationReport.as_values`` (amplitude_um in um, times in s).
-
-    Returns:
-        The VibrationReport (amplitude [6] in m, times in s).
-
-    Raises:
-        ValueError: a numeric value (time, amplitude or count) is not a number.
-    """
-    def num(key, default=None):
-        text = values.get(key, "")
-        return float(text) if text else default
-
-    amplitude = np.array([float(a) * 1e-6 for a in values.get("amplitude_um", "").split(",") if a] or [0.0] * 6)
-    return VibrationReport(
-        state=values.get("state", ""), level=level, reason=values.get("reason", ""), since=num("since_s", 0.0),
-        time=num("time_s", 0.0), amplitude=amplitude, commanded_until=num("commanded_until_s", float("-inf")),
-        ramp_start=num("ramp_start_s"), ramp_reason=values.get("ramp_reason", ""),
-        event_seq=int(values.get("event_seq", "0") or 0), event=values.get("event", ""),
-        event_stamp=num("event_stamp_s"), event_time=num("event_time_s"),
-        accepted=int(values.get("accepted_windows", "0") or 0), refused=int(values.get("refused_windows", "0") or 0))
 
 
 class VibrationStatusTracker:
@@ -118,12 +95,17 @@ class VibrationStatusTracker:
         self._stopped_reason = reason
         return self._event(now, f"ramp to zero: {reason}")
 
-    def update(self, buffer: BufferStatus, estopped: bool, now: float) -> tuple[VibrationReport, bool]:
-        """Fold the buffer's classification at ``now`` into the report; (report, state changed)."""
+    def update(self, buffer: BufferStatus, estopped: bool, now: float,
+               fault: str | None = None) -> tuple[VibrationReport, bool]:
+        """Fold the buffer's classification at ``now`` into the report; (report, state changed). ``fault``: a
+        latched physics fault's reason (the state is "estopped" with level ERROR and the fault named)."""
         r = self.report
         if buffer.ramp_start is not None and buffer.ramp_start <= now and buffer.ramp_reason:
             self._stopped_reason = self._stopped_reason or buffer.ramp_reason
-        if estopped:
+        if fault:
+            state, level = "estopped", ERROR
+            reason = f"physics fault: {fault}; the robot is held (reconfigure the emulator)"
+        elif estopped:
             state, level = "estopped", ERROR
             reason = ("emergency stop latched (vibration ramped to zero, struts stopped and held); "
                       "call hardware_emulator/reset")
@@ -144,5 +126,5 @@ class VibrationStatusTracker:
         since = now if changed else r.since
         self.report = replace(r, state=state, level=level, reason=reason, since=since, time=now,
                               amplitude=buffer.amplitude, commanded_until=buffer.commanded_until,
-                              ramp_start=buffer.ramp_start, ramp_reason=buffer.ramp_reason)
+                              ramp_start=buffer.ramp_start, ramp_reason=buffer.ramp_reason, fault=fault or "")
         return self.report, changed

@@ -28,6 +28,7 @@ import time
 import traceback
 from typing import cast
 
+import mujoco
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
@@ -43,14 +44,19 @@ from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
 from ..dynamics.tissue import load_tissue_option
+from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_command_refusal
 from ..emulation.consumer_pace import MAX_WAIT_S, ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator
+from ..emulation.physics_guard import PhysicsFault
+from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
 from ..errors import StewartError
+from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
-from ..robot import LEG_NAMES, VIB_NAMES, load_robot
+from ..robot import LEG_NAMES, VIB_NAMES
+from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
 from ..sim.mjcf import load_simulation_settings
 from .common import (
     BASE_FRAME,
@@ -59,6 +65,7 @@ from .common import (
     STREAM_DEPTH,
     WARN,
     Diagnostics,
+    MalformedInputs,
     declare_float,
     float_param,
     int_param,
@@ -66,12 +73,14 @@ from .common import (
     text_param,
 )
 
+CLOCK_DEPTH = 100
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events are published at once)
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
 # what the emulator waits for above real time: the force guard's input and kinematics' own output (one per state)
 PACED_BY = {"platform/external_wrench_estimate": WrenchStamped, "platform/pose_estimate": PoseStamped}
 LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
+STOP_WAIT_S = 3.0  # wall time the emulator waits at shutdown for the robot to brake to rest (the bring-up's grace: 5 s)
 
 
 class HardwareEmulatorNode(LifecycleNode):
@@ -81,9 +90,14 @@ class HardwareEmulatorNode(LifecycleNode):
     - configure: read the robot and simulation configs, build the model (a bad config fails the transition
       with the reason); create the publishers.
     - activate: start the physics thread (and /clock); commands are accepted.
-    - deactivate: the robot is held safe -- the vibration ramps out and the struts hold the commanded lengths,
-      physics and /clock go on -- and commands are refused with the reason.
-    - cleanup / shutdown: stop physics and release the model.
+    - deactivate: the robot is brought to a safe stop -- the vibration ramps out and the struts brake to rest
+      along their commanded path within their acceleration limit, physics and /clock go on -- and commands are
+      refused with the reason.
+    - cleanup / shutdown: brake to rest (bounded, STOP_WAIT_S), stop physics and release the model.
+
+    Physics never dies: a divergence (``emulation.physics_guard``) or an exception in the physics thread
+    latches a fault, the robot is held at its last good state, /diagnostics and vibration/status report
+    ERROR, and the held state and /clock go on being published; cleanup + configure build a new robot.
 
     ``autostart`` (default true) configures and activates at start, so ``ros2 run`` gives a running robot;
     the bring-up and the launch file set it false and drive the transitions themselves.
@@ -110,7 +124,7 @@ class HardwareEmulatorNode(LifecycleNode):
             "/clock rate, sim time; every sim-time node wakes for each tick (read at configure)", 10, 5000,
             read_only=ro))
         declare_float(self, "real_time_factor", 1.0, float_param(
-            "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, 100.0))
+            "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, REAL_TIME_FACTOR_MAX))
         declare_float(self, "max_consumer_lag_s", 0.1, float_param(
             "above real time (real_time_factor > 1 or 0), or in lockstep, physics waits while "
             + " or ".join(PACED_BY) + f" lag more than this behind sim time (at most {MAX_WAIT_S:g} s per wait, then "
@@ -123,7 +137,8 @@ class HardwareEmulatorNode(LifecycleNode):
             "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
             0.02, 10.0))
         declare_float(self, "vibration_ramp_s", 0.05, float_param(
-            "safety ramp-out time of the vibration units (watchdog, e-stop), s (live)", 0.005, 0.1))
+            "shortest safety ramp-out of the vibration units (watchdog, e-stop, deactivate), s; longer where the "
+            "unit's velocity and acceleration limits need it (live)", 0.005, 0.1))
         declare_float(self, "max_lookahead_s", 30.0, float_param(
             "a vibration window may reach at most this far ahead of now, s (live)", 0.1, 600.0))
         self.declare_parameter("drive_gain_interval", 10, int_param(
@@ -145,10 +160,17 @@ class HardwareEmulatorNode(LifecycleNode):
         self.thread: threading.Thread | None = None
         self.achieved_rtf = 0.0
         self.behind_resets = 0
+        self.physics_errors = 0  # exceptions caught in the physics thread
+        self.mujoco_warnings = 0
+        # MuJoCo's warnings go to this node's log (not stderr and MUJOCO_LOG.TXT in the working directory); the
+        # physics guard sees them in MuJoCo's counters either way
+        mujoco.set_mju_user_warning(self._mujoco_warning)
+        self._fault_reported: PhysicsFault | None = None  # the physics fault last put on /diagnostics
         self._status_sent = (None, -1, 0.0)  # (state, event_seq, wall time) of the last status message
         self.diagnostics = Diagnostics(self, "hardware emulator")
         self.diagnostics.set(WARN, "unconfigured (lifecycle: configure, then activate)")
         self.rejections = RejectionLog(self)
+        self.malformed = MalformedInputs(self, self.diagnostics)  # e.g. a /clock that is no time (run_node)
         self.state_encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
@@ -190,7 +212,9 @@ class HardwareEmulatorNode(LifecycleNode):
             self.emulator = emulator
         self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
-        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        # 1 s of ticks: the ticks of a 20 ms pace period leave in one burst, and a reader (the recorder) that
+        # stalls longer than the history loses them
+        self.clock_pub = self.create_publisher(Clock, "/clock", CLOCK_DEPTH)
         self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
         self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
         self.tissue_pub = None
@@ -219,16 +243,14 @@ class HardwareEmulatorNode(LifecycleNode):
     def on_deactivate(self, state: LifecycleState) -> TransitionCallbackReturn:
         with self.lock:  # the emulator exists: deactivate comes only from active (configured)
             self.active = False
-            now = cast(HardwareEmulator, self.emulator).time
-            cast(HardwareEmulator, self.emulator).vibration.stop(now, "deactivated")
-            cast(HardwareEmulator, self.emulator).struts.hold(
-                cast(HardwareEmulator, self.emulator).struts.sample([now])[0][0])
-            cast(HardwareEmulator, self.emulator).status.safety_ramp(now, "deactivated")
-            cast(HardwareEmulator, self.emulator)._changed()
-        self.diagnostics.set(WARN, "inactive: robot held (vibration ramped out, struts holding); commands refused")
+            cast(HardwareEmulator, self.emulator).halt(DEACTIVATED)
+        self.diagnostics.set(self._level(WARN), self._message(
+            "inactive: robot stopped safely (vibration ramped out, struts braked to rest within their acceleration "
+            "limit, then held); commands refused"))
         return super().on_deactivate(state)
 
     def on_cleanup(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._brake_to_rest(SHUTDOWN)
         self._stop_physics()
         self._update_pacing(False)
         for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub, self.tissue_pub):
@@ -240,8 +262,28 @@ class HardwareEmulatorNode(LifecycleNode):
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
+        self._brake_to_rest(SHUTDOWN)
         self._stop_physics()
         return TransitionCallbackReturn.SUCCESS
+
+    def _brake_to_rest(self, reason: str, timeout_s: float = STOP_WAIT_S) -> bool:
+        """Before physics stops: a safety stop (``HardwareEmulator.halt``) and physics running until the robot is
+        at rest, at most ``timeout_s`` of wall time; True when it came to rest (or nothing ran)."""
+        emulator = self.emulator
+        if emulator is None or not self.running or self.thread is None or not self.thread.is_alive():
+            return True
+        with self.lock:
+            if emulator.at_rest():
+                return True
+            emulator.halt(reason)
+        deadline = time.monotonic() + timeout_s
+        while time.monotonic() < deadline and self.running and self.thread.is_alive():
+            with self.lock:
+                if emulator.at_rest():
+                    return True
+            time.sleep(0.01)
+        self.get_logger().warning(f"{reason}: the robot was still braking after {timeout_s:g} s; physics stops anyway")
+        return False
 
     def _stop_physics(self) -> None:
         self.active = False
@@ -306,16 +348,16 @@ class HardwareEmulatorNode(LifecycleNode):
 
     # -- commands (executor thread) ------------------------------------------------------
     def on_leg_trajectory(self, data: bytes) -> None:
-        refusal = self._refusal()
+        refusal = self._refusal() or raw_command_refusal(data, LEG_TRAJECTORY)
         if refusal:
             self.rejections.add("leg trajectory", refusal)
             return
         try:
             traj = cdr.decode_joint_trajectory(data)
-            with self.lock:  # not refused: the emulator exists
-                cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
-                                                                     traj.positions, traj.velocities,
-                                                                     traj.accelerations)
+            # not refused: the emulator exists; it takes the lock only around its snapshot and its commit
+            cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
+                                                                 traj.positions, traj.velocities,
+                                                                 traj.accelerations, lock=self.lock)
         except StewartError as exc:
             self.rejections.add("leg trajectory", str(exc))
             return
@@ -323,7 +365,7 @@ class HardwareEmulatorNode(LifecycleNode):
                              last_leg_trajectory_points=len(traj.times))
 
     def on_vibration(self, data: bytes) -> None:
-        refusal = self._refusal()
+        refusal = self._refusal() or raw_command_refusal(data, VIBRATION_WINDOW)
         if refusal:
             self.rejections.add("vibration command", refusal)
             return
@@ -379,11 +421,15 @@ class HardwareEmulatorNode(LifecycleNode):
         return response
 
     def _level(self, level):
-        """Never report better than ERROR while the e-stop is latched."""
+        """Never report better than ERROR while the e-stop or a physics fault is latched."""
         return ERROR if self.emulator is not None and self.emulator.estopped else level
 
     def _message(self, message: str) -> str:
-        """The e-stop stays first in the diagnostics message while it is latched."""
+        """A latched physics fault or e-stop stays first in the diagnostics message."""
+        if self.emulator is not None and self.emulator.fault is not None:
+            fault = self.emulator.fault
+            return (f"physics fault latched at {fault.time:.3f} s: {fault.reason}; robot held (cleanup + configure to "
+                    f"rebuild); {message}")
         if self.emulator is not None and self.emulator.estopped:
             return f"emergency stop latched (call hardware_emulator/reset to clear); {message}"
         return message
@@ -408,9 +454,11 @@ class HardwareEmulatorNode(LifecycleNode):
 
     # -- physics (own thread) --------------------------------------------------------------
     def physics_loop(self) -> None:
+        """The physics thread: never dies on an exception (``_physics``); a failure it cannot recover from is
+        logged and reported."""
         try:
             self._physics()
-        except Exception as exc:  # noqa: BLE001 - never die silently: report, hold the robot
+        except Exception as exc:  # noqa: BLE001 - last resort: report, the robot is held where it was
             self.running = False
             text = f"physics stopped: {type(exc).__name__}: {exc}"
             self.get_logger().error(f"{text}\n{traceback.format_exc()}")
@@ -422,16 +470,24 @@ class HardwareEmulatorNode(LifecycleNode):
         self._pace_reset = False
         self.publish_state(*self._read_state())
         while self.running:
-            with self.lock:
-                emulator.advance(period)
-                state, pose, now = self._read_state()
-                report, changed = (None, False)
-                if cycle % self.status_every == 0:
-                    report, changed = emulator.vibration_report()
+            try:
+                with self.lock:
+                    emulator.advance(period)
+                    state, pose, now = self._read_state()
+                    report, changed = (None, False)
+                    new_fault = emulator.fault is not None and self._fault_reported is not emulator.fault
+                    if cycle % self.status_every == 0 or new_fault:
+                        report, changed = emulator.vibration_report()
+            except Exception as exc:  # noqa: BLE001 - a failed block: latch a fault, hold the robot, publish on
+                self._physics_failed(emulator, exc)
+                time.sleep(period)
+                continue
             cycle += 1
             if not self.running:
                 break  # shutting down: the context may already be gone
             self.publish_state(state, pose, now, clock=cycle % self.clock_every == 0)
+            if emulator.fault is not None and self._fault_reported is not emulator.fault:
+                self._report_fault(emulator)
             if report is not None and (changed or report.event_seq != self._status_sent[1]):
                 self.publish_status(report)
             if self.marker_every and cycle % self.marker_every == 0:
@@ -458,6 +514,36 @@ class HardwareEmulatorNode(LifecycleNode):
                                                consumer_waits=str(self.pace.waits),
                                                consumer_waited_s=f"{self.pace.waited_s:.2f}",
                                                consumers_run_past=str(self.pace.gave_up))
+
+    def _physics_failed(self, emulator: HardwareEmulator, exc: Exception) -> None:
+        """An exception in a physics block: latch a physics fault (the robot is held, time goes on)."""
+        self.physics_errors += 1
+        if self.physics_errors <= 3 or self.physics_errors % 1000 == 0:
+            self.get_logger().error(f"physics block failed ({self.physics_errors} so far): {type(exc).__name__}: "
+                                    f"{exc}\n{traceback.format_exc()}")
+        try:
+            with self.lock:
+                emulator.latch_fault(f"{type(exc).__name__} in the physics thread: {exc}")
+        except Exception as again:  # noqa: BLE001 - the fault is reported below whatever happens
+            self.get_logger().error(f"latching the physics fault failed: {type(again).__name__}: {again}")
+        self.diagnostics.set(ERROR, f"physics fault: {type(exc).__name__}: {exc}; robot held",
+                             physics_errors=self.physics_errors)
+
+    def _mujoco_warning(self, text: str) -> None:
+        """MuJoCo's warning handler (called from the physics thread): the first few and every 100th, logged."""
+        self.mujoco_warnings += 1
+        if self.mujoco_warnings <= 5 or self.mujoco_warnings % 100 == 0:
+            self.get_logger().warning(f"MuJoCo: {text} ({self.mujoco_warnings} warnings so far)")
+
+    def _report_fault(self, emulator: HardwareEmulator) -> None:
+        """Put a newly latched physics fault on /diagnostics (ERROR, with its time and reason) and the log."""
+        fault = cast(PhysicsFault, emulator.fault)  # called when one is latched
+        self._fault_reported = fault
+        self.get_logger().error(f"physics fault at sim time {fault.time:.3f} s: {fault.reason}; the robot is held at "
+                                "its last good state (cleanup + configure to rebuild)")
+        self.diagnostics.set(ERROR, self._message("physics stopped following the commands"),
+                             physics_fault=fault.reason, physics_fault_time_s=f"{fault.time:.6f}",
+                             physics_errors=self.physics_errors)
 
     def _read_state(self):
         """(joint state tuple, (platform position, quaternion, tissue wrench), time) under the lock."""
@@ -503,7 +589,9 @@ class HardwareEmulatorNode(LifecycleNode):
         ]))
 
     def shutdown(self) -> None:
-        """Stop physics; the emulated robot holds its last state (nothing moves after exit)."""
+        """Brake the robot to rest (bounded, STOP_WAIT_S), then stop physics; the emulated robot holds its last
+        state (nothing moves after exit)."""
+        self._brake_to_rest(SHUTDOWN)
         self._stop_physics()
         if self.emulator is not None:
             self.get_logger().info(f"stopped at sim time {self.emulator.time:.3f} s")

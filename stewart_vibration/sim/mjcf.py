@@ -25,18 +25,19 @@ unit lumped into the piston), the same as the Newton-Euler model.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
 
+from ..config_values import Plausible, as_choice, as_number, check_keys
 from ..errors import ConfigError
 from ..install import default_config_dir
 from ..kinematics import leg_vectors
 from ..kinematics.rotations import quaternion_from_rpy
 from ..robot import LEG_NAMES, Robot
+from ..safe_yaml import load_yaml, short_repr
 
 BASE_JOINTS = ("universal", "ball")
 
@@ -75,35 +76,77 @@ _YAML_KEYS = {
 }
 
 
+INTEGRATORS = ("Euler", "RK4", "implicit", "implicitfast")  # MuJoCo's
+SOLVERS = ("Newton", "CG", "PGS")
+# Plausible ranges of the numeric settings (by YAML key; SI): what MuJoCo accepts and the drives stay
+# stable with, far around the values config/simulation.yaml gives and explains.
+_PLAUSIBLE = {
+    "timestep_s": Plausible(1e-6, 0.01, "s"),
+    "solref_timeconst_factor": Plausible(1.0, 1000.0),
+    "solref_dampratio": Plausible(0.0, 10.0, low_open=True),
+    "armature": Plausible(0.0, 10.0, "kg or kg m^2"),
+    "solver_iterations": Plausible(1, 10_000),
+    "solver_tolerance": Plausible(0.0, 1e-2),
+    "drive_bandwidth_hz": Plausible(0.0, 1000.0, "Hz", low_open=True),
+    "drive_damping_ratio": Plausible(0.0, 10.0, low_open=True),
+    "servo_bandwidth_hz": Plausible(0.0, 1000.0, "Hz", low_open=True),
+}
+# solimp [dmin, dmax, width m, midpoint, power]: MuJoCo's impedance lies in [1e-4, 0.9999]
+_SOLIMP = (Plausible(1e-4, 0.9999), Plausible(1e-4, 0.9999), Plausible(0.0, 1.0, "m", low_open=True),
+           Plausible(0.0, 1.0, low_open=True), Plausible(1.0, 100.0))
+
+
+def _checked_settings(values: dict, where: str) -> SimulationSettings:
+    """SimulationSettings from ``values`` (by field name), each value checked: one ConfigError naming its key."""
+    field_key = {field: key for key, field in _YAML_KEYS.items()}
+    checked: dict[str, Any] = {}
+    for name, value in values.items():
+        key = field_key[name]
+        if name in ("integrator", "emulator_integrator"):
+            checked[name] = as_choice(value, key, where, INTEGRATORS)
+        elif name == "solver":
+            checked[name] = as_choice(value, key, where, SOLVERS)
+        elif name == "solimp":
+            if not isinstance(value, (list, tuple)) or len(value) != len(_SOLIMP):
+                raise ConfigError(f"{where}: 'solimp' must be a list of 5 numbers [dmin, dmax, width, midpoint, "
+                                  f"power], got {short_repr(value)}")
+            checked[name] = tuple(as_number(v, f"solimp[{i}]", where, _SOLIMP[i]) for i, v in enumerate(value))
+        elif name == "solver_iterations":
+            checked[name] = int(as_number(value, key, where, _PLAUSIBLE[key], integer=True))
+        else:
+            checked[name] = as_number(value, key, where, _PLAUSIBLE[key])
+    return SimulationSettings(**checked)
+
+
 def load_simulation_settings(path=None, **overrides) -> SimulationSettings:
-    """Settings from config/simulation.yaml (or ``path``), then keyword overrides.
+    """Settings from config/simulation.yaml (or ``path``), then keyword overrides, every value checked.
 
     Args:
         path: the YAML file; None = simulation.yaml in ``default_config_dir()``.
-        **overrides: SimulationSettings fields to set after the file's values.
+        **overrides: SimulationSettings fields to set after the file's values (e.g. timestep from a physics
+            rate), checked like the file's.
 
     Returns:
         The SimulationSettings.
 
     Raises:
-        ConfigError: the file cannot be read or is not valid YAML, has unknown keys, the timestep is not > 0
-            or solimp does not have 5 numbers, or (``path`` None) no config directory is found.
+        ConfigError: one line naming the file and the key: the file cannot be read safely
+            (``safe_yaml.load_yaml``), has unknown keys, a mistyped value, an integrator or solver MuJoCo
+            does not have, or a number outside its plausible range; or (``path`` None) no config directory.
         TypeError: an override is not a SimulationSettings field.
     """
-    path = Path(path) if path is not None else default_config_dir() / "simulation.yaml"
-    try:
-        tree = yaml.safe_load(path.read_text()) or {}
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read simulation config {path}: {exc}") from None
-    unknown = set(tree) - set(_YAML_KEYS)
+    path = Path(path).expanduser() if path is not None else default_config_dir() / "simulation.yaml"
+    where = f"simulation config {path}"
+    tree = load_yaml(path, "simulation config")
+    check_keys(tree, _YAML_KEYS, where)
+    unknown = set(overrides) - set(_YAML_KEYS.values())
     if unknown:
-        raise ConfigError(f"simulation config {path}: unknown keys {sorted(unknown)}")
-    values: dict[str, Any] = {_YAML_KEYS[k]: (tuple(v) if isinstance(v, list) else v) for k, v in tree.items()}
+        raise TypeError(f"load_simulation_settings: unknown settings {sorted(unknown)}")
+    defaults = SimulationSettings()
+    values: dict[str, Any] = {field.name: getattr(defaults, field.name) for field in fields(SimulationSettings)}
+    values.update({_YAML_KEYS[k]: v for k, v in tree.items()})
     values.update(overrides)
-    settings = SimulationSettings(**values)
-    if not settings.timestep > 0 or len(settings.solimp) != 5:
-        raise ConfigError(f"simulation config {path}: timestep must be > 0 and solimp have 5 numbers")
-    return settings
+    return _checked_settings(values, where + (f" (with {', '.join(sorted(overrides))} set)" if overrides else ""))
 
 
 def leg_frame(axis: np.ndarray) -> np.ndarray:
