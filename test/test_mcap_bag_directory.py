@@ -17,6 +17,7 @@ from test_mcap_recover import _cdr, _store
 
 from stewart_vibration.mcap_log import McapRunWriter, QosProfile, RunReader, dump_qos_profiles
 from stewart_vibration.mcap_log.bag_metadata import bag_metadata, write_metadata_yaml
+from stewart_vibration.mcap_log.output_paths import RECORDED_BY, RECORDED_BY_KEY
 from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
@@ -39,17 +40,19 @@ def _hash(type_name: str) -> str:
     return _store().hash_rihs01(type_name)
 
 
-def _write_ours(folder: Path) -> dict:
-    """A 2-topic file written by our writer, plus the metadata.yaml the recorder writes for it."""
+def _write_ours(folder: Path, marked: bool = False, prefix: str = "") -> dict:
+    """A 2-topic file written by our writer, plus its metadata.yaml (``marked``: with the recorder's mark in
+    custom_data, as the recorder writes it; ``prefix``: before the topic names)."""
     w = McapRunWriter(folder / "run.mcap")
-    w.add_topic(JS, "sensor_msgs/msg/JointState", _qos_yaml(), _hash("sensor_msgs/msg/JointState"))
-    w.add_topic(POSE, "geometry_msgs/msg/PoseStamped", _qos_yaml(), _hash("geometry_msgs/msg/PoseStamped"))
+    js, pose = prefix + JS, prefix + POSE
+    w.add_topic(js, "sensor_msgs/msg/JointState", _qos_yaml(), _hash("sensor_msgs/msg/JointState"))
+    w.add_topic(pose, "geometry_msgs/msg/PoseStamped", _qos_yaml(), _hash("geometry_msgs/msg/PoseStamped"))
     for i in range(200):
-        w.submit(JS, 5 * 10**9 + i * 10**7, _cdr("sensor_msgs/msg/JointState", i))
+        w.submit(js, 5 * 10**9 + i * 10**7, _cdr("sensor_msgs/msg/JointState", i))
         if i % 4 == 0:
-            w.submit(POSE, 5 * 10**9 + i * 10**7 + 3, _cdr("geometry_msgs/msg/PoseStamped", i))
+            w.submit(pose, 5 * 10**9 + i * 10**7 + 3, _cdr("geometry_msgs/msg/PoseStamped", i))
     w.close()
-    write_metadata_yaml(folder, bag_metadata([w.bag_file()]))
+    write_metadata_yaml(folder, bag_metadata([w.bag_file()], {RECORDED_BY_KEY: RECORDED_BY} if marked else None))
     return yaml.safe_load((folder / "metadata.yaml").read_text())
 
 
@@ -140,7 +143,8 @@ def test_recorder_folder_is_a_bag_directory_among_other_files(ros_domain, tmp_pa
     (folder / "report").mkdir()
     (folder / "report" / "summary.json").write_text("{}")
     (folder / "summary.json").write_text("{}")
-    _write_ours(folder)  # earlier recording: run.mcap + metadata.yaml listing it
+    # an earlier recording (its own topics: a bag lists one QoS per topic): run.mcap + the recorder's metadata.yaml
+    _write_ours(folder, marked=True, prefix="/earlier")
     rec = start_python_module("recorder", RECORDER, ["--ros-args", "-p", f"output_dir:={folder}"], env,
                               tmp_path / "proc_logs")
     try:
@@ -159,12 +163,15 @@ def test_recorder_folder_is_a_bag_directory_among_other_files(ros_domain, tmp_pa
     stats = _stats(rec)
     new = Path(stats["path"])
     meta = yaml.safe_load((folder / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
-    assert meta["relative_file_paths"] == [new.name] and new.name != "run.mcap"
+    # the earlier recording's file stays listed: the folder is one bag of both recordings
+    assert meta["relative_file_paths"] == ["run.mcap", new.name] and new.name != "run.mcap"
     counts, total = _rosbags_counts(folder)
-    assert dict(counts) == stats["per_topic"] and total == stats["written"] == meta["message_count"]
+    earlier = {"/earlier" + JS: 200, "/earlier" + POSE: 50}
+    expected = Counter(stats["per_topic"]) + Counter(earlier)
+    assert counts == expected and total == stats["written"] + 250 == meta["message_count"]
     assert counts[JS] == 120 and counts[POSE] == 120
     listed = {t["topic_metadata"]["name"]: t["message_count"] for t in meta["topics_with_message_count"]}
-    assert listed == stats["per_topic"]
+    assert listed == dict(expected)
     assert "ERROR" not in rec.log_text()
 
 

@@ -16,15 +16,16 @@ from pathlib import Path
 
 import numpy as np
 
-from ..mcap_log.reader import RunReader, open_run
-from ..robot import LEG_NAMES, VIB_NAMES, Robot, load_robot
+from ..kinematics.robot_config import load_robot
+from ..mcap_log.reader import RunFiles, RunReader, open_run
+from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from .fits import dominant_sinusoid
-from .run_summary import leg_force_error, load_signals, platform_vibration
+from .run_summary import guard_trips, leg_force_error, load_signals, platform_vibration
 
 EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
 
 
-def _find(reader: RunReader, suffix: str) -> str | None:
+def _find(reader: RunReader | RunFiles, suffix: str) -> str | None:
     for t in reader.topics():
         if t.topic.endswith(suffix) and t.message_count:
             return t.topic
@@ -79,7 +80,7 @@ def _within(t: np.ndarray, window) -> np.ndarray:
     return np.ones(len(t), dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
 
 
-def extract(reader: RunReader) -> dict:
+def extract(reader: RunReader | RunFiles) -> dict:
     """Arrays of the run (SI) keyed by what they are; missing topics are left out.
 
     Args:
@@ -94,8 +95,8 @@ def extract(reader: RunReader) -> dict:
         the first message.
     """
     data: dict = {}
-    starts = [m.log_time for m in reader.messages()][:1]
-    t0 = starts[0] if starts else 0
+    first = next(iter(reader.messages()), None)
+    t0 = first.log_time if first is not None else 0
     data["time_origin_s"] = t0 / 1e9
     if js := _find(reader, "legs/joint_states"):
         t, lengths = _joint_series(reader, js, LEG_NAMES, "position")
@@ -124,13 +125,9 @@ def extract(reader: RunReader) -> dict:
             if len(t):
                 data[f"wrench_{key}_t"], data[f"wrench_{key}"] = (t - t0) / 1e9, wrench
     if guard := _find(reader, "kinematics/guard_status"):
-        trips = {}
-        for _raw, msg in reader.decoded([guard]):
-            values = {kv.key: kv.value for kv in msg.values}
-            if values.get("state") == "tripped" and "trip_time_s" in values:
-                trips[values["trip_time_s"]] = dict(values, message=msg.message)
-        data["guard_trips"] = [dict(v, t_s=(float(k) * 1e9 - t0) / 1e9) for k, v in sorted(trips.items(),
-                                                                                         key=lambda kv: float(kv[0]))]
+        statuses = [({kv.key: kv.value for kv in msg.values}, msg.message) for _raw, msg in reader.decoded([guard])]
+        data["guard_trips"] = [dict(v, t_s=(float(v["trip_time_s"]) * 1e9 - t0) / 1e9)
+                               for v in guard_trips({"guard_status": statuses})]
     events = []
     for topic in ("/diagnostics", "/rosout"):
         if _find(reader, topic) != topic:
@@ -148,7 +145,7 @@ def extract(reader: RunReader) -> dict:
     return data
 
 
-def summarize(reader: RunReader, data: dict, signals: dict, robot: Robot) -> dict:
+def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Robot) -> dict:
     """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events.
 
     The platform's vibration and the force error come from the run summary's own functions over the
@@ -173,6 +170,7 @@ def summarize(reader: RunReader, data: dict, signals: dict, robot: Robot) -> dic
     topics = reader.topics()
     out: dict = {
         "file": str(reader.path),
+        "files": [str(r.path) for r in reader.files] if isinstance(reader, RunFiles) else [str(reader.path)],
         "complete": reader.complete,
         "message_count": reader.message_count(),
         "topics": {t.topic: {"type": t.type_name, "count": t.message_count} for t in topics},
@@ -294,14 +292,14 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
         The JSON summary (``summarize``) with "plots": the PNG file names.
 
     Raises:
-        McapFileError: before anything is written, for a missing, empty, foreign or, unless
-            ``allow_truncated``, truncated file.
+        McapFileError: before anything is written, for a missing, empty, foreign, corrupted (a CRC or a
+            record that fails its check: ``mcap_log.integrity``) or, unless ``allow_truncated``, truncated file.
         ConfigError: ``robot`` is None and config/robot.yaml cannot be loaded.
         ValueError, InvalidInputError: as ``summarize``.
     """
     from . import run_plots
 
-    reader = open_run(mcap_path, allow_truncated=allow_truncated)
+    reader = open_run(mcap_path, allow_truncated=allow_truncated, verify=True)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     data = extract(reader)

@@ -19,9 +19,11 @@ from typing import Any
 import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
+from ..errors import MalformedMessageError
 from ..kinematics.rotations import wrap_angle
-from ..mcap_log.reader import RunReader
+from ..mcap_log.reader import RunFiles, RunReader, open_run
 from ..messages.arrays import joint_arrays, pose_array, stamp_s
+from ..messages.status_values import guard_status_from_values, integer, number, vibration_report_from_values
 from ..robot import LEG_NAMES, Robot
 from ..vibration.settings import VIBRATION_KEYS, plan_vibration
 from .fits import (
@@ -42,27 +44,31 @@ STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate",
 
 
 def load_signals(mcap_path) -> dict:
-    """Time series of a run (an MCAP file path or an open RunReader): ground-truth poses, joint
-    states, force estimates (header-stamp times in s), the stream counts and the nodes' last diagnostics.
+    """Time series of a run (an MCAP file, a run folder: every file in it, in time order; or an open
+    RunReader / RunFiles): ground-truth poses, joint states, force estimates (header-stamp times in s), the
+    stream counts and the nodes' last diagnostics. Cut files are read as far as their chunks are whole.
 
     Args:
-        mcap_path: an MCAP file path or an open RunReader.
+        mcap_path: an MCAP file or run folder path, or an open RunReader / RunFiles.
 
     Returns:
         {"pose": (times [n] (s), poses [n, 6] (m, rad)), "joints": (times [n], {"position", "velocity",
         "effort": [n, 12]}, leg_1..6 then vib_1..6), "force_estimate": (times [n], {...: [n, 6]}),
-        "vibration_starts": distinct vib window stamps (s), "stream_counts" (``stream_counts``),
+        "vibration_starts": distinct vib window stamps (s), "stream_counts" (``counts_in_common_span``),
         "vibration_status": [{key: value}], "node_diagnostics" (``last_diagnostics``), "tissue_wrench" and
-        "wrench_estimate" (``wrench_array``), "guard_status": [({key: value}, message)]}.
+        "wrench_estimate" (``wrench_array``), "guard_status": [({key: value}, message)], "clock": the /clock
+        values (s) in recorded order, "stream_stamps" and "files" (``stream_stamps``)}.
 
     Raises:
-        McapFileError: a path that is missing, not a regular file (a folder included), empty or not MCAP.
+        McapFileError: a path that is missing, a folder without .mcap files, or a file that is empty or not MCAP.
     """
     wanted: dict[str, list[Any]] = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
               "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
-              "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": []}
-    reader = mcap_path if isinstance(mcap_path, RunReader) else RunReader(mcap_path)
-    counts = stream_counts(reader)
+              "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": [],
+              "/clock": []}
+    reader = mcap_path if isinstance(mcap_path, (RunReader, RunFiles)) else open_run(mcap_path, allow_truncated=True)
+    stamps, files = stream_stamps(reader)
+    counts = counts_in_common_span(stamps)
     topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
     for raw, msg in reader.decoded(topics):
         for key, bucket in wanted.items():
@@ -79,6 +85,9 @@ def load_signals(mcap_path) -> dict:
         "tissue_wrench": wrench_array(wanted["platform/tissue_wrench"]),
         "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
         "guard_status": [({kv.key: kv.value for kv in m.values}, m.message) for m in wanted["kinematics/guard_status"]],
+        "clock": np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in wanted["/clock"]]),
+        "stream_stamps": stamps,
+        "files": files,
     }
 
 
@@ -99,25 +108,139 @@ def wrench_array(messages) -> tuple[np.ndarray, np.ndarray]:
     return times, values
 
 
-def stream_counts(reader: RunReader) -> dict:
+def stream_stamps(reader: RunReader | RunFiles) -> tuple[dict, list[dict]]:
+    """Header stamps of every 500 Hz stream over every file, and what each file holds.
+
+    Args:
+        reader: the open run (one file or several).
+
+    Returns:
+        ({key of STREAM_TOPICS: stamps [n] (ns, int64, file after file)}, [{"file": name, "complete": bool,
+        "states": legs/joint_states in it, "first_s", "last_s": its first and last state stamp (s, None
+        without states)}] in time order).
+    """
+    names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
+    stamps: dict[str, list[int]] = {key: [] for key in STREAM_TOPICS}
+    files = []
+    for part in reader.files if isinstance(reader, RunFiles) else [reader]:
+        states = stamps["legs/joint_states"]
+        before = len(states)
+        for raw in part.messages(list(names)):
+            stamps[names[raw.topic]].append(raw.publish_time)
+        mine = states[before:]
+        files.append({"file": part.path.name, "complete": part.complete, "states": len(mine),
+                      "first_s": min(mine) / 1e9 if mine else None, "last_s": max(mine) / 1e9 if mine else None})
+    return {key: np.asarray(v, dtype=np.int64) for key, v in stamps.items()}, files
+
+
+def counts_in_common_span(stamps: dict) -> dict:
     """Messages per 500 Hz topic whose stamps lie in the span every one of them covers (from the last
     first stamp to the first last stamp: start-up and shut-down are not losses).
 
     Args:
-        reader: the open run.
+        stamps: {key of STREAM_TOPICS: stamps [n] (ns)} (``stream_stamps``).
 
     Returns:
-        {key of STREAM_TOPICS: message count}; all messages of each topic when one of them is missing.
+        {key: message count}; all messages of each topic when one of them is missing.
     """
-    names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
-    stamps: dict[str, list[int]] = {key: [] for key in STREAM_TOPICS}
-    for raw in reader.messages(list(names)):
-        stamps[names[raw.topic]].append(raw.publish_time)
-    present = [np.asarray(v) for v in stamps.values() if v]
+    present = [v for v in stamps.values() if v.size]
     if len(present) < len(STREAM_TOPICS):
-        return {key: len(v) for key, v in stamps.items()}
+        return {key: int(v.size) for key, v in stamps.items()}
     lo, hi = max(v.min() for v in present), min(v.max() for v in present)
-    return {key: int(((np.asarray(v) >= lo) & (np.asarray(v) <= hi)).sum()) for key, v in stamps.items()}
+    return {key: int(((v >= lo) & (v <= hi)).sum()) for key, v in stamps.items()}
+
+
+GAP_FACTOR = 1.5  # a step between states longer than this many periods is a gap
+MAX_GAPS_LISTED = 100  # gaps listed one by one (all are counted)
+SPAN_START_MARGIN_S = 0.5  # the recorder is seen subscribed a moment before its subscription is matched
+SPAN_END_MARGIN_S = 0.1  # the runner's clock at the recorder's stop may be this much ahead of its last state
+# the 500 Hz output a node's restart interrupts (the recorder's: the recording itself)
+NODE_OUTPUTS = {"hardware_emulator": "legs/joint_states", "kinematics": "platform/pose_estimate",
+                "leg_force_estimator": "legs/force_estimate", "mcap_recorder": "legs/joint_states"}
+
+
+def stream_gaps(stamps_ns, lo: float | None = None, hi: float | None = None) -> dict:
+    """The gaps of one uniformly stamped stream over [lo, hi] (s; default its own first and last stamp).
+
+    Args:
+        stamps_ns: stamps [n] (ns), any order.
+        lo: start of the span judged (s); a stream that starts later has a gap at the head.
+        hi: end of the span judged (s); one that ends earlier has a gap at the tail.
+
+    Returns:
+        {"period_s": median step, "span_s": [lo, hi], "expected": samples the span holds at that period,
+        "recorded": samples in it, "missing": samples not there, "gaps": [{"start_s", "end_s", "missing"}]
+        (start/end: the last stamp before and the first after, or the span's edge; the first
+        MAX_GAPS_LISTED), "gap_count": every gap}; with fewer than two stamps the period is NaN and nothing
+        is expected.
+    """
+    t = np.sort(np.asarray(stamps_ns, dtype=np.int64)) / 1e9
+    if t.size < 2:
+        return {"period_s": float("nan"), "span_s": [lo, hi], "expected": 0, "recorded": int(t.size), "missing": 0,
+                "gaps": [], "gap_count": 0}
+    period = float(np.median(np.diff(t)))
+    lo = float(t[0]) if lo is None else float(lo)
+    hi = float(t[-1]) if hi is None else float(hi)
+    inside = t[(t >= lo - 0.5 * period) & (t <= hi + 0.5 * period)]
+    edges = np.concatenate([[lo - period], inside, [hi + period]])
+    steps = np.diff(edges)
+    missing = np.maximum(np.rint(steps / period).astype(int) - 1, 0)
+    where = np.flatnonzero(steps > GAP_FACTOR * period)
+    gaps = [{"start_s": float(max(edges[i], lo)), "end_s": float(min(edges[i + 1], hi)), "missing": int(missing[i])}
+            for i in where[:MAX_GAPS_LISTED]]
+    expected = int(round((hi - lo) / period)) + 1 if hi >= lo else 0
+    return {"period_s": period, "span_s": [lo, hi], "expected": expected, "recorded": int(inside.size),
+            "missing": int(missing[where].sum()), "gaps": gaps, "gap_count": int(where.size)}
+
+
+def recording_coverage(signals: dict, span: tuple[float, float] | None = None) -> dict:
+    """What the recording covers of the run: every file, and the gaps in legs/joint_states (the 500 Hz
+    stream every state of the robot is on) over the run's span, within a file or between files.
+
+    Args:
+        signals: from ``load_signals`` (stream_stamps, files).
+        span: (start, end) (sim s) the run was recorded over, as the runner saw it (from the recorder's
+            readiness to its stop; judged from SPAN_START_MARGIN_S after the one to SPAN_END_MARGIN_S before
+            the other); None: from the first to the last recorded state.
+
+    Returns:
+        ``stream_gaps`` of the joint states plus "files", "ratio" (recorded / expected; 0 if nothing) and
+        "clock": ``stream_gaps`` of the recorded /clock values (None with fewer than two): its ticks the
+        recording lost (printed; no figure needs them).
+    """
+    lo, hi = (None, None) if span is None else (span[0] + SPAN_START_MARGIN_S, span[1] - SPAN_END_MARGIN_S)
+    out = stream_gaps(signals["stream_stamps"]["legs/joint_states"], lo, hi)
+    out["files"] = signals.get("files", [])
+    clock = np.asarray(signals.get("clock", np.empty(0)), float)
+    out["clock"] = stream_gaps(np.rint(clock * 1e9).astype(np.int64), lo, hi) if clock.size > 1 else None
+    out["ratio"] = out["recorded"] / out["expected"] if out["expected"] else 0.0
+    return out
+
+
+def restart_gaps(signals: dict, restarts: list[dict]) -> list[dict]:
+    """The gap each restarted node left in its 500 Hz output (``NODE_OUTPUTS``).
+
+    Args:
+        signals: from ``load_signals`` (stream_stamps).
+        restarts: {"node", "exit_code", "sim_time_s" (when its exit was seen, or None)} per restart.
+
+    Returns:
+        Per restart: the restart's keys plus "stream" (None for a node without such an output) and
+        "gap_s": (its last stamp before the exit was seen, its first stamp after) (s), the end None when the
+        output never came back; None when nothing can be measured.
+    """
+    out = []
+    for restart in restarts:
+        row = dict(restart, stream=NODE_OUTPUTS.get(restart["node"]), gap_s=None)
+        when = restart.get("sim_time_s")
+        stamps = signals["stream_stamps"].get(row["stream"]) if row["stream"] else None
+        if stamps is not None and stamps.size and when is not None:
+            t = np.sort(stamps) / 1e9
+            before, after = t[t <= when], t[t > when]  # the node died before its exit was seen at ``when``
+            if before.size:
+                row["gap_s"] = (float(before[-1]), float(after[0]) if after.size else None)
+        out.append(row)
+    return out
 
 
 def last_diagnostics(arrays) -> dict:
@@ -149,30 +272,35 @@ def stream_summary(signals: dict) -> dict:
         {"topics": {topic: {"count", "ratio"}}, "nodes": {node: {"received", "lost", "processed",
         "lag_p50_ms", "lag_p99_ms", "level", "message"}}, "worst_ratio": the lowest ratio of the derived
         streams (0.0 if none), "lost": states lost over all nodes, "windows": {"accepted", "refused",
-        "refusals"}}.
-
-    Raises:
-        ValueError: a count or lag in a node's diagnostics or the vibration status is not a number.
+        "refusals"} (of the last well-formed vibration status), "malformed_statuses": the recorded statuses
+        that could not be read (messages.status_values), left out}.
     """
     counts = signals["stream_counts"]
     base = max(counts.get("legs/joint_states", 0), 1)
     topics = {topic: {"count": int(n), "ratio": n / base} for topic, n in counts.items()}
-    nodes = {}
+    nodes, malformed = {}, []
     for name, (level, message, values) in signals.get("node_diagnostics", {}).items():
         if "states_received" in values:
-            nodes[name.split(":")[0]] = {
-                "received": int(values["states_received"]), "lost": int(values.get("states_lost", 0)),
-                "processed": int(values.get("states_processed", 0)),
-                "lag_p50_ms": float(values.get("states_lag_p50_ms", 0)),
-                "lag_p99_ms": float(values.get("states_lag_p99_ms", 0)), "level": level, "message": message}
-    status = signals.get("vibration_status") or [{}]
-    windows = {"accepted": int(status[-1].get("accepted_windows", 0) or 0),
-               "refused": int(status[-1].get("refused_windows", 0) or 0),
-               "refusals": sorted({s.get("event", "") for s in status if s.get("event", "").startswith("refused")})}
+            try:
+                nodes[name.split(":")[0]] = {
+                    "received": integer(values, "states_received"), "lost": integer(values, "states_lost", missing=0),
+                    "processed": integer(values, "states_processed", missing=0),
+                    "lag_p50_ms": number(values, "states_lag_p50_ms", missing=0.0),
+                    "lag_p99_ms": number(values, "states_lag_p99_ms", missing=0.0), "level": level, "message": message}
+            except MalformedMessageError as exc:  # a status not of the node it names (recorded as it came)
+                malformed.append(f"/diagnostics {name[:60]!r}: {exc}")
+    reports = []
+    for values in signals.get("vibration_status") or []:
+        try:
+            reports.append(vibration_report_from_values("ok", values))
+        except MalformedMessageError as exc:
+            malformed.append(f"vibration/status: {exc}")
+    windows = {"accepted": reports[-1].accepted if reports else 0, "refused": reports[-1].refused if reports else 0,
+               "refusals": sorted({r.event for r in reports if r.event.startswith("refused")})}
     derived = [topics[t]["ratio"] for t in ("platform/pose_estimate", "legs/force_estimate",
                                             "platform/external_wrench_estimate") if t in topics]
     return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
-            "lost": sum(n["lost"] for n in nodes.values()), "windows": windows}
+            "lost": sum(n["lost"] for n in nodes.values()), "windows": windows, "malformed_statuses": malformed}
 
 
 def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:
@@ -379,13 +507,18 @@ def guard_trips(signals: dict) -> list[dict]:
         signals: from ``load_signals`` (guard_status: [({key: value}, message)]).
 
     Returns:
-        One dict per trip (its status values plus "message"), in order of trip_time_s.
+        One dict per trip (its status values plus "message"), in order of trip_time_s. A status that cannot
+        be read (a spoofed one, say) is left out: the summary's unreadable statuses list it.
     """
-    trips = {}
+    trips: dict[float, dict] = {}
     for values, message in signals.get("guard_status", []):
-        if values.get("state") == "tripped" and "trip_time_s" in values:
-            trips[values["trip_time_s"]] = dict(values, message=message)
-    return [trips[k] for k in sorted(trips, key=float)]
+        try:
+            status = guard_status_from_values(values, message)
+        except MalformedMessageError:
+            continue
+        if status.trip_time_s is not None:
+            trips[status.trip_time_s] = dict(values, message=message)
+    return [trips[k] for k in sorted(trips)]
 
 
 def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) -> dict | None:
@@ -468,11 +601,12 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
     Every figure the run summary prints is judged here: pose errors after moves; per vibration the
     platform's direction, amplitude and off-axis ratio, every leg's amplitude, phase (and its sign) and
     frequency, the active duration and every leg's force error (the worst); with a tissue the wrench
-    estimate and the guard trips; the sample ratio of every derived stream and, per node, its lost input
-    states and its lag.
+    estimate and the guard trips; the robot's limits over the recorded states (``limit_check``); the sample
+    ratio of every derived stream and, per node, its lost input states and its lag.
 
     Args:
-        summary: the run summary ("moves", "vibrations", optional "tissue" and "streams").
+        summary: the run summary ("moves", "vibrations", optional "tissue", "limits" (``limit_summary``) and
+            "streams").
         bounds: the scenario's bounds (SI units, deg for angles); wrench_error_relative (0.02),
             wrench_error_vibration_n (1 N) and guard_overshoot (0.1) have defaults.
 
@@ -525,6 +659,9 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
                 failures.append(f"force guard at {trip['trip_time_s']:.3f} s: peak estimated force "
                                 f"{trip['peak_estimated_force_n']:.1f} N is {trip['overshoot'] * 100:.1f} % over "
                                 f"guard_force_n {trip['force_limit_n']:g} N")
+    for figure in summary.get("limits") or []:
+        if figure["violations"]:
+            failures.append(f"limits over the recorded states: {figure['line']}")
     streams = summary.get("streams")
     if streams is not None:
         if not streams["worst_ratio"] >= bounds["sample_ratio_min"]:
@@ -569,4 +706,84 @@ def tissue_lines(summary: dict) -> list[str]:
     for stop in summary.get("guard_stops", []):
         lines.append(f"guarded move to {np.round(stop['target'], 4).tolist()}: held "
                      f"{stop['short_of_target_m'] * 1e3:.2f} mm short of the target, as the scenario expects")
+    return lines
+
+
+def limit_summary(robot: Robot, signals: dict) -> list[dict]:
+    """The independent limit check (``limit_check.check_limits``) of the recorded states, as JSON-ready rows
+    (the figure's fields plus its printed "line").
+
+    Args:
+        robot: the robot (limits and geometry from config/robot.yaml).
+        signals: from ``load_signals`` (joints, pose, clock).
+
+    Returns:
+        One dict per figure.
+    """
+    from dataclasses import asdict
+
+    from .limit_check import check_limits
+
+    return [dict(asdict(f), line=f.line()) for f in check_limits(robot, signals["joints"], signals["pose"],
+                                                                  signals.get("clock"))]
+
+
+def recording_problems(coverage: dict, restarts: list[dict]) -> list[str]:
+    """What the recording misses, one problem line each: every gap in the states (in a file, between files,
+    at the head or tail of the run's span), every cut file, every restarted node with the gap it left.
+
+    Args:
+        coverage: ``recording_coverage``.
+        restarts: ``restart_gaps``.
+
+    Returns:
+        Problem lines (empty: the recording covers the run).
+    """
+    problems = []
+    for gap in coverage["gaps"]:
+        problems.append(f"the recording has a gap from {gap['start_s']:.3f} s to {gap['end_s']:.3f} s "
+                        f"({gap['end_s'] - gap['start_s']:.3f} s, {gap['missing']} states not recorded)")
+    if coverage.get("gap_count", 0) > len(coverage["gaps"]):
+        problems.append(f"... and {coverage['gap_count'] - len(coverage['gaps'])} more gaps "
+                        f"({coverage['missing']} states not recorded in all)")
+    for f in coverage["files"]:
+        if not f["complete"]:
+            problems.append(f"{f['file']} was cut short (no summary; its whole chunks are analysed; rebuild it "
+                            "with stewart-vibration mcap-recover)")
+    for r in restarts:
+        gap = r.get("gap_s")
+        what = (f"; its {r['stream']} stopped at {gap[0]:.3f} s and "
+                + (f"resumed at {gap[1]:.3f} s ({gap[1] - gap[0]:.3f} s gap)" if gap[1] is not None
+                   else "never resumed") if gap else
+                f"; {'no 500 Hz output to measure its gap' if r['stream'] is None else 'its gap cannot be measured'}")
+        when = f" at {r['sim_time_s']:.3f} s" if r.get("sim_time_s") is not None else ""
+        problems.append(f"{r['node']} exited with code {r['exit_code']}{when} and was restarted{what}")
+    return problems
+
+
+def recording_lines(summary: dict) -> list[str]:
+    """The run summary's lines on what the recording covers and on the limits (printed with the figures).
+
+    Args:
+        summary: the run summary ("recording": ``recording_coverage``, "limits": ``limit_summary``).
+
+    Returns:
+        Text lines.
+    """
+    lines = []
+    rec = summary.get("recording")
+    if rec:
+        lo, hi = rec["span_s"]
+        files = ", ".join(f"{f['file']} ({f['states']} states{'' if f['complete'] else ', cut'})" for f in rec["files"])
+        span = f" over {lo:.3f}..{hi:.3f} s of sim time" if lo is not None and hi is not None else ""
+        lines.append(f"recording: {len(rec['files'])} file(s): {files}; legs/joint_states {rec['recorded']} of "
+                     f"{rec['expected']} states{span} ({rec['ratio'] * 100:.2f} %), "
+                     f"{rec.get('gap_count', len(rec['gaps']))} gap(s)")
+        clock = rec.get("clock")
+        if clock and clock["missing"]:
+            lines.append(f"  /clock: {clock['missing']} of {clock['expected']} ticks not recorded "
+                         f"({clock['gap_count']} gaps)")
+    if summary.get("limits"):
+        lines.append("limits over the recorded states (independent check of legs/joint_states and platform/pose):")
+        lines += [f"  {f['line']}" for f in summary["limits"]]
     return lines

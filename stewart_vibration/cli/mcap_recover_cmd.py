@@ -19,6 +19,7 @@ from typing import cast
 from ..mcap_log.bag_metadata import METADATA_FILE, read_metadata_yaml
 from ..mcap_log.files import McapFileError, read_layout
 from ..mcap_log.recover import RecoveryReport, recover
+from .arguments import refuse_special_file
 from .output import format_table
 
 SUFFIX = ".recovered.mcap"
@@ -83,8 +84,10 @@ def run(args) -> int:
     Returns 0 if IN was complete, 1 if it was cut or damaged. Raises McapFileError (IN missing, empty,
     not an MCAP, ambiguous run folder, or OUT exists without --force) and OSError on unwritable files.
     """
+    refuse_special_file(args.input, "IN")
     src = _input_file(Path(args.input))
     out = _output_file(src, args.output)
+    refuse_special_file(out, "OUT")
     if out.exists() and not args.force:
         raise McapFileError(f"{out}: exists; give another OUT or --force", path=out, kind="bad_bag")
     previous = _listed_files(out.parent) if not args.no_metadata else None

@@ -142,38 +142,37 @@ def truncated_error(path: str | Path, layout: Layout | None = None) -> McapFileE
     )
 
 
-def resolve_mcap(path: str | Path) -> Path:
-    """The .mcap to read for ``path``: the file itself, or the one file of a bag directory.
+RECOVERED_SUFFIX = ".recovered.mcap"  # mcap-recover's default output beside a cut file
 
-    A directory with ``metadata.yaml`` is a rosbag2 bag (its one listed file); without
-    it, the directory must hold exactly one ``.mcap``.
+
+def run_files(path: str | Path) -> list[Path]:
+    """Every recording of a run: ``path`` itself for a file; for a folder every ``.mcap`` in it (a recorder
+    that restarted leaves one file per start, and its cut files are not listed in metadata.yaml), a cut file
+    replaced by its ``.recovered.mcap`` when that exists. Sorted by name; ``RunFiles`` orders them in time.
+
+    Raises:
+        McapFileError: missing; a folder without any .mcap; a metadata.yaml that lists a missing file.
     """
     p = Path(path)
     if not p.exists():
         raise McapFileError(f"{p}: no such file or directory", path=p, kind="missing")
     if not p.is_dir():
-        return p
+        return [p]
     meta_path = p / METADATA_FILE
     if meta_path.is_file():
         try:
-            files = [str(x) for x in read_metadata_yaml(p)["relative_file_paths"]]
+            listed = [PurePath(str(x)).name for x in read_metadata_yaml(p)["relative_file_paths"]]
         except Exception as exc:  # noqa: BLE001 - any malformed metadata: one clear line
             raise McapFileError(f"{meta_path}: not a valid rosbag2 metadata file ({exc})", path=meta_path,
                                 kind="bad_bag") from None
-        if len(files) != 1:
-            raise McapFileError(f"{p}: the bag lists {len(files)} files ({', '.join(files) or 'none'}); "
-                                "give one .mcap file", path=p, kind="bad_bag")
-        target = p / PurePath(files[0]).name
-        if not target.exists():
-            raise McapFileError(f"{p}: {METADATA_FILE} lists {files[0]}, which is missing", path=target,
-                                kind="missing")
-        return target
-    mcaps = sorted(p.glob("*.mcap"))
-    if len(mcaps) == 1:
-        return mcaps[0]
+        for name in listed:
+            if not (p / name).is_file():
+                raise McapFileError(f"{p}: {METADATA_FILE} lists {name}, which is missing", path=p / name,
+                                    kind="missing")
+    mcaps = sorted(m for m in p.glob("*.mcap") if m.is_file())
+    names = {m.name for m in mcaps}
+    mcaps = [m for m in mcaps if m.name.removesuffix(".mcap") + RECOVERED_SUFFIX not in names]
     if not mcaps:
         raise McapFileError(f"{p}: a directory with neither {METADATA_FILE} nor a .mcap file", path=p,
                             kind="missing")
-    names = ", ".join(m.name for m in mcaps)
-    raise McapFileError(f"{p}: no {METADATA_FILE} and {len(mcaps)} .mcap files ({names}); give one",
-                        path=p, kind="bad_bag")
+    return mcaps

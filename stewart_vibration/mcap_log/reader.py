@@ -19,7 +19,9 @@ from mcap.reader import make_reader
 from mcap.records import Channel, Message, Metadata, Schema
 from mcap.stream_reader import StreamReader
 
-from .files import McapFileError, check_readable, resolve_mcap, truncated_error
+from .bag_metadata import BagFile, TopicCount
+from .files import McapFileError, check_readable, run_files, truncated_error
+from .integrity import verify_mcap
 
 
 @dataclass(frozen=True)
@@ -55,6 +57,8 @@ class RunReader:
         self.channels: dict[int, Channel] = {}
         self.metadata: dict[str, dict[str, str]] = {}
         self.profile = ""
+        self.start_ns = 0  # log time of the first and last message (ns; 0 without messages)
+        self.end_ns = 0
         self._counts: dict[int, int] = {}
         self._messages: list[Message] | None = None
         self._load()
@@ -73,6 +77,8 @@ class RunReader:
                 self.schemas = dict(summary.schemas)
                 self.channels = dict(summary.channels)
                 self._counts = dict(summary.statistics.channel_message_counts)
+                self.start_ns = int(summary.statistics.message_start_time)
+                self.end_ns = int(summary.statistics.message_end_time)
                 for name, data in ((m.name, m.metadata) for m in reader.iter_metadata()):
                     self.metadata[name] = dict(data)
                 return
@@ -99,6 +105,8 @@ class RunReader:
                 self.truncated = True
         messages.sort(key=lambda m: m.log_time)
         self._messages = messages
+        if messages:
+            self.start_ns, self.end_ns = int(messages[0].log_time), int(messages[-1].log_time)
 
     def check_complete(self) -> None:
         """Raise McapFileError when the file was cut short (no summary), with how much is readable."""
@@ -167,9 +175,84 @@ class RunReader:
             yield raw, dec(raw.data)
 
 
-def open_run(path: str | Path, allow_truncated: bool = False) -> RunReader:
-    """RunReader of a .mcap or a bag directory; McapFileError (one clear line) if it cannot be used."""
-    reader = RunReader(resolve_mcap(path))
+def bag_file_of(path: str | Path) -> BagFile | None:
+    """The bag-metadata entry of a complete MCAP (from its summary: times, topics, counts); None if the file is
+    missing, unreadable or cut (a cut file is not listed in a bag: ``mcap-recover`` rebuilds it first)."""
+    try:
+        reader = RunReader(path)
+    except (McapFileError, OSError):
+        return None
+    if not reader.complete:
+        return None
+    topics = [TopicCount(t.topic, t.type_name, t.offered_qos_profiles,
+                         reader.channels[cid].metadata.get("topic_type_hash", ""), t.message_count)
+              for cid, t in zip(sorted(reader.channels), reader.topics(), strict=True)]
+    return BagFile(Path(path).name, reader.start_ns, reader.end_ns, topics)
+
+
+class RunFiles:
+    """Every file of a run read as one recording (the RunReader interface): files in time order (by their
+    last message), topics merged, messages file after file (each in log-time order).
+
+    A file that is cut holds its messages in memory while the object lives (as a RunReader does); complete
+    files are read through their indexes.
+    """
+
+    def __init__(self, path: str | Path, files: list[RunReader]):
+        self.path = Path(path)
+        self.files = sorted(files, key=lambda r: (r.end_ns, r.path.name))
+        self.complete = all(r.complete for r in self.files)
+        self.truncated = any(r.truncated for r in self.files)
+
+    def check_complete(self) -> None:
+        """McapFileError for the first file that was cut short."""
+        for reader in self.files:
+            reader.check_complete()
+
+    def topics(self) -> list[TopicSummary]:
+        """Every topic of every file, message counts summed (type, QoS and schema of its first file)."""
+        merged: dict[str, TopicSummary] = {}
+        for reader in self.files:
+            for t in reader.topics():
+                known = merged.get(t.topic)
+                merged[t.topic] = t if known is None else TopicSummary(
+                    t.topic, known.type_name, known.message_count + t.message_count, known.offered_qos_profiles,
+                    known.schema_text)
+        return list(merged.values())
+
+    def message_count(self) -> int:
+        """Messages in every file."""
+        return sum(r.message_count() for r in self.files)
+
+    def messages(self, topics: list[str] | None = None) -> Iterator[RawMessage]:
+        """Raw messages, file after file."""
+        for reader in self.files:
+            yield from reader.messages(topics)
+
+    def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, Any]]:
+        """(raw, decoded) pairs, file after file (each file with its own schemas)."""
+        for reader in self.files:
+            yield from reader.decoded(topics)
+
+
+def open_run(path: str | Path, allow_truncated: bool = False, verify: bool = False) -> RunReader | RunFiles:
+    """The recording at ``path``: a RunReader of its one file, RunFiles of a run folder's several files.
+
+    Args:
+        path: a .mcap or a run folder (bag directory; ``files.run_files``).
+        allow_truncated: accept files cut short by a crash (their whole chunks are read).
+        verify: check every file's CRCs and records first (``integrity.verify_mcap``).
+
+    Raises:
+        McapFileError: one clear line when a file cannot be used (missing, empty, not MCAP, truncated
+            unless allowed, corrupted when verified).
+    """
+    paths = run_files(path)
+    if verify:
+        for p in paths:
+            verify_mcap(p, allow_truncated=allow_truncated)
+    readers = [RunReader(p) for p in paths]
+    run: RunReader | RunFiles = readers[0] if len(readers) == 1 else RunFiles(path, readers)
     if not allow_truncated:
-        reader.check_complete()
-    return reader
+        run.check_complete()
+    return run

@@ -25,6 +25,7 @@ from mcap.records import Attachment, Channel, Chunk, Header, Message, Metadata, 
 
 from .bag_metadata import bag_metadata, write_metadata_yaml
 from .files import CHUNK, MAGIC, Layout, McapFileError, read_layout
+from .integrity import decompress
 from .writer import BagFileWriter
 
 LIBRARY = "stewart_vibration mcap-recover (python mcap writer)"
@@ -207,20 +208,6 @@ class _Rebuilder:
         return count
 
 
-def _decompress(compression: str, data: bytes, size: int) -> bytes:
-    if compression == "zstd":
-        import zstandard
-
-        return zstandard.ZstdDecompressor().decompress(data, max_output_size=size)
-    if compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.decompress(data)
-    if compression == "":
-        return data
-    raise ValueError(f"unsupported chunk compression {compression!r}")
-
-
 def _decompress_prefix(compression: str, data: bytes) -> bytes:
     """As much of a cut compressed stream as decodes."""
     try:
@@ -241,7 +228,7 @@ def _decompress_prefix(compression: str, data: bytes) -> bytes:
 
 def _chunk(rebuilder: _Rebuilder, raw: bytes, offset: int) -> None:
     chunk = Chunk.read(ReadDataStream(io.BytesIO(raw)))
-    data = _decompress(chunk.compression, chunk.data, chunk.uncompressed_size)
+    data = decompress(chunk.compression, chunk.data, chunk.uncompressed_size)
     if len(data) != chunk.uncompressed_size:
         raise ValueError(f"decompressed to {len(data)} bytes, expected {chunk.uncompressed_size}")
     if chunk.uncompressed_crc and zlib.crc32(data) != chunk.uncompressed_crc:

@@ -18,11 +18,18 @@ it is on disk, whole, with its message indexes. ``stewart-vibration
 mcap-recover`` (mcap_log.recover) rebuilds a complete, indexed file from them.
 Worst-case loss: the open chunk (at most ``chunk_size`` bytes and about
 ``flush_period_s`` of recording) plus whatever was still queued.
+
+Write errors: a failed write (a full disk, ENOSPC; an I/O error, EIO; a quota) or a file that no
+longer has its name (its folder removed or replaced: checked at every chunk) stops the recording at
+once. The file is cut back to its last whole record, so what was written stays readable (every chunk
+before the failure; ``mcap-recover`` rebuilds its summary), ``McapRunWriter.failure`` says what went
+wrong, and every message submitted after it is counted in ``WriterStats.lost_after_failure``.
 """
 
 from __future__ import annotations
 
 import collections
+import errno
 import os
 import threading
 import time
@@ -41,20 +48,67 @@ _STOP = object()
 DRAIN_PERIOD_S = 0.02  # the writer thread takes the queued messages this often
 
 
+@dataclass(frozen=True)
+class WriteFailure:
+    """Why a recording stopped: ``code`` the errno name (ENOSPC, EIO, ENOENT for a file that lost its
+    name, ...), ``reason`` one line, ``good_bytes`` the whole-record prefix the file keeps."""
+
+    code: str
+    reason: str
+    good_bytes: int
+
+
+class FileWriteError(OSError):
+    """A write to the recording failed; the file was cut back to ``good_bytes`` (its whole records)."""
+
+    def __init__(self, failure: WriteFailure):
+        super().__init__(failure.reason)
+        self.failure = failure
+
+
 class _UnbufferedSink:
-    """Write-through file for mcap.Writer: every record group reaches the OS at once."""
+    """Write-through file for mcap.Writer: every record group reaches the OS at once. A failed write cuts the
+    file back to where the group began (a partly written chunk would hide every later record from readers)
+    and raises FileWriteError."""
 
     def __init__(self, path: Path):
+        self.path = path
         self._fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+        self._inode = os.fstat(self._fd).st_ino
         self._pos = 0
 
     def write(self, data) -> int:
         view = memoryview(data)
-        while view:
-            n = os.write(self._fd, view)
-            view = view[n:]
-        self._pos += len(data)
+        start = self._pos
+        try:
+            while view:
+                n = os.write(self._fd, view)
+                view = view[n:]
+                self._pos += n
+        except OSError as exc:
+            self._fail(exc, start)
         return len(data)
+
+    def check_name(self) -> None:
+        """FileWriteError (ENOENT) when the path no longer names the file being written (folder removed,
+        file deleted or replaced): the writes would go to a file nobody can find."""
+        try:
+            same = os.stat(self.path).st_ino == self._inode
+        except OSError:
+            same = False
+        if not same:
+            raise FileWriteError(WriteFailure("ENOENT", f"{self.path} no longer names the file being written (its "
+                                              "folder or the file was removed or replaced)", self._pos))
+
+    def _fail(self, exc: OSError, good: int) -> None:
+        try:
+            os.ftruncate(self._fd, good)
+            self._pos = good
+        except OSError:
+            pass
+        code = errno.errorcode.get(exc.errno or 0, "EIO")
+        raise FileWriteError(WriteFailure(code, f"writing {self.path} failed at {good:,} bytes: "
+                                          f"{exc.strerror or exc} ({code})", self._pos)) from exc
 
     def tell(self) -> int:
         return self._pos
@@ -88,6 +142,7 @@ class WriterStats:
     dropped: int = 0
     max_backlog: int = 0
     chunks_flushed_by_time: int = 0
+    lost_after_failure: int = 0  # submitted after a write failure (never written)
     per_topic: dict = field(default_factory=dict)
 
     @property
@@ -117,6 +172,8 @@ class BagFileWriter:
             chunk_size=int(chunk_size),
             compression=CompressionType.ZSTD if compression == "zstd" else CompressionType.NONE,
             index_types=IndexType.ALL,
+            enable_crcs=True,
+            enable_data_crcs=True,  # DataEnd carries the data section's CRC: `report` verifies it
         )
         self._writer.start(profile="ros2", library=library)
         self._t0: int | None = None
@@ -168,7 +225,9 @@ class BagFileWriter:
         return t.count
 
     def flush(self) -> None:
-        """Close the open chunk and write it (with its message indexes) to the file."""
+        """Close the open chunk and write it (with its message indexes) to the file; FileWriteError if the
+        write fails or the file lost its name."""
+        self._sink.check_name()
         self._writer.flush()
 
     def bag_file(self) -> BagFile:
@@ -221,6 +280,7 @@ class McapRunWriter:
         self.path = self._file.path
         self._closed = False
         self._error: BaseException | None = None
+        self.failure: WriteFailure | None = None  # set by the writer thread when a write failed
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
@@ -232,6 +292,9 @@ class McapRunWriter:
     def submit(self, topic: str, log_time_ns: int, data: bytes) -> bool:
         """Queue one serialized message; False (and counted as dropped) when the queue is full."""
         stats = self.stats
+        if self.failure is not None:
+            stats.lost_after_failure += 1
+            return False
         stats.received += 1
         backlog = stats.received - stats.written - stats.dropped
         if backlog > stats.max_backlog:
@@ -243,13 +306,20 @@ class McapRunWriter:
         return True
 
     def close(self) -> WriterStats:
-        """Drain the queue, write the summary and the rosbag2 metadata, close the file."""
+        """Drain the queue, write the summary and the rosbag2 metadata, close the file. After a write failure
+        the file is closed as it was cut (``failure`` says why; no summary: ``mcap-recover`` rebuilds it)."""
         if not self._closed:
             self._closed = True
             self._queue.append(_STOP)
             self._wake.set()
             self._thread.join()
-            self._file.finish()
+            if self.failure is None and self._error is None:
+                try:
+                    self._file.finish()
+                except FileWriteError as exc:
+                    self.failure = exc.failure
+            if self.failure is not None:
+                self._file.abort()
         if self._error is not None:
             raise self._error
         return self.stats
@@ -289,5 +359,9 @@ class McapRunWriter:
                     last_flush = now
                 elif not pending:
                     last_flush = now
+        except FileWriteError as exc:  # the file keeps its whole records; the node reports it at once
+            self.failure = exc.failure
+            self.stats.lost_after_failure += len(queue_)
+            queue_.clear()
         except BaseException as exc:  # surfaced by close()
             self._error = exc

@@ -7,22 +7,39 @@ time with use_sim_time); publish_time = header.stamp when the type starts with
 a std_msgs/Header, else log_time. A writer thread does all MCAP work
 (stewart_vibration.mcap_log.writer), so callbacks only enqueue.
 
-Parameters: output_dir (str, "runs"), file_pattern (str, "run_{stamp}.mcap";
-fields {stamp} local time YYYYmmdd_HHMMSS, {node}), record_on_start (bool,
-true), topics (str[], empty = DESIGN.md topics relative to the namespace plus
-/clock, /diagnostics, /rosout), qos_depth (int, 3000), chunk_size (bytes,
-262144), flush_period_s (s, 0.5), discovery_period_s (s, 0.2).
-Services: ~/start, ~/stop (std_srvs/Trigger; message = file path).
+Parameters: output_dir (str, "": a new run folder runs/run_<stamp>/ under the working directory, with
+runs/latest pointing at it; else the bag folder: relative paths under the working directory without
+'..', absolute ones an existing directory; see mcap_log.output_paths), file_pattern (str,
+"run_{stamp}.mcap": a plain file name ending in .mcap whose only placeholders {stamp} (local time
+YYYYmmdd_HHMMSS), {node} and {index} (the file's number in the bag, from 1) are replaced as text),
+record_on_start (bool, true), topics (str[], empty = the topics of docs/interfaces.md relative to the namespace plus
+/clock, /diagnostics, /rosout), qos_depth (int, 3000), chunk_size (bytes, 262144), flush_period_s (s,
+0.5), discovery_period_s (s, 0.2). A bad output_dir or file_pattern is refused with the reason: at start
+(one line, exit code 2) and by ``ros2 param set``.
+Services: ~/start, ~/stop (std_srvs/Trigger; message = file path, or why not).
 SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
+
+Faults it reports at once on /diagnostics (ERROR, with ``fault`` = write_failed, ``fault_code`` = the
+errno name and ``fault_reason``): a failed write (a full disk, an I/O error) or a file that lost its
+name (its folder removed). The recording stops there, the file keeps every whole chunk written before
+(``mcap-recover`` rebuilds its summary) and is not listed in metadata.yaml. Samples lost before they reached
+the recorder are counted from the gaps in the publication sequence numbers of topics with one publisher
+(``lost``, ``sequence_gaps``, WARN) when the node runs the single-threaded executor (STEWART_EXECUTOR=single:
+rclpy 7.1's EventsExecutor cannot hand a callback the message info). The recorder arms no DDS "message lost"
+event: in the rmw_fastrtps of these wheels taking that event and DDS reporting a loss lock the same two
+mutexes in opposite orders (ros2/rmw_implementation#278 is the regression test of the fix), and under real
+loss the recorder deadlocked (it stopped recording and ignored SIGINT). The run summary finds lost samples
+in the recording itself either way (gaps in every 500 Hz stream's stamps and in /clock).
 
 Bag directory: ``output_dir`` is a rosbag2 bag directory. When a recording
 finishes, the recorder writes ``output_dir/metadata.yaml`` (rosbag2 version 9,
 as ``ros2 bag record`` does) listing the files this recorder process wrote
 there (one per ~/start..~/stop, like rosbag2's splits), so ``ros2 bag
 info/play output_dir`` and ``rosbags.rosbag2.Reader(output_dir)`` open it.
-While a file is being written the folder has no metadata.yaml (a
-metadata.yaml left by an earlier recording is removed when a recording starts;
-that recording's .mcap stays in the folder, unlisted). After a crash
+While a file is being written the folder has no metadata.yaml. A metadata.yaml
+an earlier recorder wrote in the folder (it carries the recorder's mark in
+custom_data) is taken over: its complete files stay listed beside the new ones.
+A folder with a metadata.yaml the recorder did not write is refused. After a crash
 (SIGKILL) the folder has none until ``stewart-vibration mcap-recover`` rebuilds
 the cut file and writes one. Other files in the folder (logs/, report/,
 summary.json) are ignored by bag readers.
@@ -31,31 +48,43 @@ summary.json) are ignored by bag readers.
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from pathlib import Path
 
-import rclpy
-from rcl_interfaces.msg import IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from std_srvs.srv import Trigger
 
+from ..errors import InvalidInputError
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
+from ..mcap_log.output_paths import (
+    RECORDED_BY,
+    RECORDED_BY_KEY,
+    bag_folder,
+    check_bag_folder,
+    check_file_pattern,
+    file_name,
+    listed_files,
+    written_by_recorder,
+)
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
+from ..mcap_log.reader import bag_file_of
 from ..mcap_log.writer import McapRunWriter
+from ..messages.stream_health import SequenceGaps
+from ..runtime.run_folders import new_run_folder
 from .common import (
+    ERROR,
     OK,
     STREAM_DEPTH,
     WARN,
     Diagnostics,
-    StopFlag,
     declare_float,
     declare_read_only,
     float_param,
-    make_executor,
-    spin_until_stopped,
+    run_node,
 )
 from .ros_graph import message_class, offered_profile, rclpy_profile
 
@@ -76,6 +105,8 @@ SUITE_TOPICS = [
     "/diagnostics",
     "/rosout",
 ]
+RUNS_ROOT = "runs"  # where output_dir "" makes the recorder's own run folder (under the working directory)
+FAULT_CHECK_PERIOD_S = 0.1  # how often the writer thread's failure is looked for (wall s)
 
 
 class McapRecorderNode(Node):
@@ -85,9 +116,11 @@ class McapRecorderNode(Node):
         super().__init__("mcap_recorder", **kwargs)
         # output_dir, file_pattern, chunk_size and flush_period_s apply to the next file (live); the others
         # are read once at start (read-only: ros2 param set says so)
-        self.declare_parameter("output_dir", "runs", ParameterDescriptor(description="folder of the next file"))
+        self.declare_parameter("output_dir", "", ParameterDescriptor(
+            description="bag folder of the next file ('' = a new runs/run_<stamp>/ under the working directory; "
+                        "relative: under the working directory, no '..'; absolute: an existing directory)"))
         self.declare_parameter("file_pattern", "run_{stamp}.mcap", ParameterDescriptor(
-            description="name of the next file ({stamp}: local time, {node})"))
+            description="name of the next file, ending in .mcap ({stamp}: local time, {node}, {index})"))
         declare_read_only(self, "record_on_start", True, "open a file at start (else on ~/start)")
         declare_read_only(self, "topics", [""], "topics to record (empty = the suite's)")
         declare_read_only(self, "qos_depth", STREAM_DEPTH, "history depth of the recording subscriptions (6 s, 500 Hz)")
@@ -98,58 +131,135 @@ class McapRecorderNode(Node):
             "a chunk is written at least this often (crash safety), s; next file", 0.01, 60.0))
         declare_float(self, "discovery_period_s", 0.2, float_param(
             "topic discovery period, s (read at start)", 0.01, 10.0, read_only=True))
+        self._cwd = Path.cwd()
+        check_file_pattern(str(self.get_parameter("file_pattern").value))
+        self._check_output_dir(str(self.get_parameter("output_dir").value))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         names = [t for t in self.get_parameter("topics").value if t] or SUITE_TOPICS
         self._wanted = {self.resolve_topic_name(t) for t in names}
         self._known: dict[str, tuple[str, str, str]] = {}  # topic -> (type, qos yaml, hash)
         self._subs = {}
         self._writer: McapRunWriter | None = None
-        self._bag_files: dict[Path, list[BagFile]] = {}  # folder -> files this process finished there
+        self._bag_files: dict[Path, list[BagFile]] = {}  # folder -> files finished there (taken over or ours)
+        self._own_folder: Path | None = None  # the run folder output_dir "" made
         self._clock = self.get_clock()
+        # message info (publication sequence numbers) reaches callbacks only with the single-threaded executor
+        self._gaps = SequenceGaps() if os.environ.get("STEWART_EXECUTOR") == "single" else None
+        self._single_publisher: set[str] = set()  # topics with one publisher (sequence numbers are per publisher)
+        self._fault: tuple[str, str] | None = None  # (errno name, reason) of the last write failure
         self.create_service(Trigger, "~/start", self._on_start)
         self.create_service(Trigger, "~/stop", self._on_stop)
         self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
         # the file being written and its counters, for UIs that start after the "recording to" log line
         self.diagnostics = Diagnostics(self, "mcap recorder")
-        self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(1.0, self.report, clock=steady)
+        self.create_timer(FAULT_CHECK_PERIOD_S, self._check_writer, clock=steady)
         self._last_file = ""
         self._discover()
         if self.get_parameter("record_on_start").value:
             self.start_recording()
         self.report()
 
+    # -- parameters -------------------------------------------------------------------
+    def _check_output_dir(self, output_dir: str) -> None:
+        if output_dir:
+            bag_folder(output_dir, self._cwd)
+
+    def _on_set_parameters(self, params) -> SetParametersResult:
+        for param in params:
+            try:
+                if param.name == "file_pattern":
+                    check_file_pattern(str(param.value))
+                elif param.name == "output_dir":
+                    self._check_output_dir(str(param.value))
+            except InvalidInputError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
     def report(self) -> None:
-        """/diagnostics: recording <path> (OK) or not recording, with the counters; WARN once messages dropped."""
+        """/diagnostics: recording <path> (OK), not recording, or the write failure (ERROR), with the counters;
+        WARN once messages were dropped (queue full) or lost (DDS)."""
+        per_topic = self._gaps.per_topic() if self._gaps else {}
+        lost = sum(per_topic.values())
+        counts = {"lost": lost, "lost_topics": ",".join(f"{t}:{n}" for t, n in sorted(per_topic.items()))}
+        if self._gaps is not None:
+            counts["sequence_gaps"] = self._gaps.total
+        fault = {"fault": "write_failed" if self._fault else "", "fault_code": self._fault[0] if self._fault else "",
+                 "fault_reason": self._fault[1] if self._fault else ""}
         writer = self._writer
         if writer is None:
-            self.diagnostics.set(OK, "not recording", path="", last_file=self._last_file)
+            level, message = (ERROR, f"recording failed: {self._fault[1]}") if self._fault else (OK, "not recording")
+            self.diagnostics.set(level, message, path="", last_file=self._last_file, **counts, **fault)
             return
         stats = writer.stats
-        level = WARN if stats.dropped else OK
-        message = f"recording {writer.path}" + (f"; {stats.dropped} messages dropped" if stats.dropped else "")
+        if self._fault:
+            level, message = ERROR, f"recording failed: {self._fault[1]}; nothing is recorded since"
+        else:
+            level = WARN if stats.dropped or lost else OK
+            message = f"recording {writer.path}" + (f"; {stats.dropped} messages dropped" if stats.dropped else "") \
+                + (f"; {lost} samples lost before they reached the recorder" if lost else "")
         self.diagnostics.set(level, message, path=str(writer.path), last_file=self._last_file,
                              received=stats.received, written=stats.written, dropped=stats.dropped,
-                             topics=len(self._known))
+                             topics=len(self._known), **counts, **fault)
+
+    def _check_writer(self) -> None:
+        """A failed write is reported the moment the writer thread has seen it (ERROR, logged once)."""
+        writer = self._writer
+        if writer is None or writer.failure is None or self._fault is not None:
+            return
+        failure = writer.failure
+        self._fault = (failure.code, failure.reason)
+        self.get_logger().error(f"recording stopped: {failure.reason}; {writer.path} keeps its first "
+                                f"{failure.good_bytes:,} bytes (whole chunks; rebuild its summary with "
+                                f"stewart-vibration mcap-recover {writer.path})")
+        self.report()
 
     # -- recording ------------------------------------------------------------------
-    def _next_path(self) -> Path:
+    def _folder(self) -> Path:
+        """The bag folder of the next file (output_dir checked again: the disk may have changed)."""
+        output_dir = str(self.get_parameter("output_dir").value)
+        if output_dir:
+            folder = bag_folder(output_dir, self._cwd)
+            folder.mkdir(parents=True, exist_ok=True)
+            return folder
+        if self._own_folder is None or not self._own_folder.is_dir():
+            self._own_folder = new_run_folder(self._cwd / RUNS_ROOT)
+        check_bag_folder(self._own_folder)
+        return self._own_folder
+
+    def _next_path(self, folder: Path) -> Path:
         pattern = str(self.get_parameter("file_pattern").value)
-        name = pattern.format(stamp=time.strftime("%Y%m%d_%H%M%S"), node=self.get_name())
-        path = Path(str(self.get_parameter("output_dir").value)) / name
+        index = len(self._bag_files.get(folder, [])) + 1
+        name = file_name(pattern, stamp=time.strftime("%Y%m%d_%H%M%S"), node=self.get_name(), index=index)
+        path = folder / name
         n = 1
         while path.exists():
             path = path.with_name(f"{Path(name).stem}_{n}{Path(name).suffix}")
             n += 1
         return path
 
+    def _take_over(self, folder: Path) -> None:
+        """Adopt the complete files an earlier recorder's metadata.yaml lists in ``folder``, then remove it (the
+        folder has no metadata.yaml while a file is written)."""
+        if folder not in self._bag_files and written_by_recorder(folder):
+            entries = [bag_file_of(folder / name) for name in listed_files(folder)]
+            self._bag_files[folder] = [e for e in entries if e is not None]
+            self.get_logger().info(f"{folder} holds an earlier recording: its {len(self._bag_files[folder])} "
+                                   "file(s) stay listed in its metadata.yaml beside the new ones")
+        remove_metadata_yaml(folder)
+
     def start_recording(self) -> Path:
-        """Open a new file (if not recording) and declare every topic already subscribed."""
+        """Open a new file (if not recording) and declare every topic already subscribed.
+
+        Raises:
+            InvalidInputError: output_dir or file_pattern is refused (``mcap_log.output_paths``).
+            OSError: the folder or the file cannot be created.
+        """
         if self._writer is None:
-            path = self._next_path()
-            path.parent.mkdir(parents=True, exist_ok=True)
-            if remove_metadata_yaml(path.parent) and path.parent.resolve() not in self._bag_files:
-                self.get_logger().info(
-                    f"removed the metadata.yaml of an earlier recording in {path.parent}: the folder now holds "
-                    "this recording's bag (earlier .mcap files stay there, unlisted)")
+            folder = self._folder()
+            path = self._next_path(folder)
+            self._take_over(folder)
             writer = McapRunWriter(
                 path,
                 chunk_size=int(self.get_parameter("chunk_size").value),
@@ -158,49 +268,90 @@ class McapRecorderNode(Node):
             for topic, (type_name, qos_yaml, type_hash) in self._known.items():
                 writer.add_topic(topic, type_name, qos_yaml, type_hash)
             self._writer = writer
+            self._fault = None
             self.get_logger().info(f"recording to {writer.path}")
             self.report()
         return self._writer.path
 
     def stop_recording(self) -> dict | None:
-        """Finish the file (summary, indexes, rosbag2 metadata); returns the counters."""
+        """Finish the file (summary, indexes, rosbag2 metadata); returns the counters. A file whose write
+        failed is closed as it was cut and left out of metadata.yaml."""
         writer, self._writer = self._writer, None
         if writer is None:
             return None
         stats = writer.close()
-        folder = writer.path.parent.resolve()
+        folder = writer.path.parent
         files = self._bag_files.setdefault(folder, [])
-        files.append(writer.bag_file())
-        metadata = write_metadata_yaml(folder, bag_metadata(files))
-        self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
+        failure = writer.failure
+        if failure is None:
+            files.append(writer.bag_file())
+        else:
+            self._fault = (failure.code, failure.reason)
+        metadata = None
+        try:
+            metadata = write_metadata_yaml(folder, bag_metadata(files, {RECORDED_BY_KEY: RECORDED_BY}))
+            self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
+        except OSError as exc:
+            self.get_logger().error(f"finished {writer.path}, but its metadata.yaml cannot be written: {exc}")
+        if failure is not None:
+            self.get_logger().error(f"{writer.path} is cut at {failure.good_bytes:,} bytes ({failure.reason}); "
+                                    f"rebuild it with: stewart-vibration mcap-recover {writer.path}")
         self._last_file = str(writer.path)
         self.report()
         report = {
             "path": str(writer.path),
-            "metadata_yaml": str(metadata),
+            # the node clock when the file was finished (sim s with use_sim_time): what it had received by then
+            "stopped_at_s": self._clock.now().nanoseconds * 1e-9,
+            "metadata_yaml": str(metadata) if metadata else None,
             "received": stats.received,
             "written": stats.written,
             "dropped": stats.dropped,
             "max_backlog": stats.max_backlog,
             "per_topic": dict(stats.per_topic),
+            "lost": self._gaps.total if self._gaps else 0,
+            "lost_per_topic": self._gaps.per_topic() if self._gaps else {},
+            "sequence_gaps": self._gaps.per_topic() if self._gaps else None,
+            "failure": {"code": failure.code, "reason": failure.reason, "good_bytes": failure.good_bytes,
+                        "lost_after_failure": stats.lost_after_failure} if failure else None,
         }
-        # One machine-readable line for tests and the benchmark.
-        print("MCAP_RECORDER_STATS " + json.dumps(report), flush=True)
+        # One machine-readable line for tests, the bring-up and the benchmark. The log may be on the disk that is
+        # full: a failed print must not take the recorder (and the file it finishes) down.
+        try:
+            print("MCAP_RECORDER_STATS " + json.dumps(report), flush=True)
+        except OSError as exc:
+            self.get_logger().error(f"cannot write the recorder's counts to its log: {exc}")
         return report
 
+    def shutdown(self) -> None:
+        """SIGINT / SIGTERM: finish the file."""
+        self.stop_recording()
+
     def _on_start(self, _req, resp):
-        path = self.start_recording()
+        try:
+            path = self.start_recording()
+        except (InvalidInputError, OSError) as exc:
+            resp.success, resp.message = False, f"cannot start a recording: {exc}"
+            self.get_logger().error(resp.message)
+            return resp
         resp.success, resp.message = True, str(path)
         return resp
 
     def _on_stop(self, _req, resp):
         report = self.stop_recording()
-        resp.success = report is not None
-        resp.message = report["path"] if report else "not recording"
+        if report is None:
+            resp.success, resp.message = False, "not recording"
+        elif report["failure"]:
+            resp.success, resp.message = False, f"{report['path']}: recording failed: {report['failure']['reason']}"
+        else:
+            resp.success, resp.message = True, report["path"]
         return resp
 
     # -- discovery ------------------------------------------------------------------
     def _discover(self) -> None:
+        if self._gaps is not None:
+            single = {t for t in self._subs if self.count_publishers(t) == 1}
+            self._single_publisher.intersection_update(single)  # in place: the callbacks hold this set
+            self._single_publisher.update(single)
         missing = self._wanted - self._subs.keys()
         if not missing:
             return
@@ -223,36 +374,30 @@ class McapRecorderNode(Node):
         self._known[topic] = (type_name, dump_qos_profiles(offers), type_hash)
         if self._writer is not None:
             self._writer.add_topic(topic, type_name, *self._known[topic][1:])
-        clock = self._clock
+        clock, gaps, single = self._clock, self._gaps, self._single_publisher
 
-        def on_message(data: bytes, _topic=topic) -> None:
-            writer = self._writer
-            if writer is not None:
-                writer.submit(_topic, clock.now().nanoseconds, data)
+        if gaps is None:
+            def on_message(data: bytes, _topic=topic) -> None:
+                writer = self._writer
+                if writer is not None:
+                    writer.submit(_topic, clock.now().nanoseconds, data)
+        else:
+            def on_message(data: bytes, info, _topic=topic) -> None:  # type: ignore[misc]
+                writer = self._writer
+                if writer is not None:
+                    writer.submit(_topic, clock.now().nanoseconds, data)
+                if _topic in single:
+                    gaps.seen(_topic, info.get("publication_sequence_number"))
 
         self._subs[topic] = self.create_subscription(
-            message_class(type_name), topic, on_message, rclpy_profile(request), raw=True
-        )
+            message_class(type_name), topic, on_message, rclpy_profile(request), raw=True)
         self.get_logger().info(f"subscribed {topic} [{type_name}] {request.reliability}")
 
 
 def main(args=None) -> int:
-    """Run the mcap_recorder node until SIGINT / SIGTERM, then finish the MCAP file; returns 0."""
-    rclpy.init(args=args)
-    stop = StopFlag().install()  # a flag only: a stop during start-up still finishes cleanly
-    node = McapRecorderNode()
-    executor = make_executor()
-    executor.add_node(node)
-    try:
-        spin_until_stopped(executor, stop)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.stop_recording()
-        executor.remove_node(node)
-        node.destroy_node()
-        rclpy.try_shutdown()
-    return 0
+    """Run the mcap_recorder node until SIGINT / SIGTERM, then finish the MCAP file; returns 0 (2: it cannot
+    start, e.g. a refused output_dir or file_pattern, said in one line)."""
+    return run_node(McapRecorderNode, args)
 
 
 if __name__ == "__main__":

@@ -41,7 +41,7 @@ from ..errors import StewartError
 from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
 from ..mcap_log.reader import open_run
 from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
-from .common import StopFlag, declare_float, declare_read_only, float_param, make_executor
+from .common import StopFlag, declare_float, declare_read_only, float_param, guard_sim_clock, init_rclpy, make_executor
 from .ros_graph import message_class, rclpy_profile
 
 DEFAULT_CLOCK_RATE_HZ = 100.0
@@ -183,7 +183,9 @@ def main(args=None) -> int:
     """
     # The replay thread must get the GIL back within well under 1 ms of its due time.
     sys.setswitchinterval(1e-4)
-    rclpy.init(args=args)
+    if not init_rclpy(args, "mcap_replay: error:"):
+        return 2
+    guard_sim_clock()  # a /clock that is no time is dropped (it raised in rclpy's clock callback)
     stop = StopFlag().install()  # a flag only: a stop during start-up still finishes cleanly
     try:
         node = McapReplayNode()

@@ -1,0 +1,203 @@
+"""An independent check of a recorded run against the robot's limits (pure: arrays in, figures out).
+
+Its job is to judge the emulator, so it shares none of the emulator's acceptance code: it reads the limits
+from ``robot.limits`` and ``robot.vibration_unit`` (config/robot.yaml) and recomputes every figure from
+the recorded states:
+
+- stroke: every hinge-to-hinge length leg_i + vib_i of ``legs/joint_states`` in [stroke_min, stroke_max]
+  (within ``STROKE_TOLERANCE_M``);
+- strut velocity and acceleration: differences of the leg_i lengths over their header stamps (velocity
+  from neighbouring states; acceleration from second differences over ``STRUT_BASELINE`` states, 10 ms
+  at 500 Hz, so that position noise of 1e-9 m gives at most 4e-5 m/s^2);
+- vibration units: |vib_i| against amplitude_max, its velocity and acceleration from neighbouring states
+  (a sinusoid at f sampled every dt is underestimated by 2 (1 - cos w dt) / (w dt)^2: 1.6 % at 35 Hz,
+  16 % at 120 Hz, 500 Hz states);
+- universal and spherical joint angles and the Jacobian's condition number at every recorded true
+  platform pose (``platform/pose``), from the robot's hinge points;
+- finiteness of every recorded position, velocity, effort and pose;
+- time: ``/clock`` never goes back and the joint states' stamps increase.
+
+A rate counts as a violation when it exceeds its limit by more than ``TOLERANCE`` (relative: the
+differentiation noise), a displacement, angle or condition number by more than ``MEASURED_TOLERANCE``;
+no difference is taken across a gap in the
+states (a lost sample is not motion).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..kinematics.jacobian import condition_number
+from ..kinematics.rotations import rotation_from_rpy
+from ..robot import Robot
+
+STRUT_BASELINE = 5  # states on each side of a strut acceleration sample
+TOLERANCE = 0.02  # relative excess over a rate limit that is still differentiation noise
+MEASURED_TOLERANCE = 1e-6  # relative, for figures measured or computed from poses (displacement, angles, conditioning)
+STROKE_TOLERANCE_M = 1e-6  # a length is measured, not differentiated: 1 um is the servo's following error
+GAP_FACTOR = 1.5  # a step longer than this many median state periods is a gap (not differentiated)
+
+
+@dataclass(frozen=True)
+class LimitFigure:
+    """One checked figure: its worst value over the run, its limit (same unit), where and when the worst
+    was, and how many samples exceeded the limit beyond the tolerance."""
+
+    name: str
+    unit: str
+    worst: float
+    limit: float
+    time_s: float | None = None
+    leg: int | None = None
+    violations: int = 0
+    low_limit: float | None = None  # a two-sided figure (the stroke): its lower limit
+    least: float | None = None  # and its lowest value
+
+    @property
+    def violated(self) -> bool:
+        """Whether a sample exceeded the limit by more than the tolerance (or was not finite)."""
+        return self.violations > 0
+
+    def line(self) -> str:
+        """The figure as the run summary prints it, e.g. "strut velocity 0.0100 m/s (leg 1 at 7.821 s),
+        limit 0.02 m/s"."""
+        unit = f" {self.unit}" if self.unit else ""
+        place = ", ".join(x for x in (f"leg {self.leg}" if self.leg else "",
+                                      f"at {self.time_s:.3f} s" if self.time_s is not None else "") if x)
+        span = f"{self.least:.6g}..{self.worst:.6g}" if self.least is not None else f"{self.worst:.6g}"
+        limit = f"{self.low_limit:g}..{self.limit:g}" if self.low_limit is not None else f"{self.limit:g}"
+        beyond = f"; {self.violations} samples beyond it" if self.violations else ""
+        return f"{self.name} {span}{unit}{f' ({place})' if place else ''}, limit {limit}{unit}{beyond}"
+
+
+def _worst(values: np.ndarray, times: np.ndarray, limit: float, name: str, unit: str,
+           tolerance: float = TOLERANCE) -> LimitFigure:
+    """The largest of ``values`` [n, k] (times [n]) against ``limit`` (relative ``tolerance``); NaN counts as a
+    violation."""
+    if values.size == 0:
+        return LimitFigure(name, unit, 0.0, limit)
+    flat = np.where(np.isfinite(values), values, np.inf)
+    index = np.unravel_index(int(np.argmax(flat)), flat.shape)
+    worst = float(values[index])
+    bad = int(np.count_nonzero(~(values <= limit * (1 + tolerance))))
+    leg = int(index[1]) + 1 if values.ndim == 2 else None
+    return LimitFigure(name, unit, worst, limit, float(times[index[0]]), leg, bad)
+
+
+def _stroke(hinge: np.ndarray, t: np.ndarray, low: float, high: float) -> LimitFigure:
+    """The hinge-to-hinge lengths [n, 6] (m) against [low, high] (m), STROKE_TOLERANCE_M either side."""
+    if hinge.size == 0:
+        return LimitFigure("stroke", "m", 0.0, high, low_limit=low, least=0.0)
+    finite = np.where(np.isfinite(hinge), hinge, np.nan)
+    below = np.nan_to_num(low - finite, nan=np.inf)
+    above = np.nan_to_num(finite - high, nan=np.inf)
+    excess = np.maximum(below, above)
+    index = np.unravel_index(int(np.argmax(excess)), excess.shape)
+    bad = int(np.count_nonzero(~(excess <= STROKE_TOLERANCE_M)))
+    return LimitFigure("stroke", "m", float(np.nanmax(finite)), high, float(t[index[0]]), int(index[1]) + 1, bad,
+                       low, float(np.nanmin(finite)))
+
+
+def _uniform_steps(t: np.ndarray) -> tuple[np.ndarray, float]:
+    """(dt [n-1], median period) with steps across gaps or backwards set to NaN."""
+    dt = np.diff(t)
+    positive = dt[dt > 0]
+    period = float(np.median(positive)) if positive.size else np.nan
+    dt = np.where((dt > 0) & (dt <= GAP_FACTOR * period), dt, np.nan)
+    return dt, period
+
+
+def rates(t: np.ndarray, x: np.ndarray, baseline: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Velocity and acceleration of ``x`` [n, k] sampled at ``t`` [n] (s), never across a gap.
+
+    Returns:
+        (velocity times [n-1], |velocity| [n-1, k], acceleration times [m], |acceleration| [m, k]); the
+        acceleration is the second difference over ``baseline`` samples on each side (NaN rows where a gap
+        lies inside the stencil are dropped).
+    """
+    dt, _period = _uniform_steps(t)
+    velocity = np.diff(x, axis=0) / dt[:, None]
+    keep = np.isfinite(dt)
+    tv, v = 0.5 * (t[1:] + t[:-1]), np.abs(velocity)
+    h = int(baseline)
+    if t.size < 2 * h + 1:
+        return tv[keep], v[keep], np.empty(0), np.empty((0, x.shape[1]))
+    ok = np.isfinite(dt)
+    span_ok = np.convolve(ok.astype(int), np.ones(h, int), mode="valid") == h  # h good steps in a row
+    left, right = span_ok[:-h], span_ok[h:]
+    mid = slice(h, t.size - h)
+    ahead = (x[2 * h:] - x[h:-h]) / (t[2 * h:] - t[h:-h])[:, None]
+    behind = (x[h:-h] - x[:-2 * h]) / (t[h:-h] - t[:-2 * h])[:, None]
+    acc = (ahead - behind) / (0.5 * (t[2 * h:] - t[:-2 * h]))[:, None]
+    good = left & right
+    return tv[keep], v[keep], t[mid][good], np.abs(acc[good])
+
+
+def joint_angles_at(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Universal (base) and spherical (platform) joint angles [n, 6] (rad) at poses [n, 6]: the angle of
+    each leg d_i = p + R a_i - b_i to base z and to the platform's z (R e_z)."""
+    rot = rotation_from_rpy(poses[:, 3:])
+    d = poses[:, None, :3] + np.einsum("nij,kj->nki", rot, robot.platform_hinges) - robot.base_hinges[None]
+    unit = d / np.linalg.norm(d, axis=2, keepdims=True)
+    universal = np.arccos(np.clip(unit[..., 2], -1.0, 1.0))
+    spherical = np.arccos(np.clip(np.einsum("nki,ni->nk", unit, rot[:, :, 2]), -1.0, 1.0))
+    return universal, spherical
+
+
+def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigure]:
+    """Every limit figure of a recorded run.
+
+    Args:
+        robot: the robot (its limits, vibration-unit limits and hinge points).
+        joints: (stamps [n] (s), {"position", "velocity", "effort": [n, 12]}) of legs/joint_states, leg_1..6
+            then vib_1..6 (``messages.arrays.joint_arrays``).
+        pose: (stamps [m] (s), poses [m, 6] (m, rad)) of platform/pose, the true pose.
+        clock_times: /clock values [c] (s) in the order they were recorded; None or empty: not checked.
+
+    Returns:
+        One LimitFigure per check, in a fixed order (stroke, strut velocity and acceleration, unit
+        displacement, velocity and acceleration, joint angles, condition number, finiteness, time).
+    """
+    lim, unit = robot.limits, robot.vibration_unit
+    jt, cols = joints
+    jt = np.asarray(jt, float)
+    positions = np.asarray(cols["position"], float).reshape(-1, 12) if len(jt) else np.empty((0, 12))
+    legs, vib = positions[:, :6], positions[:, 6:12]
+    figures = []
+    hinge = legs + vib
+    figures.append(_stroke(hinge, jt, lim.stroke_min, lim.stroke_max))
+    tv, v, ta, a = rates(jt, legs, STRUT_BASELINE) if jt.size > 1 else (jt, legs, jt, legs)
+    figures.append(_worst(v, tv, lim.strut_velocity_max, "strut velocity", "m/s"))
+    figures.append(_worst(a, ta, lim.strut_acceleration_max, "strut acceleration", "m/s^2"))
+    figures.append(_worst(np.abs(vib), jt, unit.amplitude_max, "vibration unit displacement", "m", MEASURED_TOLERANCE))
+    tv, v, ta, a = rates(jt, vib, 1) if jt.size > 1 else (jt, vib, jt, vib)
+    figures.append(_worst(v, tv, unit.velocity_max, "vibration unit velocity", "m/s"))
+    figures.append(_worst(a, ta, unit.acceleration_max, "vibration unit acceleration", "m/s^2"))  # in m/s^2
+    pt, poses = np.asarray(pose[0], float), np.asarray(pose[1], float).reshape(-1, 6)
+    finite_pose = np.isfinite(poses).all(axis=1)
+    universal, spherical = joint_angles_at(robot, poses[finite_pose]) if finite_pose.any() else \
+        (np.empty((0, 6)), np.empty((0, 6)))
+    for name, angles, limit in (("universal joint angle", universal, lim.universal_joint_max),
+                                ("spherical joint angle", spherical, lim.spherical_joint_max)):
+        figures.append(_worst(np.degrees(angles), pt[finite_pose], np.degrees(limit), name, "deg", MEASURED_TOLERANCE))
+    cond = condition_number(robot, poses[finite_pose]) if finite_pose.any() else np.empty(0)
+    figures.append(_worst(np.asarray(cond), pt[finite_pose], lim.condition_number_max, "condition number", "",
+                          MEASURED_TOLERANCE))
+    arrays = [np.asarray(cols[k], float) for k in ("position", "velocity", "effort") if k in cols and len(jt)]
+    not_finite = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays) + int(np.count_nonzero(~finite_pose))
+    figures.append(LimitFigure("non-finite values", "", float(not_finite), 0.0, violations=not_finite))
+    backwards = 0
+    if clock_times is not None and len(clock_times) > 1:
+        backwards += int(np.count_nonzero(np.diff(np.asarray(clock_times, float)) < 0))
+    if jt.size > 1:
+        backwards += int(np.count_nonzero(np.diff(jt) <= 0))
+    figures.append(LimitFigure("time going back (/clock, state stamps)", "steps", float(backwards), 0.0,
+                               violations=backwards))
+    return figures
+
+
+def limit_failures(figures: list[LimitFigure]) -> list[str]:
+    """One verdict line per violated figure (empty: every limit held)."""
+    return [f"limits over the recorded states: {f.line()}" for f in figures if f.violated]
