@@ -2,8 +2,8 @@
 parameters as `stewart-vibration run` in the pip world).
 
     ros2 launch stewart_vibration stewart_vibration.launch.py \
-        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=runs] [foxglove:=true] [ui:=true] \
-        [tissue_config:=/path/to/tissue.yaml]
+        [namespace:=/stewart] [real_time_factor:=1.0] [output_dir:=DIR] [foxglove:=true] [ui:=true] \
+        [tissue_config:=/path/to/tissue.yaml] [robot_config:=/path/to/robot.yaml]
 
 Parameters come from share/stewart_vibration/config/suite_params.yaml (one
 file for both worlds); the node list from stewart_vibration.runtime.suite. DDS: like
@@ -49,12 +49,19 @@ def generate_launch_description():
     namespace = LaunchConfiguration("namespace")
     # soft tissue on the platform ('' = none): the emulator applies it, kinematics checks targets against it
     tissue = ParameterValue(LaunchConfiguration("tissue_config"), value_type=str)
+    # the robot every node reads ('' = config/robot.yaml), like --robot of the bring-up
+    robot = ParameterValue(LaunchConfiguration("robot_config"), value_type=str)
     overrides = {
         "hardware_emulator": {"real_time_factor": LaunchConfiguration("real_time_factor"), "autostart": False,
                               "tissue_config": tissue},
         "kinematics": {"tissue_config": tissue},
-        "mcap_recorder": {"output_dir": LaunchConfiguration("output_dir")},
+        # '' = the recorder makes its own run folder runs/run_<stamp>/ (a bag directory) under the working directory
+        "mcap_recorder": {"output_dir": ParameterValue(LaunchConfiguration("output_dir"), value_type=str)},
     }
+
+    def parameters(spec):
+        return [params, {**overrides.get(spec.name, {}), **({"robot_config": robot} if spec.robot_config else {})}]
+
     nodes = []
     for node in SUITE_NODES:
         kind = LifecycleNode if node.name == "hardware_emulator" else Node
@@ -63,12 +70,12 @@ def generate_launch_description():
             executable=node.executable,
             name=node.name,
             namespace=namespace,
-            parameters=[params, overrides.get(node.name, {})],
+            parameters=parameters(node),
             output="screen",
         ))
     optional = [
         Node(package="stewart_vibration", executable=spec.executable, name=spec.name, namespace=namespace,
-             parameters=[params], output="screen", condition=IfCondition(LaunchConfiguration(key)))
+             parameters=parameters(spec), output="screen", condition=IfCondition(LaunchConfiguration(key)))
         for key, spec in OPTIONAL_NODES.items()
     ]
     # the hardware emulator is a managed node: configure it at start, activate it once it is inactive
@@ -85,10 +92,11 @@ def generate_launch_description():
         [
             DeclareLaunchArgument("namespace", default_value=DEFAULT_NAMESPACE),
             DeclareLaunchArgument("real_time_factor", default_value="1.0"),
-            DeclareLaunchArgument("output_dir", default_value="runs"),
+            DeclareLaunchArgument("output_dir", default_value=""),
             DeclareLaunchArgument("foxglove", default_value="false"),
             DeclareLaunchArgument("ui", default_value="false"),
             DeclareLaunchArgument("tissue_config", default_value=""),
+            DeclareLaunchArgument("robot_config", default_value=""),
             *dds,
             *nodes,
             *optional,

@@ -30,6 +30,7 @@ from .kinematics import (
     joint_angles,
     leg_vectors,
 )
+from .kinematics.robot_config import load_robot
 from .kinematics.rotations import (
     euler_rate_matrix,
     pose_from_position_quaternion,
@@ -39,7 +40,7 @@ from .kinematics.rotations import (
     rpy_from_quaternion,
     rpy_from_rotation,
 )
-from .robot import Robot, load_robot
+from .robot import Robot
 from .sim.mjcf import build_mjcf
 from .vibration import (
     MotionClassification,

@@ -3,7 +3,7 @@
 The paper gives X = Y = Z = 2 (mm, offsets from home), roll = pi/15,
 pitch = pi/12, yaw = pi/18, and a platform vibration along the force line
 0.001 sin(2 t + 2 pi / 3) mm, i.e. 1 um at 2 rad/s with phase 2 pi / 3.
-The clinical default is 35 Hz at 0.3 g (REVIEW.md).
+The clinical default is 35 Hz at 0.3 g.
 """
 
 from __future__ import annotations

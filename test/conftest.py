@@ -3,11 +3,69 @@
 from __future__ import annotations
 
 import os
+import signal
+import time
+from pathlib import Path
 
 import pytest
 
 from stewart_vibration import load_robot
 from stewart_vibration.runtime.processes import claim_ros_domain
+
+
+def _suite_processes() -> dict[int, str]:
+    """pid -> command line of every live process (not a zombie) running this package's code, the test
+    process itself excepted."""
+    found = {}
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit() or int(entry.name) == os.getpid():
+            continue
+        try:
+            cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
+        except OSError:  # gone meanwhile
+            continue
+        if state != "Z" and ("stewart_vibration" in cmdline or "stewart-vibration" in cmdline):
+            found[int(entry.name)] = cmdline.strip()
+    return found
+
+
+LEFT_BEHIND_GRACE_S = 5.0  # wall time a test's processes get to exit after it (s)
+
+
+def _kill_left_behind(before: set[int]) -> None:
+    """Wait up to LEFT_BEHIND_GRACE_S for the package's processes not in ``before`` to exit; kill those that
+    do not and fail naming them."""
+    deadline = time.monotonic() + LEFT_BEHIND_GRACE_S
+    while True:
+        left = {pid: cmd for pid, cmd in _suite_processes().items() if pid not in before}
+        if not left or time.monotonic() > deadline:
+            break
+        time.sleep(0.1)
+    for pid in left:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+    assert not left, "processes left running (killed now): " + "; ".join(
+        f"{pid}: {cmd[:160]}" for pid, cmd in left.items())
+
+
+@pytest.fixture(autouse=True, scope="module")
+def no_process_left_behind_by_the_module():
+    """A module's shared fixtures stop every process they started (see no_process_left_behind)."""
+    before = set(_suite_processes())
+    yield
+    _kill_left_behind(before)
+
+
+@pytest.fixture(autouse=True)
+def no_process_left_behind():
+    """A test that leaves a node or runner process alive fails, and the process is killed: on 2 cores one
+    stray 500 Hz node slows every later test that runs the suite."""
+    before = set(_suite_processes())
+    yield
+    _kill_left_behind(before)
 
 
 @pytest.fixture(scope="session")

@@ -104,9 +104,13 @@ class RosTestClient:
 
 
 @contextmanager
-def node_under_test(name: str, module: str, domain: int, log_dir, args=()):
-    """(NodeProcess, RosTestClient): ``python -m module args`` on ``domain``, stopped and checked on exit."""
-    proc = start_python_module(name, module, list(args), ros_environment(domain), log_dir)
+def node_under_test(name: str, module: str, domain: int, log_dir, args=(), pythonpath=None):
+    """(NodeProcess, RosTestClient): ``python -m module args`` on ``domain`` (``pythonpath``: a directory put
+    first on PYTHONPATH), stopped and checked on exit."""
+    env = ros_environment(domain)
+    if pythonpath is not None:
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (str(pythonpath), env.get("PYTHONPATH", "")) if p)
+    proc = start_python_module(name, module, list(args), env, log_dir)
     client = RosTestClient()
     try:
         yield proc, client

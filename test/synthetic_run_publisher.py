@@ -86,6 +86,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--topics", default="joint_states,pose,force,diag", help="comma list; add clock")
     parser.add_argument("--fast", action="store_true", help="reuse one joint_states message (benchmarks)")
     parser.add_argument("--wait-s", type=float, default=20.0, help="max wait for subscribers")
+    parser.add_argument("--start-s", type=float, default=1000.0, help="stamp of the first sample (sim s)")
     args = parser.parse_args(rclpy.utilities.remove_ros_args(sys.argv[1:] if argv is None else argv))
     rclpy.init()
     node = Node("synthetic_run_publisher")
@@ -107,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     time.sleep(0.3)  # let the matched reader finish its handshake
     sent = {name: 0 for name in pubs}
     t0 = time.perf_counter()
-    sim0 = 1_000_000_000_000  # 1000 s, a recognisable sim-time origin
+    sim0 = round(args.start_s * 1e9)  # default 1000 s, a recognisable sim-time origin
     fixed = None  # --fast: one JointState reused with a new stamp
     for i in range(args.count):
         target = t0 + i / args.rate

@@ -77,8 +77,8 @@ def test_fk_round_trip(robot):
     # the reported residual is the leg-length mismatch of the reported pose
     assert data["residual_m"] <= 1e-12
     assert np.abs(reference_lengths(base, platform, got) - lengths).max() <= 1e-12
-    assert 1 <= data["iterations"] <= 10  # cold start from home, Newton (REVIEW.md)
-    # warm start 1 um / 1e-5 rad away: 1-2 Newton iterations (REVIEW.md)
+    assert 1 <= data["iterations"] <= 10  # cold start from home, Newton
+    # warm start 1 um / 1e-5 rad away: 1-2 Newton iterations
     guess = pose + np.array([1e-6, -1e-6, 1e-6, 1e-5, -1e-5, 1e-5])
     warm = run_cli("fk", *(str(float(v)) for v in lengths), "--guess", *(str(float(v)) for v in guess), "--json")
     assert warm.returncode == 0, warm.stderr

@@ -126,3 +126,57 @@ def test_mirror_takes_a_move_ending_in_motion_as_a_200_hz_emulator_does(robot, e
             verdicts.append(f"refused: {exc}")
     expected = "taken" if end_speed_steps < 1 else "refused"
     assert [v.split(":")[0] for v in verdicts] == [expected, expected], verdicts  # emulator, mirror
+
+
+def streamed_windows(robot, t0: float = 1.0, count: int = 5, scale: float = 1.0):
+    """The planner's windows of an until-stop vibration sent every 0.5 s from t0 - 0.3 s: [(trajectory with stamp
+    t0, the sim time it is sent at)]; ``scale`` multiplies the displacements (and their derivatives)."""
+    plan = decompose_vibration(robot, robot.home_pose, [0.0, 0.0, 1.0], acceleration_g=0.3, frequency=35.0)
+    stream = VibrationStream(robot, plan, StreamSettings(duration=None))
+    out = []
+    for k in range(count):
+        now = 0.5 * k - 0.3
+        w = stream.next_window(now)
+        out.append((build_trajectory(VIB_NAMES, VIB_NAMES, t0, w.times, scale * w.position, scale * w.velocity,
+                                     scale * w.acceleration), t0 + now))
+    return out
+
+
+def test_a_restarted_estimator_takes_the_first_window_mid_vibration_as_its_history(robot):
+    """An estimator (re)started during a vibration: its empty mirror cannot splice the planner's next window (it
+    starts mid-vibration, the old failure: refused, and every later one with it). It takes that window as its
+    history instead (the emulator accepted it) and splices the next ones as the emulator does: from the adopted
+    window on, the mirror commands what the emulator's own buffer, fed every window, commands."""
+    from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
+    from stewart_vibration.errors import VibrationLimitError
+
+    windows = streamed_windows(robot)
+    emulator = VibrationBuffer(robot.vibration_unit, max_lookahead_s=30.0)  # the emulator's model, every window
+    for traj, sent in windows:
+        emulator.add(traj, sent)
+    fresh_buffer = VibrationBuffer(robot.vibration_unit, max_lookahead_s=np.inf)
+    with pytest.raises(VibrationLimitError, match="discontinuous splice"):
+        fresh_buffer.add(*windows[2])  # what a fresh mirror did before
+    restarted = ForceEstimator(robot)
+    taken = [restarted.command_vibration(traj, now=sent) for traj, sent in windows[2:]]
+    assert taken == [True, False, False]  # adopted, then spliced
+    first = windows[2][0].start + windows[2][0].times[0]
+    times = np.linspace(first, windows[-1][0].end + 0.3, 4000)
+    for mine, theirs in zip(restarted.vibration.sample(times), emulator.sample(times), strict=True):
+        assert np.abs(mine - theirs).max() <= 1e-9 * np.abs(theirs).max()
+
+
+def test_only_a_fresh_mirror_adopts_and_never_past_the_limits(robot):
+    """Adoption is for a mirror that has taken no window yet: one that has keeps refusing a discontinuous window as
+    the emulator does; and an adopted window is still checked against the unit's limits."""
+    from stewart_vibration.errors import VibrationLimitError
+
+    windows = streamed_windows(robot, count=6)
+    running = ForceEstimator(robot)
+    assert running.command_vibration(*windows[0]) is False
+    with pytest.raises(VibrationLimitError, match="discontinuous splice"):  # windows 1-4 were missed: the first
+        running.command_vibration(*windows[5])  # one's ramp-out (from t0 + 2 s) has begun where this one starts
+    too_big = streamed_windows(robot, scale=20.0)
+    with pytest.raises(VibrationLimitError) as info:
+        ForceEstimator(robot).command_vibration(*too_big[2])
+    assert info.value.limit_name != "splice"

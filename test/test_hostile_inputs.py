@@ -344,11 +344,9 @@ def prior_motions(draw):
 
 
 def run_prior(emu, prior) -> None:
-    """Canonical state for an example (so that hypothesis can replay it): held at home, no e-stop, then the
+    """Canonical state for an example (so that hypothesis can replay it): at rest at home, no e-stop, then the
     prior motion, run for its ``elapsed`` time."""
-    if emu.estopped:
-        emu.reset()
-    emu.struts.hold(emu.home_lengths)
+    emu.place_at_rest()
     if prior is None:
         return
     home = emu.home_lengths
@@ -624,9 +622,7 @@ def check_window_on_buffer(spec):
 @examples("vibration_emulator")
 @given(spec=ANY_WINDOWS)
 def test_vibration_commands_to_the_emulator_are_refused_with_a_reason_or_stay_within_the_unit_limits(emu, spec):
-    if emu.estopped:
-        emu.reset()
-    emu.vibration.clear()
+    emu.place_at_rest()
     if spec["prior"] is not None:
         prior = build_window(dict(spec["prior"], corrupt="none"), emu.vibration, emu.time)
         attempt(emu.command_vibration, VIB_NAMES, *prior)

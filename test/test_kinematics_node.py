@@ -102,6 +102,16 @@ def test_pose_estimate_trajectory_and_rejections(robot, kinematics_node):
     client.spin_for(0.3)
     assert len(trajectories) == sent
 
+    # a target while the move is pending or under way is refused: this test's only clock is the states' stamps, so
+    # a state stamped after the move's end (at its goal) ends it
+    targets.publish(pose_msg(robot.home_pose))
+    assert client.spin_until(lambda: "a move is under way" in " | ".join(reasons()), 20), (reasons(), proc.log_text())
+    ended = joint_state(inverse_kinematics(robot, target))
+    ended.header.stamp.sec = 10
+    count = len(estimates)
+    states.publish(ended)
+    assert client.spin_until(lambda: len(estimates) > count, 20), proc.log_text()
+
     # hand-typed quaternions (the README's example: norm 1.00004) are normalised and accepted, also in an
     # empty frame (documented as base)
     typed = pose_msg(target, quat=[0.0, 0.025, 0.0, 1.00003])

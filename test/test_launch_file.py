@@ -76,3 +76,22 @@ def test_launch_file_passes_the_tissue_to_the_emulator_and_kinematics(monkeypatc
         assert kind == "parameter_value" and args[0] == ("config", ("tissue_config",), {})
         assert kwargs["value_type"] is str
     assert "tissue_config" not in nodes["leg_force_estimator"]
+
+
+def test_launch_file_passes_the_robot_to_every_node_that_reads_one(monkeypatch):
+    """robot_config:=FILE reaches every node whose SuiteNode says it reads a robot (optional nodes too), as a
+    string ('' = config/robot.yaml), like --robot of the bring-up; the recorder gets none."""
+    from test_dds_loopback import _launch_actions
+
+    from stewart_vibration.runtime.suite import OPTIONAL_NODES
+
+    actions = _launch_actions(monkeypatch, ROOT)
+    assert ("arg", ("robot_config",), {"default_value": ""}) in actions
+    nodes = {a[2]["name"]: a[2]["parameters"][-1] for a in actions if a[0] in ("node", "lifecycle_node")}
+    for spec in SUITE_NODES + list(OPTIONAL_NODES.values()):
+        if spec.robot_config:
+            kind, args, kwargs = nodes[spec.name]["robot_config"]
+            assert kind == "parameter_value" and args[0] == ("config", ("robot_config",), {})
+            assert kwargs["value_type"] is str
+        else:
+            assert "robot_config" not in nodes[spec.name]

@@ -10,7 +10,8 @@ from pathlib import Path
 PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration"
 
 # top-level modules first, then the folders in the order they may import one another
-TOP = {"errors", "install", "input_checks", "robot", "paper", "parallel", "splines"}
+TOP = {"errors", "install", "input_checks", "safe_yaml", "config_values", "robot", "paper", "parallel", "splines",
+       "rate_limit"}
 LAYERS = ["<top>", "kinematics", "vibration", "sim", "dynamics", "motion", "emulation", "estimation", "messages",
           "mcap_log", "analysis", "runtime", "visualization", "ui"]
 APPLICATIONS = {"nodes", "cli", "__init__", "__main__"}  # may use every layer

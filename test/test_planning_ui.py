@@ -22,6 +22,7 @@ from stewart_vibration import decompose_vibration
 from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.motion.paths import checked_path
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.rate_limit import RateLimiter
 from stewart_vibration.runtime.processes import ros_environment
 from stewart_vibration.ui import STATIC_DIR, model
 from stewart_vibration.ui.server import PortInUseError, UiServer, bind
@@ -104,23 +105,8 @@ def test_vibration_fields_map_to_planner_parameters():
             model.vibration_from_fields(bad)
 
 
-def test_parse_start_answer():
-    text = ("started: 35 Hz, platform amplitude 60.834 um (0.300 g) along [0.285421, -0.160792, 0.944818] (base "
-            "frame), phase 0.0000 rad, t0 = 12.340000 s, ramp 0.2 s, duration 3.0 s (sent whole); gains k = [0.875276, "
-            "0.707907, 0.981554, 0.888766, 0.833527, 0.945463]; leg amplitudes um = [53.247, 43.065, 59.712, 54.067, "
-            "50.707, 57.516]; leg phases rad = [0.0, 0.0, 0.0, 0.0, 0.0, 3.1416]; settings: "
-            + json.dumps({"frequency_hz": 35.0, "t0_s": 12.34}))
-    answer = model.parse_start_answer(text)
-    assert answer["t0_s"] == pytest.approx(12.34)
-    assert answer["leg_amplitudes_um"][2] == pytest.approx(59.712)
-    assert answer["leg_phases_rad"][5] == pytest.approx(3.1416) and len(answer["gains"]) == 6
-    assert answer["settings"] == {"frequency_hz": 35.0, "t0_s": 12.34}
-    assert "settings:" not in answer["text"]
-    assert model.parse_start_answer("already running; call stop first")["leg_amplitudes_um"] is None
-
-
 def test_rate_limiter_decimator_and_stream_buffer():
-    limiter = model.RateLimiter(5.0, 10.0)
+    limiter = RateLimiter(5.0, 10.0)
     assert sum(limiter.allow(0.0) for _ in range(20)) == 10
     assert limiter.allow(0.2) and not limiter.allow(0.2)  # one token back after 0.2 s at 5/s
     dec = model.Decimator(2)

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 from stewart_vibration.runtime.bringup import SuiteProcesses
 from stewart_vibration.runtime.processes import NodeProcess
 
@@ -28,3 +30,53 @@ def test_recent_problems_lists_the_last_warnings_and_errors_of_each_node(tmp_pat
     missing = NodeProcess(name="gone", popen=None, log_path=tmp_path / "absent.log")  # type: ignore[arg-type]
     processes.procs = [missing]
     assert processes.recent_problems() == []
+
+
+def test_the_robot_reaches_every_node_that_reads_one(tmp_path):
+    """--robot (RunOptions.robot_config) is passed, as an absolute path, to every node whose source declares the
+    robot_config parameter, main job and optional nodes alike; none is left on the default robot."""
+    import ast
+    import importlib.util
+
+    from stewart_vibration.runtime.bringup import node_arguments
+    from stewart_vibration.runtime.steps import RunOptions
+    from stewart_vibration.runtime.suite import OPTIONAL_NODES, SUITE_NODES
+
+    def declares_robot_config(module: str) -> bool:
+        source = open(importlib.util.find_spec(module).origin).read()
+        return any(isinstance(n, ast.Call) and getattr(n.func, "attr", "") == "declare_parameter" and n.args
+                   and isinstance(n.args[0], ast.Constant) and n.args[0].value == "robot_config"
+                   for n in ast.walk(ast.parse(source)))
+
+    nodes = SUITE_NODES + list(OPTIONAL_NODES.values())
+    readers = {n.name for n in nodes if declares_robot_config(n.module)}
+    assert readers == {n.name for n in nodes if n.robot_config}  # the suite's list says which nodes read one
+    assert {"hardware_emulator", "kinematics", "vibration_planner", "leg_force_estimator"} <= readers
+    relative = "short.yaml"
+    args = node_arguments(RunOptions(robot_config=relative, out_dir=tmp_path, extra_nodes=tuple(OPTIONAL_NODES)))
+    expected = f"robot_config:={(Path.cwd() / relative).resolve()}"
+    assert {name for name, a in args.items() if expected in a} == readers
+    default = node_arguments(RunOptions(out_dir=tmp_path))
+    assert not any("robot_config" in " ".join(a) for a in default.values())  # no --robot: each node's default
+
+
+def test_the_recorder_stats_come_from_its_last_whole_line():
+    from stewart_vibration.runtime.bringup import recorder_stats
+
+    log = ('MCAP_RECORDER_STATS {"written": 1}\nother line\nMCAP_RECORDER_STATS {"written": 2}\n'
+           'MCAP_RECORDER_STATS {"written": 3, "per_to')  # the last one cut by a full disk
+    assert recorder_stats(log) == {"written": 2}
+    assert recorder_stats("nothing here") is None
+
+
+def test_what_the_recorder_counts_fails_a_run():
+    from stewart_vibration.runtime.bringup import recorder_failures
+
+    assert recorder_failures(None) == [] and recorder_failures({"dropped": 0, "lost_per_topic": {}}) == []
+    assert recorder_failures({"lost_per_topic": {"/clock": 8}}) == []  # printed, not a failure
+    failures = recorder_failures({"dropped": 2, "received": 10, "lost_per_topic": {"/clock": 8, "/diagnostics": 3},
+                                  "failure": {"reason": "writing x failed: No space left on device (ENOSPC)"}})
+    assert failures == ["the recorder dropped 2 of 10 messages",
+                        "3 samples were lost before they reached the recorder (sequence gaps: "
+                        "/diagnostics 3)",
+                        "the recording failed: writing x failed: No space left on device (ENOSPC)"]

@@ -9,6 +9,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from stewart_vibration.messages.status_values import StatusMessage, guard_status
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
 from stewart_vibration.runtime.steps import RunOptions, RunRecord, ScenarioSteps, StepFailed
 
@@ -65,8 +66,9 @@ class ScriptedSuite:
 
     def guard_status(self):
         tripped = self.guard_trips and self.target is not None and self.clock > self.sent_at
-        values = {"state": "tripped", "trip_limit": "force", "trip_time_s": str(self.sent_at)} if tripped else {}
-        return values, "tripped: force"
+        values = {"state": "tripped", "trip_limit": "force", "trip_time_s": str(self.sent_at)} if tripped else \
+            {"state": "armed"}
+        return guard_status(StatusMessage(0, "kinematics: force guard", "tripped: force", values=values))
 
     def set_planner_parameters(self, parameters):
         self.sent_parameters = dict(parameters)

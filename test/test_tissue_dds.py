@@ -37,6 +37,10 @@ from stewart_vibration.runtime.sim_clock import HeldFor
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
 TISSUE = ["-p", "tissue_config:=tissue.yaml"]
+# the emulator waits for late estimates: on a machine whose two cores the suite and this test's 500 Hz readers
+# fill, real time left the estimates seconds behind and the guard paused every move (a stopped estimator is
+# still run past after the emulator's longest wait, so the blind pause is tested as before)
+LOCKSTEP = ["-p", "lockstep:=true"]
 STATUS_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -55,7 +59,7 @@ def suite(tmp_path_factory):
     try:
         procs = [
             start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
-                                ["--ros-args", "-p", "real_time_factor:=1"] + TISSUE, env, log_dir),
+                                ["--ros-args", "-p", "real_time_factor:=1"] + LOCKSTEP + TISSUE, env, log_dir),
             start_python_module("kinematics", "stewart_vibration.nodes.kinematics_node", SIM + TISSUE, env, log_dir),
             start_python_module("estimator", "stewart_vibration.nodes.leg_force_estimator_node", SIM, env, log_dir),
             start_python_module("planner", "stewart_vibration.nodes.vibration_planner_node", SIM, env, log_dir),
@@ -314,12 +318,12 @@ def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, su
         os.kill(estimator, signal.SIGCONT)
     held = HeldFor(0.5)
 
-    def reached():
+    def reached():  # at the target and the guard armed (a busy machine may pause the move again on its way)
         err = np.abs(pose_from_msg(rec["truth"][-1].pose) - target)
-        return held.update(bool(err[:3].max() < 10e-6), sim_now(rec))
+        armed = guard_values(rec["guard"][-1])["state"] == "armed"
+        return held.update(bool(err[:3].max() < 10e-6) and armed, sim_now(rec))
 
-    assert client.spin_until(reached, 30), logs(procs)  # resumed by itself: no new target was sent
-    assert guard_values(rec["guard"][-1])["state"] == "armed"
+    assert client.spin_until(reached, 60), logs(procs)  # resumed by itself: no new target was sent
     move_to(client, rec, robot.home_pose)
     assert all(p.alive() for p in procs), logs(procs)
 

@@ -2,7 +2,7 @@
 
 The JSON numbers are checked against the independent references of
 ``vibration_reference`` (hinges rebuilt from robot.yaml, per-leg loops) and
-the closed forms of REVIEW.md (k_i = n_i . u, X = a / (2 pi f)^2, second
+the corrected closed forms (k_i = n_i . u, X = a / (2 pi f)^2, second
 harmonic and DC (1 - k^2) A^2 / (4 l), naive sum = N^T N u delta), not
 against another output of the same code.
 """
@@ -98,4 +98,4 @@ def test_naive_sum_matches_its_closed_form(robot, report):
         assert v["angle_error_deg"] == pytest.approx(np.degrees(line_angle(wrong, u)), abs=1e-9)
         assert line_angle(v["naive_direction_base"], wrong) < 1e-12
     tibia = naive["platform z (tibia axis)"]
-    assert tibia["length_ratio"] > 1.5 and tibia["angle_error_deg"] > 5  # visibly wrong (REVIEW.md)
+    assert tibia["length_ratio"] > 1.5 and tibia["angle_error_deg"] > 5  # visibly wrong (the paper's error)

@@ -89,12 +89,13 @@ def samples_of(window):
 
 
 def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason=""):
-    """A vibration/status message as the hardware emulator publishes it."""
+    """A vibration/status message as the hardware emulator publishes it (its VibrationReport's values)."""
     from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 
-    values = {"state": state, "reason": reason, "since_s": f"{since:.6f}", "time_s": f"{since:.6f}",
-              "event_seq": str(event_seq), "event": event,
-              "event_stamp_s": "" if event_stamp is None else f"{event_stamp:.6f}"}
+    from stewart_vibration.emulation.vibration_status import VibrationReport
+
+    values = VibrationReport(state=state, level=("ok", "warn", "error")[level], reason=reason, since=since,
+                             time=since, event_seq=event_seq, event=event, event_stamp=event_stamp).as_values()
     return DiagnosticStatus(level=bytes([level]), name="hardware_emulator: vibration", message=state,
                             values=[KeyValue(key=k, value=v) for k, v in values.items()])
 

@@ -21,7 +21,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from stewart_vibration.emulation.vibration_status import report_from_values
+from stewart_vibration.messages.status_values import status_from_msg, vibration_report
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
@@ -61,7 +61,7 @@ class Suite:
                 self.planner_diag.append((time.monotonic(), s))
 
     def _on_status(self, msg):
-        self.status.append((time.monotonic(), report_from_values("ok", {kv.key: kv.value for kv in msg.values})))
+        self.status.append((time.monotonic(), vibration_report(status_from_msg(msg))))
 
     def now(self) -> float:
         c = self.clock[-1].clock

@@ -12,10 +12,13 @@ from typing import Any
 import numpy as np
 
 from ..kinematics import check_pose, condition_number, forward_kinematics, joint_angles
-from ..robot import load_robot
-from .arguments import finite_float, positive_float, positive_int
+from ..kinematics.robot_config import load_robot
+from .arguments import finite_float, float_in, int_in, positive_float
 from .output import format_table, print_json
 
+GUESS_MAX = 10.0  # m or rad: a starting pose beyond this is no guess of this robot's pose
+TOLERANCE_RANGE = (1e-15, 1e-3)  # m: below, float rounding of the leg lengths; above, not a solution
+FK_MAX_ITERATIONS = 1000  # Newton converges in < 10 from home; more only spends time on a pose it cannot find
 POSE_FIELDS = ["x_m", "y_m", "z_m", "roll_rad", "pitch_rad", "yaw_rad"]
 
 
@@ -30,10 +33,12 @@ def register(subparsers) -> None:
 
     fk = subparsers.add_parser("fk", help="forward kinematics (Newton): six leg lengths -> pose")
     fk.add_argument("lengths", nargs=6, type=positive_float, metavar="L", help="leg lengths l1..l6 (m)")
-    fk.add_argument("--guess", nargs=6, type=finite_float, metavar="Q",
-                    help="initial pose x y z roll pitch yaw (m, rad); default: from home")
-    fk.add_argument("--tol", type=positive_float, default=1e-12, help="residual tolerance, m (> 0, default 1e-12)")
-    fk.add_argument("--max-iter", type=positive_int, default=50, help="Newton iterations at most (default 50)")
+    fk.add_argument("--guess", nargs=6, type=float_in(-GUESS_MAX, GUESS_MAX), metavar="Q",
+                    help=f"initial pose x y z roll pitch yaw (m, rad; each within +-{GUESS_MAX:g}); default: from home")
+    fk.add_argument("--tol", type=float_in(*TOLERANCE_RANGE, "m"), default=1e-12,
+                    help=f"residual tolerance, m ({TOLERANCE_RANGE[0]:g} to {TOLERANCE_RANGE[1]:g}, default 1e-12)")
+    fk.add_argument("--max-iter", type=int_in(1, FK_MAX_ITERATIONS), default=50,
+                    help=f"Newton iterations at most (default 50, at most {FK_MAX_ITERATIONS})")
     fk.add_argument("--json", action="store_true", help="print JSON")
     fk.set_defaults(func=run_fk)
 

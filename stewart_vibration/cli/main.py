@@ -2,9 +2,9 @@
 
 Each module in SUBCOMMAND_MODULES has ``register(subparsers)`` which adds its
 parser and sets ``func(args) -> int`` (the exit code). Typed errors of the
-library (StewartError: bad input, unreachable or singular pose, unusable MCAP
-file) and OS errors on files print one ``error: ...`` line and exit 2; bad
-argument values are refused by argparse (exit 2).
+library (StewartError: bad input, a bad config file, unreachable or singular
+pose, unusable MCAP file) and OS errors on files print one ``error: ...`` line
+and exit 2; bad argument values are refused by argparse in one line (exit 2).
 """
 
 from __future__ import annotations
@@ -15,6 +15,7 @@ import sys
 
 from ..errors import StewartError
 
+ROBOT_HELP = "robot YAML (default: config/robot.yaml); every node of a run reads the same file"
 SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.report_cmd",
     "stewart_vibration.cli.kinematics_cmd",
@@ -26,16 +27,25 @@ SUBCOMMAND_MODULES = [
 ]
 
 
+class OneLineParser(argparse.ArgumentParser):
+    """An argparse parser whose refusal of an argument is one line on stderr (exit 2), without the usage block."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {' '.join(message.split())} (see {self.prog} --help)\n")
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The ``stewart-vibration`` argparse parser with every subcommand of SUBCOMMAND_MODULES registered."""
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="stewart-vibration",
         description="6-UPS tibia robot: kinematics, vibration and dynamics tools (SI units).",
     )
-    parser.add_argument("--robot", help="robot YAML (default: config/robot.yaml)")
+    parser.add_argument("--robot", help=ROBOT_HELP)
     subparsers = parser.add_subparsers(dest="command", required=True)
     for name in SUBCOMMAND_MODULES:
         importlib.import_module(name).register(subparsers)
+    for subparser in subparsers.choices.values():  # also after the subcommand (./tools/main --robot r.yaml)
+        subparser.add_argument("--robot", default=argparse.SUPPRESS, help=ROBOT_HELP)
     return parser
 
 

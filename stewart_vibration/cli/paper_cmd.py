@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..kinematics.robot_config import load_robot
 from ..paper import paper_pose
-from ..robot import load_robot
 from ..vibration.paper_study import classification_dict, clinical_case, fig7_cases, naive_comparison, paper_case
 from .output import format_table, to_jsonable
 

@@ -19,14 +19,18 @@ from pathlib import Path
 import numpy as np
 
 from ..dynamics.tissue import load_tissue
-from ..robot import load_robot
+from ..errors import InvalidInputError
+from ..kinematics.robot_config import load_robot
 from ..runtime.interrupts import INTERRUPTS
-from ..runtime.processes import claim_ros_domain
-from ..runtime.run_folders import new_run_folder
+from ..runtime.processes import DOMAIN_RANGE, claim_ros_domain
+from ..runtime.run_folders import new_run_folder, reserve_file, write_reserved
 from ..runtime.scenario import load_scenario, resolve_tissue_path
-from ..runtime.suite import OPTIONAL_NODES, SUITE_NODES
-from .arguments import nonnegative_float, positive_float
+from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
+from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
+from .arguments import nonnegative_float, positive_float, ros_namespace
 from .output import to_jsonable
+
+SUMMARY_RESERVE_BYTES = 1 << 20  # summary.json of a 60 s run: ~30 kB; a recording's gaps are listed up to 100
 
 
 def register(subparsers) -> None:
@@ -37,18 +41,25 @@ def register(subparsers) -> None:
                      "tissue.yaml, looked up in config/ too; 'none' = no tissue); default: the scenario's `tissue:`")
     cmd.add_argument("--duration", type=positive_float,
                      help="override every vibration's duration (s, incl. ramps)")
-    cmd.add_argument("--real-time-factor", type=nonnegative_float, default=1.0,
-                     help="sim seconds per wall second (default 1; 0 = the emulator as fast as it can: on 2 cores "
-                          "the other nodes keep up to about 2x, beyond that the run reports lost samples)")
+    cmd.add_argument("--real-time-factor", type=real_time_factor, default=1.0,
+                     help=f"sim seconds per wall second, {REAL_TIME_FACTOR_MIN:g} to {REAL_TIME_FACTOR_MAX:g} (default "
+                          "1; 0 = the emulator as fast as it can: on 2 cores the other nodes keep up to about 2x, "
+                          "beyond that the run reports lost samples)")
+    cmd.add_argument("--lockstep", action="store_true",
+                     help="the emulator waits while the pose or wrench estimates lag (its lockstep parameter): on a "
+                          "machine too slow for the suite at real time, sim time slows down instead of the force "
+                          "guard pausing moves for late estimates")
     cmd.add_argument("--out", default=None,
                      help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
                           "runs/latest pointing at it")
     cmd.add_argument("--domain-id", type=domain_id, default=None,
                      help="ROS_DOMAIN_ID, 0..101 (default: $ROS_DOMAIN_ID if set, else a free one)")
-    cmd.add_argument("--namespace", default="/stewart", help="namespace of every node (default /stewart)")
+    cmd.add_argument("--namespace", type=ros_namespace, default=DEFAULT_NAMESPACE,
+                     help=f"namespace of every node (default {DEFAULT_NAMESPACE})")
     cmd.add_argument("--keep-running", action="store_true",
                      help="after the scenario keep the nodes up for a UI until Ctrl-C (then report what ran)")
-    cmd.add_argument("--respawn", default=",".join(n.name for n in SUITE_NODES if n.name != "hardware_emulator"),
+    cmd.add_argument("--respawn", type=node_names,
+                     default=",".join(n.name for n in SUITE_NODES if n.name != "hardware_emulator"),
                      help="with --keep-running: nodes restarted when they exit (comma-separated; default: all "
                           "but hardware_emulator, whose restart would move the robot home)")
     cmd.add_argument("--foxglove", action="store_true",
@@ -60,39 +71,80 @@ def register(subparsers) -> None:
     cmd.set_defaults(func=run)
 
 
+DOMAIN_ID_MAX = DOMAIN_RANGE.stop - 1
+
+
 def domain_id(text: str) -> int:
     """ROS domain 0..101 (higher ids put Fast DDS ports in the ephemeral range)."""
     value = nonnegative_float(text)
-    if value != int(value) or value > 101:
-        raise argparse.ArgumentTypeError(f"must be a whole number in 0..101, got {text}")
+    if value != int(value) or value > DOMAIN_ID_MAX:
+        raise argparse.ArgumentTypeError(f"must be a whole number in 0..{DOMAIN_ID_MAX}, got {text}")
     return int(value)
+
+
+def real_time_factor(text: str) -> float:
+    """0 (as fast as possible) or a factor in [REAL_TIME_FACTOR_MIN, REAL_TIME_FACTOR_MAX]."""
+    value = nonnegative_float(text)
+    if value != 0 and not REAL_TIME_FACTOR_MIN <= value <= REAL_TIME_FACTOR_MAX:
+        raise argparse.ArgumentTypeError(f"must be 0 (as fast as possible) or in [{REAL_TIME_FACTOR_MIN:g}, "
+                                         f"{REAL_TIME_FACTOR_MAX:g}], got {text}")
+    return value
+
+
+def node_names(text: str) -> str:
+    """Comma-separated names of suite nodes (--respawn); each must be one of SUITE_NODES."""
+    names = {n for n in text.split(",") if n}
+    unknown = names - {n.name for n in SUITE_NODES}
+    if unknown:
+        raise argparse.ArgumentTypeError(f"unknown node(s) {sorted(unknown)}; known: {[n.name for n in SUITE_NODES]}")
+    return text
+
+
+def _output_folder(given: str | None) -> Path:
+    """The run's output folder, created now (a path that cannot be a folder fails before any node starts):
+    ``given``, or a new runs/run_<stamp>/."""
+    if given is None:
+        return new_run_folder("runs")
+    out = Path(given).expanduser()
+    if out.exists() and not out.is_dir():
+        raise InvalidInputError(f"--out {given}: exists and is not a folder")
+    out.mkdir(parents=True, exist_ok=True)  # OSError (permissions, a file on the way): one line from main
+    return out
 
 
 def _log(message: str) -> None:
     print(f"[{time.strftime('%H:%M:%S')}] {message}", flush=True)
 
 
-def _choose_domain(given: int | None):
-    """(domain, lock or None, where it came from): --domain-id, $ROS_DOMAIN_ID, or a free one (locked)."""
+def _given_domain(given: int | None) -> tuple[int | None, str]:
+    """(domain or None, where it came from): --domain-id, else $ROS_DOMAIN_ID (checked), else None."""
     if given is not None:
-        return given, None, "--domain-id"
+        return given, "--domain-id"
     env = os.environ.get("ROS_DOMAIN_ID", "").strip()
-    if env:
-        return int(env), None, "$ROS_DOMAIN_ID"
-    domain, lock = claim_ros_domain()
-    return domain, lock, "a free domain (ROS_DOMAIN_ID was not set)"
+    if not env:
+        return None, "a free domain (ROS_DOMAIN_ID was not set)"
+    try:
+        return domain_id(env), "$ROS_DOMAIN_ID"
+    except argparse.ArgumentTypeError as exc:
+        raise InvalidInputError(f"$ROS_DOMAIN_ID {env!r}: {exc}") from None
+
+
+def _domain_and_lock(given: int | None):
+    """(domain, lock or None): ``given``, or a free domain locked for the run (``claim_ros_domain``)."""
+    return (given, None) if given is not None else claim_ros_domain()
 
 
 def run(args) -> int:
     """``run``: bring up the node suite, run the scenario, record the MCAP, report and print the summary.
 
     Writes summary.json to the run folder. Returns 0 (all done, within bounds), 1 (a figure missed its
-    bound), 2 (a step failed, a problem, or an unknown --respawn node) or 130 (interrupted). Raises
-    ConfigError (a bad robot, scenario or tissue file) before anything starts.
+    bound), 2 (a step failed or a problem) or 130 (interrupted). Raises, before anything starts, ConfigError
+    (a bad robot, scenario or tissue file), InvalidInputError (a bad $ROS_DOMAIN_ID, an --out that is a file)
+    and OSError (an --out that cannot be made). With --robot every node, the scenario's checks, the summary
+    and the report use that robot.
     """
-    from ..nodes.suite_runner import RunOptions, StepFailed, SuiteRunner  # rclpy only here, lazily
-
     robot = load_robot(args.robot)
+    robot_config = str(Path(robot.source).resolve()) if args.robot else None  # every node reads this robot
     scenario = load_scenario(robot, args.scenario, args.duration)
     tissue = scenario.tissue
     if args.tissue is not None:
@@ -100,21 +152,26 @@ def run(args) -> int:
         if tissue is not None:
             load_tissue(tissue, robot)
     respawn = {n for n in args.respawn.split(",") if n}
-    unknown = respawn - {n.name for n in SUITE_NODES}
-    if unknown:
-        _log(f"--respawn: unknown node(s) {sorted(unknown)}; known: {[n.name for n in SUITE_NODES]}")
-        return 2
-    out = Path(args.out) if args.out else new_run_folder("runs")
-    domain, _lock, source = _choose_domain(args.domain_id)
+    given, source = _given_domain(args.domain_id)
+    out = _output_folder(args.out)
+    domain, _lock = _domain_and_lock(given)
+    try:  # the summary's room on disk, taken before the recording can fill it
+        reserve_file(out / "summary.json", SUMMARY_RESERVE_BYTES)
+    except OSError as exc:
+        _log(f"cannot reserve room for summary.json in {out}: {exc}")
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
+    from ..nodes.suite_runner import RunOptions, StepFailed, SuiteRunner  # rclpy only once the inputs are good
+
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
-                         out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue)
+                         lockstep=args.lockstep, out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue,
+                         robot_config=robot_config)
     INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None
+    lockstep = " (lockstep)" if args.lockstep else ""
     _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
-         f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}; output {out.resolve()}; "
-         f"soft tissue: {tissue or 'none'}")
+         f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}{lockstep}; output {out.resolve()}; "
+         f"robot {robot.source}; soft tissue: {tissue or 'none'}")
     _log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
          "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     try:
@@ -134,6 +191,10 @@ def run(args) -> int:
         _log(f"FAILED: {exc}")
         for line in runner.recent_problems():
             _log(f"  {line}")
+        try:
+            runner.bring_to_rest()
+        except KeyboardInterrupt:
+            runner.record.interrupted = True
     finally:
         runner.stop()
     record = runner.record
@@ -143,16 +204,21 @@ def run(args) -> int:
                "problems": list(record.failures), "recorder": record.recorder_stats,
                "restarts": record.restarts, "ros_domain_id": domain, "tissue_config": tissue,
                "guard_stops": record.guard_stops}
-    if record.mcap_path is None:
+    if not list(out.glob("*.mcap")):
         _log("no MCAP was written")
         summary["problems"].append("no MCAP was written")
     else:
-        _summarize(robot, record, summary, scenario, out)
+        _summarize(robot, record, summary, scenario, out, robot_config)
+    summary["problems"] = list(dict.fromkeys(summary["problems"]))  # one line per problem, however it was seen
     if summary["problems"] and status == 0:
         status = 2
     if summary.get("bound_failures") and status == 0:
         status = 1
-    (out / "summary.json").write_text(json.dumps(to_jsonable(summary), indent=2))
+    try:
+        write_reserved(out / "summary.json", json.dumps(to_jsonable(summary), indent=2))
+    except OSError as exc:  # a disk full beyond the summary's reserve: the summary is still printed
+        summary["problems"].append(f"summary.json could not be written: {exc}")
+        status = status or 2
     if args.json:
         print(json.dumps(to_jsonable(summary), indent=2))
     else:
@@ -160,16 +226,35 @@ def run(args) -> int:
     return status
 
 
-def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
-    """Analyse what ran (also after a failure or an interruption): every vibration that started, the
-    streams, the bounds; write the report. Problems change the verdict."""
-    from ..analysis.run_summary import check_bounds, load_signals, stream_summary, summarize_tissue, summarize_vibration
+def _summarize(robot, record, summary: dict, scenario, out: Path, robot_config: str | None) -> None:
+    """Analyse what ran (also after a failure or an interruption) from every file of the run folder: every
+    vibration that started, the streams, what the recording covers (gaps, cut files, restarts), the limits
+    over the recorded states, the bounds; write the report. Problems change the verdict."""
+    from ..analysis.run_summary import (
+        check_bounds,
+        limit_summary,
+        load_signals,
+        recording_coverage,
+        recording_problems,
+        restart_gaps,
+        stream_summary,
+        summarize_tissue,
+        summarize_vibration,
+    )
 
     try:
-        signals = load_signals(record.mcap_path)
+        signals = load_signals(out)
     except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
         summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
         return
+    # the recording ends where the recorder stopped (its own clock: a recorder that lags behind the runner has
+    # not yet received what the runner's clock says), or, without its word, at the runner's clock then
+    stopped = (record.recorder_stats or {}).get("stopped_at_s")
+    end = stopped if isinstance(stopped, (int, float)) and stopped > 0 else record.recording_span[1]
+    span = (record.recording_span[0], end) if None not in (record.recording_span[0], end) else None
+    summary["recording"] = recording_coverage(signals, span)
+    summary["restarts"] = restart_gaps(signals, record.restarts)
+    summary["problems"] += recording_problems(summary["recording"], summary["restarts"])
     nominal = robot.home_pose
     for step_move, vib in _pair_vibrations(record):
         nominal = np.asarray(step_move["target"]) if step_move else nominal
@@ -184,8 +269,10 @@ def _summarize(robot, record, summary: dict, scenario, out: Path) -> None:
     summary["tissue"] = summarize_tissue(signals, [(v["t0"], float(v["parameters"]["duration_s"]))
                                                    for v in record.vibrations if "t0" in v])
     summary["streams"] = stream_summary(signals)
+    summary["limits"] = limit_summary(robot, signals)
     summary["bound_failures"] = check_bounds(summary, scenario.bounds)
-    summary["report_dir"] = _write_report(record.mcap_path, out / "report")
+    cut = any(not f["complete"] for f in summary["recording"]["files"])
+    summary["report_dir"] = _write_report(out, out / "report", robot_config, allow_truncated=cut)
     if summary["report_dir"] is None:
         summary["problems"].append("the report could not be written (see the log above)")
 
@@ -199,10 +286,13 @@ def _pair_vibrations(record):
     return pairs
 
 
-def _write_report(mcap_path: Path, report_dir: Path) -> str | None:
-    """Run ``stewart-vibration report`` on the MCAP; returns the directory, or None if it failed."""
-    result = subprocess.run([sys.executable, "-m", "stewart_vibration", "report", str(mcap_path), "--out",
-                             str(report_dir)], capture_output=True, text=True, timeout=600)
+def _write_report(run: Path, report_dir: Path, robot_config: str | None, allow_truncated: bool = False) -> str | None:
+    """Run ``stewart-vibration report`` on the run folder with the run's robot (every file; cut ones too when
+    ``allow_truncated``: the summary already names them); returns the directory, or None if it failed."""
+    robot = ["--robot", robot_config] if robot_config else []
+    result = subprocess.run([sys.executable, "-m", "stewart_vibration", *robot, "report", str(run), "--out",
+                             str(report_dir), *(["--allow-truncated"] if allow_truncated else [])],
+                            capture_output=True, text=True, timeout=600)
     if result.returncode != 0:
         _log(f"report failed: {result.stderr.strip()[-500:]}")
         return None
@@ -265,9 +355,9 @@ def _print_summary(summary: dict, bounds: dict) -> None:
               f"{vib['planned_active_duration_s']:.3f} s")
         if vib.get("failure"):
             print(f"  this vibration failed: {vib['failure']}")
-    from ..analysis.run_summary import tissue_lines
+    from ..analysis.run_summary import recording_lines, tissue_lines
 
-    for line in tissue_lines(summary):
+    for line in tissue_lines(summary) + recording_lines(summary):
         print(line)
     streams = summary.get("streams")
     if streams:
@@ -278,9 +368,9 @@ def _print_summary(summary: dict, bounds: dict) -> None:
                   f"ms / p99 {row['lag_p99_ms']:.1f} ms")
     if summary.get("recorder"):
         r = summary["recorder"]
-        print(f"recorder: {r.get('written')} messages written, {r.get('dropped')} dropped")
-    for name, code in summary.get("restarts", []):
-        print(f"restarted: {name} (exit code {code})")
+        lost = ", ".join(f"{t} {n}" for t, n in sorted((r.get("lost_per_topic") or {}).items()))
+        print(f"recorder (its last file): {r.get('written')} messages written, {r.get('dropped')} dropped, "
+              f"{r.get('lost', 0)} lost before they reached it" + (f" ({lost})" if lost else ""))
     print(f"MCAP: {summary['mcap']}")
     print(f"report: {summary.get('report_dir')}")
     for problem in summary.get("problems", []):

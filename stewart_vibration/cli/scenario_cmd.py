@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..kinematics import condition_number, forward_kinematics, inverse_kinematics, joint_angles
+from ..kinematics.robot_config import load_robot
 from ..paper import paper_pose
-from ..robot import load_robot
 from .output import format_table, print_json
 
 

@@ -11,8 +11,8 @@ import numpy as np
 
 from ..dynamics.mujoco_validation import run_scenario
 from ..errors import InvalidInputError
+from ..kinematics.robot_config import load_robot
 from ..paper import PAPER_OMEGA_RAD_S
-from ..robot import load_robot
 from ..sim.mjcf import load_simulation_settings
 from ..sim.mujoco_sim import StewartSim
 from .arguments import positive_float
@@ -24,6 +24,7 @@ WORST_LEG_LIMIT = 1e-4  # acceptance: worst-leg RMS relative error
 # 3.4e-3 of the amplitude at the default 0.1 ms step)
 CONSTRAINT_VIOLATION_LIMIT_M = 1e-8
 TRACKING_LIMIT_RELATIVE = 0.01
+MAX_STEPS = 1_000_000  # simulation steps per scenario: 100 s at the default 0.1 ms (the default runs 31,416)
 
 
 def register(subparsers) -> None:
@@ -83,6 +84,12 @@ def run(args) -> int:
         if duration < 10 * settings.timestep:
             raise InvalidInputError(f"{flag} {duration:g} s is shorter than 10 simulation steps "
                                     f"({10 * settings.timestep:g} s at timestep {settings.timestep:g} s)")
+        if duration > MAX_STEPS * settings.timestep:
+            raise InvalidInputError(f"{flag} {duration:g} s is more than {MAX_STEPS:,} simulation steps "
+                                    f"({MAX_STEPS * settings.timestep:g} s at timestep {settings.timestep:g} s)")
+    out = Path(args.out) if args.out else None
+    if out is not None:  # before the simulations: an unusable folder fails in one line, not after them
+        out.mkdir(parents=True, exist_ok=True)
     sim = StewartSim(robot, settings)
     report: dict[str, Any] = {
         "what": "MuJoCo forward simulation (generated 6-UPS model, U-joints, computed-force strut drive) "
@@ -100,11 +107,9 @@ def run(args) -> int:
         start = time.perf_counter()
         results[name] = run_scenario(robot, name, duration, sim=sim)
         report["scenarios"][name] = _scenario_report(results[name], time.perf_counter() - start)
-    if args.out:
+    if out is not None:
         from . import dynamics_figures as figs  # matplotlib only when plotting
 
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
         files = []
         for name, res in results.items():
             files.append(str(figs.forces_figure(res, out / f"{name}_forces.png")))

@@ -21,16 +21,11 @@ from typing import cast
 import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
-from ..emulation.strut_trajectory import (
-    STEP_SPEED,
-    JointTrajectory,
-    TrajectoryFollower,
-    checked_command,
-    controlled_stop,
-)
+from ..emulation.command_size import LEG_TRAJECTORY, check_point_count
+from ..emulation.strut_trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
 from ..emulation.vibration_buffer import VibrationBuffer
-from ..emulation.vibration_status import EMERGENCY_STOP
-from ..errors import InvalidInputError
+from ..emulation.vibration_status import STRUT_STOPS
+from ..errors import InvalidInputError, VibrationLimitError
 from ..kinematics import forward_kinematics, jacobian
 from ..robot import Robot
 from .motion import external_wrench, platform_accel, platform_twist
@@ -72,39 +67,55 @@ class ForceEstimator:
         self._strut_stop: float | None = None  # time of the e-stop whose strut stop is mirrored
 
     # -- commands (mirrors of the emulator's) ----------------------------------------------
-    def command_vibration(self, traj: JointTrajectory, now: float | None = None) -> None:
+    def command_vibration(self, traj: JointTrajectory, now: float | None = None) -> bool:
         """Buffer a vib_* window as the emulator does (raises the emulator's refusal reasons). ``now``
         (s) defaults to the emulator's time as the newest joint state gives it (before any state: the
-        window's own start, i.e. on time)."""
+        window's own start, i.e. on time).
+
+        A fresh mirror (no window taken since this estimator started) cannot splice a window that starts
+        mid-vibration -- it joined (was restarted) during one: it takes that window as its new history,
+        trusting the emulator's acceptance (the limits are still checked), and returns True; otherwise
+        False. From then on windows splice as usual."""
         if now is None:
             now = self.state_time if self.state_time is not None else traj.start_at(0.0)
-        self.vibration.add(traj, now)
+        try:
+            self.vibration.add(traj, now)
+            return False
+        except VibrationLimitError as exc:
+            if exc.limit_name != "splice" or np.isfinite(self.vibration.last_receive):
+                raise
+        self.vibration.add(traj, now, check_splice=False)
+        return True
 
     def command_struts(self, traj: JointTrajectory, now: float | None = None) -> None:
         """Follow a leg_* trajectory from the newest measured lengths (raises if none was measured yet);
-        ``now`` (s) defaults to the newest state's stamp. Checked as the emulator checks it (every command
-        on the topic arrives here, also those the emulator refuses), raising its reasons."""
+        ``now`` (s) defaults to the newest state's stamp. Checked per strut and for its size as the emulator
+        checks it (every command on the topic arrives here, also those the emulator refuses), raising its
+        reasons. Not for what the six struts do together (``strut_acceptance``): that check costs 25-100 ms,
+        which would stall the 500 Hz estimates on every move (the force guard trips on estimates older than
+        0.25 s); a command the emulator refuses only for that (adversarial, never the kinematics node's) is
+        mirrored as at most strut_acceleration_max of modelled strut acceleration until its end."""
         now = self.state_time if now is None else now
         if self.struts is None:
             if self._last_struts is None:
                 raise InvalidInputError("no legs/joint_states yet (start state unknown)")
             self.struts = TrajectoryFollower(self._last_struts)
         lim = self.robot.limits
+        check_point_count(len(traj.times), LEG_TRAJECTORY)
         # now: a float here (struts exist only after a state, which set state_time)
         running = checked_command(self.struts, traj, cast(float, now), lim,
                                   step_speed=STEP_SPEED * lim.strut_acceleration_max * MIRROR_STEP_S)
         self.struts.replace(running, cast(float, now))
 
     def apply_ramp(self, start: float | None, reason: str) -> None:
-        """A safety ramp the emulator reports (e-stop, watchdog) from ``start`` (s); ignored when it
-        predates the newest window (a stale report about an earlier vibration)."""
+        """A safety ramp the emulator reports (e-stop, deactivate, shutdown, watchdog) from ``start`` (s); ignored
+        when it predates the newest window (a stale report about an earlier vibration). For the strut stops
+        (STRUT_STOPS) the struts brake as the emulator's do (``TrajectoryFollower.brake``)."""
         if start is not None and start >= self.vibration.last_receive:
             self.vibration.stop(start, reason)
-        if start is not None and reason == EMERGENCY_STOP and self.struts is not None and start != self._strut_stop:
+        if start is not None and reason in STRUT_STOPS and self.struts is not None and start != self._strut_stop:
             self._strut_stop = start  # the emulator's controlled stop of the struts, as it commands it
-            stop = controlled_stop(self.struts, start, self.robot.limits.strut_acceleration_max)
-            if stop is not None:
-                self.struts.replace(stop, start)
+            self.struts.brake(start, self.robot.limits.strut_acceleration_max)
 
     # -- states ----------------------------------------------------------------------------
     def estimate(self, stamps, struts, vib, strut_rates, vib_rates, efforts=None) -> ForceEstimate:

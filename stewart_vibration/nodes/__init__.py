@@ -1,7 +1,7 @@
 """ROS 2 node adapters (the only part of the package that imports rclpy).
 
 Importing this package makes sure ament_index finds the interface packages
-installed by pip into the running interpreter's prefix (see DESIGN.md).
+installed by pip into the running interpreter's prefix (see docs/architecture.md).
 """
 
 from __future__ import annotations

@@ -13,18 +13,23 @@ from builtin_interfaces.msg import Duration as DurationMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.publisher import Publisher
 
-from ..errors import InvalidInputError
+from ..errors import ConfigError, InvalidInputError, MalformedMessageError
 from ..kinematics.rotations import (
     MESSAGE_QUATERNION_TOLERANCE,
     pose_from_position_quaternion,
     pose_to_position_quaternion,
 )
+from ..messages.fields import BASE_FRAME, check_frame, check_time
+from ..messages.malformed import MalformedCounter
+from ..rate_limit import RepeatedLine
 from ..robot import LEG_NAMES, VIB_NAMES
+from ..safe_yaml import load_yaml
 
 # History depth of the 500 Hz streams (publishers and subscribers): with reliable KEEP_LAST QoS a
 # reader that stalls longer than depth / rate loses samples. 6 s of sim time at real time, 3 s at twice real
@@ -32,8 +37,6 @@ from ..robot import LEG_NAMES, VIB_NAMES
 # ~1.4 s and lost 196 states with 1 s of depth; beside a CPU hog at twice real time the estimator lost 109
 # states with 1.5 s (of wall time). The memory is ~1 MB per endpoint.
 STREAM_DEPTH = 3000
-
-BASE_FRAME = "base"
 
 OK, WARN, ERROR, STALE = DiagnosticStatus.OK, DiagnosticStatus.WARN, DiagnosticStatus.ERROR, DiagnosticStatus.STALE
 
@@ -89,6 +92,33 @@ def spin_until_stopped(executor, stop, period_s: float = 0.2) -> None:
         executor.spin_until_future_complete(never, timeout_sec=period_s)
 
 
+def guard_sim_clock() -> None:
+    """Make rclpy's sim-time clock subscription drop a /clock message that is no time (negative seconds: rclpy's
+    TimeSource raises in its callback and the node dies; nanosec >= 1e9: the clock jumps) instead of taking it,
+    counting it as ``malformed /clock`` on the node's MalformedInputs (its ``malformed`` attribute) if it has one.
+    rclpy subscribes /clock itself (use_sim_time), so its callback is wrapped, once per process, before any node
+    is made."""
+    from rclpy.time_source import TimeSource
+
+    taken = TimeSource.clock_callback
+    if getattr(taken, "checked", False):
+        return
+
+    def clock_callback(self, msg) -> None:
+        try:
+            check_time(msg.clock.sec, msg.clock.nanosec, "clock")
+        except MalformedMessageError as exc:
+            node = self._get_node()
+            malformed = getattr(node, "malformed", None)
+            if isinstance(malformed, MalformedInputs):
+                malformed.refuse("/clock", exc)
+            return
+        taken(self, msg)
+
+    clock_callback.checked = True  # type: ignore[attr-defined]
+    TimeSource.clock_callback = clock_callback  # type: ignore[method-assign]
+
+
 def run_node(factory, args=None, executor: str = "events") -> int:
     """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up; returns the exit code.
 
@@ -101,10 +131,13 @@ def run_node(factory, args=None, executor: str = "events") -> int:
     ``executor="single"`` or STEWART_EXECUTOR=single selects the
     SingleThreadedExecutor. A node may define ``shutdown()``; it runs
     before the node is destroyed (e.g. to stop a physics thread or finish a file).
-    A node that cannot start (bad parameter or configuration) prints one line saying why and
-    returns 2, without a traceback.
+    A node that cannot start (bad ``--ros-args``, a parameter file that cannot be read, bad parameter or
+    configuration) prints one line saying why and returns 2, without a traceback. A /clock message that
+    is no time is dropped (``guard_sim_clock``).
     """
-    rclpy.init(args=args)
+    if not init_rclpy(args):
+        return 2
+    guard_sim_clock()
     stop = StopFlag().install()
     node = None
     code = 0
@@ -131,6 +164,24 @@ def run_node(factory, args=None, executor: str = "events") -> int:
             node.destroy_node()
         rclpy.try_shutdown()
     return code
+
+
+def params_file_arguments(argv) -> list[str]:
+    """The files named by ``--params-file`` in a node's command line ``argv``."""
+    return [argv[i + 1] for i, arg in enumerate(argv[:-1]) if arg == "--params-file"]
+
+
+def init_rclpy(args=None, prefix: str = "[FATAL] cannot start:") -> bool:
+    """``rclpy.init(args)`` after reading every ``--params-file`` safely; False (with one line on stderr after
+    ``prefix``) if a parameter file cannot be read or rcl refuses the arguments, instead of a traceback."""
+    try:
+        for path in params_file_arguments(sys.argv if args is None else args):
+            load_yaml(path, "node parameter file")  # rcl's own reader blocks on a FIFO and says less
+        rclpy.init(args=args)
+    except (ConfigError, RCLError) as exc:
+        print(f"{prefix} {' '.join(str(exc).split())}", file=sys.stderr, flush=True)
+        return False
+    return True
 
 
 def float_param(description: str, low: float, high: float, step: float = 0.0,
@@ -209,6 +260,7 @@ class Diagnostics:
         self._stale: tuple = ()
         self._outputs: dict[str, Publisher] = {}  # output name -> its publisher (matched readers are reported)
         self._started = time.monotonic()
+        self.rejection_lines = RepeatedLine()  # the node's refusal log: one repeated line a second, with a count
         node.create_timer(period_s, self.publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
         node.create_timer(0.25, self._check_inputs, clock=Clock(clock_type=ClockType.STEADY_TIME))
 
@@ -263,10 +315,49 @@ class Diagnostics:
         self._pub.publish(msg)
 
 
-def reject(node, diagnostics: Diagnostics, what: str, reason: str) -> None:
-    """Log a rejected input with its reason and report it on /diagnostics (WARN)."""
-    node.get_logger().warning(f"rejected {what}: {reason}")
+def reject(node, diagnostics: Diagnostics, what: str, reason: str, log: bool = True) -> None:
+    """Log a rejected input with its reason (unless ``log`` is False: the caller logs, rate-limited) and report
+    it on /diagnostics (WARN)."""
+    if log:
+        line = diagnostics.rejection_lines.line(f"rejected {what}: {reason}", time.monotonic())
+        if line is not None:
+            node.get_logger().warning(line)
     diagnostics.set(WARN, f"rejected {what}: {reason}", last_rejection=reason)
+
+
+class MalformedInputs:
+    """Malformed messages a node ignored (it goes on with its last good state): counted per input
+    (messages.malformed.MalformedCounter), logged -- the first of each reason, then at most one line per
+    second per input -- and reported on /diagnostics as ``malformed <input>`` counts (``diagnostics`` None:
+    logged only, e.g. the runner's client)."""
+
+    LOG_CHARACTERS = 300  # a logged reason is cut here (a hostile message can be megabytes)
+
+    def __init__(self, node, diagnostics: Diagnostics | None):
+        self.node, self.diagnostics = node, diagnostics
+        self.counter = MalformedCounter()
+
+    def read(self, input_name: str, parse, data):
+        """``parse(data)``, or None after counting the MalformedMessageError it raised for ``input_name``."""
+        try:
+            return parse(data)
+        except MalformedMessageError as exc:
+            self.refuse(input_name, exc)
+            return None
+
+    def refuse(self, input_name: str, error: Exception, count: int = 1) -> None:
+        """``count`` malformed messages of ``input_name`` (topic or service), ``error`` saying why."""
+        # a typed core error (e.g. a trajectory's InvalidInputError) names its fault in its first words
+        reason = error.reason if isinstance(error, MalformedMessageError) else f"{type(error).__name__} {error}"[:48]
+        text = str(error)[:self.LOG_CHARACTERS]
+        log = self.counter.record(input_name, reason, text, time.monotonic(), count)
+        if self.diagnostics is not None:
+            self.diagnostics.values.update(self.counter.values())
+        if log:
+            self.node.get_logger().warning(f"ignored malformed {input_name} ({self.counter.counts[input_name]} so "
+                                           f"far): {text}")
+            if self.diagnostics is not None:
+                self.diagnostics.publish()
 
 
 def pose_from_msg(msg) -> np.ndarray:
@@ -275,14 +366,6 @@ def pose_from_msg(msg) -> np.ndarray:
     p, q = msg.position, msg.orientation
     return pose_from_position_quaternion([p.x, p.y, p.z], [q.x, q.y, q.z, q.w],
                                          unit_tolerance=MESSAGE_QUATERNION_TOLERANCE)
-
-
-def check_frame(frame_id: str, what: str) -> None:
-    """Poses are accepted in the base frame only: ``base`` or empty (documented as base).
-    InvalidInputError with the reason otherwise."""
-    if frame_id not in ("", BASE_FRAME):
-        raise InvalidInputError(f"{what}: frame_id {frame_id!r} is not supported; poses must be in "
-                                f"'{BASE_FRAME}' (or empty, meaning '{BASE_FRAME}')")
 
 
 def pose_stamped(pose, stamp, frame_id: str = BASE_FRAME) -> PoseStamped:
@@ -345,14 +428,22 @@ class RawBatcher:
 
 class JointColumns:
     """Column indices of leg_1..6 and of vib_1..6 in a JointState's names: (legs, vib), each an index
-    array or None when a name is missing; cached per name tuple (a stream repeats its names)."""
+    array or None when a name is missing; both None when a name repeats (which column would it be?). Cached
+    per name tuple (a stream repeats its names; at most MAX_LAYOUTS are kept, a fuzzer sends many)."""
+
+    MAX_LAYOUTS = 64
 
     def __init__(self):
         self._cache = {}
 
     def __call__(self, names: tuple):
         if names not in self._cache:
+            if len(self._cache) >= self.MAX_LAYOUTS:
+                self._cache.clear()
             index = {n: i for i, n in enumerate(names)}
+            if len(index) != len(names):
+                self._cache[names] = (None, None)
+                return self._cache[names]
 
             def find(wanted):
                 return np.array([index[n] for n in wanted]) if all(n in index for n in wanted) else None
@@ -390,6 +481,7 @@ __all__ = [
     "Diagnostics",
     "InvalidInputError",
     "JointColumns",
+    "MalformedInputs",
     "RawBatcher",
     "duration_msg",
     "duration_seconds",
@@ -404,6 +496,7 @@ __all__ = [
     "pose_from_msg",
     "pose_stamped",
     "reject",
+    "init_rclpy",
     "run_node",
     "stamp_seconds",
     "text_param",

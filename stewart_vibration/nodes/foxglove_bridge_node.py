@@ -24,7 +24,8 @@ use_sim_time); the server announces the pose's time (Foxglove's "time" capabilit
 Parameters (read at start): port (8765; 0 = any free port), host (127.0.0.1: this machine only),
 scene_rate_hz (30; 0 = no scene), topics ([] = the suite's, those the recorder records),
 robot_config ('' = config/robot.yaml). A port in use or a host it cannot listen on: one line, exit 2.
-The address is logged as ``Foxglove WebSocket server at ws://HOST:PORT``.
+The address is logged as ``Foxglove WebSocket server at ws://HOST:PORT``. /diagnostics: the port and the
+count of malformed scene inputs (ignored; the forwarded data is passed on as it is, never read).
 """
 
 from __future__ import annotations
@@ -38,7 +39,6 @@ from typing import TYPE_CHECKING
 
 import foxglove
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
 from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
 from foxglove.messages import (
     SceneEntityDeletion,
@@ -48,17 +48,30 @@ from foxglove.messages import (
 from foxglove.websocket import Capability
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 
+from ..emulation.strut_trajectory import build_trajectory
 from ..errors import StewartError
+from ..kinematics.robot_config import load_robot
 from ..mcap_log.msg_definitions import MessageDefinitionError, full_message_definition, has_header_first
 from ..mcap_log.qos_yaml import request_for_offers
 from ..messages import cdr
 from ..messages.cdr import header_stamp_ns
-from ..robot import load_robot
+from ..messages.stamped import poses_from_cdr
+from ..messages.status_values import vibration_report_from_cdr
 from ..visualization import scene as scene_model
 from ..visualization.foxglove_schemas import foxglove_entities, foxglove_timestamp, foxglove_transforms
-from .common import VIB_NAMES, declare_float, declare_read_only, float_param, int_param, run_node, text_param
+from .common import (
+    OK,
+    VIB_NAMES,
+    Diagnostics,
+    MalformedInputs,
+    declare_float,
+    declare_read_only,
+    float_param,
+    int_param,
+    run_node,
+    text_param,
+)
 from .mcap_recorder_node import SUITE_TOPICS
 from .ros_graph import message_class, offered_profile, rclpy_profile
 
@@ -103,6 +116,8 @@ class FoxgloveBridgeNode(Node):
         self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
         self.scene_builder = scene_model.SceneBuilder(load_robot(self.get_parameter("robot_config").value or None))
 
+        self.diagnostics = Diagnostics(self, "foxglove bridge")
+        self.malformed = MalformedInputs(self, self.diagnostics)  # the scene's inputs; forwarded data is not read
         self.fox_context = foxglove.Context()
         self._forward = {self.resolve_topic_name(t) for t in (names or SUITE_TOPICS)}
         self._pose_topic = self.resolve_topic_name("platform/pose")
@@ -113,6 +128,7 @@ class FoxgloveBridgeNode(Node):
         } if rate > 0 else {}
         self._topics: dict[str, BridgedTopic] = {}
         self._pose_data: bytes | None = None
+        self._bad_pose: bytes | None = None  # the latest pose found malformed
         self._vibrating = False
         self._window: np.ndarray | None = None  # latest planned vib_1..6 samples (n, 6)
         self._direction: np.ndarray | None = None
@@ -133,6 +149,7 @@ class FoxgloveBridgeNode(Node):
         if rate > 0:
             self.create_timer(1.0 / rate, self._publish_scene, clock=steady)
         self._discover()
+        self.diagnostics.set(OK, "serving", port=self.server.port)
         shown = f"[{host}]" if ":" in host else host
         scope = ("this machine only" if _is_loopback(host)
                  else "reachable from the network: anyone there can read every topic")
@@ -210,24 +227,22 @@ class FoxgloveBridgeNode(Node):
         self._pose_data = data
 
     def _on_vibration_status(self, data: bytes) -> None:
-        try:
-            status = deserialize_message(data, DiagnosticStatus)
-        except Exception as exc:  # noqa: BLE001 - a bad message must not stop the bridge
-            self.get_logger().warning(f"vibration/status not understood: {exc}", throttle_duration_sec=10.0)
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
             return
-        state = next((kv.value for kv in status.values if kv.key == "state"), "")
-        self._vibrating = state in VIBRATING_STATES
+        self._vibrating = report.state in VIBRATING_STATES
 
     def _on_vibration_window(self, data: bytes) -> None:
         try:
-            window = cdr.decode_joint_trajectory(data)
+            t = cdr.decode_joint_trajectory(data)
+            window = build_trajectory(t.names, VIB_NAMES, t.stamp, t.times, t.positions, t.velocities,
+                                      t.accelerations)
         except StewartError as exc:
-            self.get_logger().warning(f"vibration window not understood: {exc}", throttle_duration_sec=10.0)
+            self.malformed.refuse("vibration/joint_trajectory", exc)
             return
-        index = {name: i for i, name in enumerate(window.names)}
-        if window.positions is None or len(window.times) < 2 or any(n not in index for n in VIB_NAMES):
+        if len(window.times) < 2:
             return
-        self._window = window.positions[:, [index[n] for n in VIB_NAMES]]
+        self._window = window.positions
         self._direction_stale = True
 
     # -- the scene ------------------------------------------------------------------------------
@@ -237,11 +252,14 @@ class FoxgloveBridgeNode(Node):
             self._arrow_shown = False  # a client that subscribes again starts from a clean scene
             self._static_sent = float("-inf")
             return
-        try:
-            stamp, _frame, position, quaternion = cdr.decode_pose_stamped(data)
-        except StewartError as exc:
-            self.get_logger().warning(f"platform/pose not understood: {exc}", throttle_duration_sec=10.0)
+        if data is self._bad_pose:
+            return  # judged once (the scene timer would count it at every tick)
+        batch = poses_from_cdr([data], "platform/pose", as_quaternion=True)
+        if batch.errors:
+            self.malformed.refuse("platform/pose", batch.errors[0])
+            self._bad_pose = data
             return
+        stamp, position, quaternion = float(batch.stamps[0]), batch.values[0, :3], batch.values[0, 3:]
         if self._direction_stale and self._window is not None:
             self._direction = scene_model.vibration_direction_from_window(
                 self.scene_builder.robot, position, quaternion, self._window)

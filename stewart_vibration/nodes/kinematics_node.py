@@ -13,6 +13,11 @@ processed, lag); ERROR while the force guard is tripped. States arrive raw and a
 batches of ``batch_size`` (the emulator's bursts) or every ``batch_period_s`` (wall clock; FK
 warm-started from the previous pose); wrench estimates likewise.
 
+Targets (raw PoseStamped, so a frame_id with a NUL is seen whole): frame base or empty, finite, a unit
+quaternion; one is refused while the move sent last is pending or under way and beyond ``target_rate_hz``
+(motion.target_gate). Malformed messages on any input (states, targets, wrench estimates, /diagnostics)
+are ignored, counted on /diagnostics (``malformed <input>``) and logged rate-limited (nodes.common.MalformedInputs).
+
 Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
 forces it needs under that tissue model (motion.paths.check_path_forces: quasi-static Newton-Euler +
 the tissue's elastic wrench), refused with the leg and the waypoint above strut_force_max_n.
@@ -47,15 +52,21 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..dynamics.tissue import load_tissue_option
-from ..errors import InvalidInputError, StewartError
+from ..emulation.command_size import MAX_TRAJECTORY_POINTS
+from ..emulation.vibration_status import STRUT_STOPS
+from ..errors import InvalidInputError, MalformedMessageError, StewartError
 from ..kinematics import check_pose, forward_kinematics
-from ..kinematics.rotations import pose_to_position_quaternion
+from ..kinematics.robot_config import load_robot
+from ..kinematics.rotations import MESSAGE_QUATERNION_TOLERANCE, pose_to_position_quaternion
+from ..kinematics.workspace import check_strut_path
 from ..messages import cdr
+from ..messages.stamped import MAX_JOINT_POSITION_M, pose_from_cdr, rows_within, wrenches_from_cdr
+from ..messages.status_values import emulator_rejections, statuses_from_cdr, vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
-from ..robot import load_robot
+from ..motion.target_gate import TargetGate
 from .common import (
     BASE_FRAME,
     ERROR,
@@ -65,6 +76,7 @@ from .common import (
     WARN,
     Diagnostics,
     JointColumns,
+    MalformedInputs,
     RawBatcher,
     check_frame,
     declare_float,
@@ -136,6 +148,9 @@ class KinematicsNode(Node):
         declare_float(self, "guard_max_estimate_age_s", MAX_ESTIMATE_AGE_S, float_param(
             "force guard: a move pauses when the newest external-wrench estimate is this far behind the newest joint "
             "state, s (the guard would be blind; 0 = off)", 0.0, 5.0))
+        target_rate = declare_float(self, "target_rate_hz", 5.0, float_param(
+            "targets taken per second at most, in bursts of as many (wall clock; a target while a move is pending "
+            "or under way is refused anyway; read at start)", 0.1, 100.0, read_only=True))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
@@ -147,6 +162,8 @@ class KinematicsNode(Node):
         self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
         self.diagnostics = GuardedDiagnostics(self, "kinematics")
         self.diagnostics.guard = self.guard
+        self.malformed = MalformedInputs(self, self.diagnostics)
+        self.target_gate = TargetGate(self.guard, target_rate)
         self.lengths = None  # latest leg_* (strut) lengths, m
         self.pose = None  # latest pose estimate
         self.fk_failures = 0
@@ -162,7 +179,8 @@ class KinematicsNode(Node):
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
-        self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10)
+        # raw: rclpy's conversion cuts a string at a NUL, so a frame_id "base\0x" would read as "base"
+        self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10, raw=True)
         self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
         self.wrench_decoder_errors = 0
         self.wrench_batcher = RawBatcher(self, batch_size, period, self.process_wrenches)
@@ -173,8 +191,11 @@ class KinematicsNode(Node):
         self.guard_pub = self.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
         self.emulator_rejections = 0  # the hardware emulator's count of refused commands (its /diagnostics)
         self.stop_sent_at = None  # wall time of the last stop sent (a refusal after it means: stop again)
-        self.last_target = None  # the PoseStamped of the latest move sent (resumed after a blind stop)
-        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50)
+        self.last_target = None  # the target pose (6,) of the latest move sent (resumed after a blind stop)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50, raw=True)
+        # the emulator's own stops (e-stop, deactivate, shutdown, physics fault) end the move: never resumed
+        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_vibration_status, STATUS_QOS, raw=True)
+        self.robot_stop_seen: tuple | None = None  # (ramp_start, ramp_reason, fault) of the last stop acted on
         self.create_service(Trigger, "kinematics/reset_guard", self.on_reset_guard)
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.publish_guard_status()
@@ -186,7 +207,8 @@ class KinematicsNode(Node):
     def process(self, messages: list, arrivals: np.ndarray) -> None:
         """Solve FK for a batch of states (one batch per layout) and publish one estimate each."""
         self.diagnostics.seen("legs/joint_states")
-        batches, kept = cdr.decode_joint_states_dropping_malformed(messages, self.decoder, self._malformed)
+        batches, kept = cdr.decode_joint_states_dropping_malformed(
+            messages, self.decoder, lambda reason: self._malformed(MalformedMessageError(reason)))
         arrivals = arrivals[kept]
         first = 0
         for batch in batches:
@@ -194,22 +216,25 @@ class KinematicsNode(Node):
             self._solve(batch, arrivals[first:first + n])
             first += n
 
-    def _malformed(self, reason: str) -> None:
-        reject(self, self.diagnostics, "joint state", reason)
-        self.health.rejected += 1
+    def _malformed(self, error: MalformedMessageError, count: int = 1) -> None:
+        self.malformed.refuse("legs/joint_states", error, count)
+        self.health.rejected += count
 
     def _solve(self, batch, arrivals) -> None:
         self.health.arrived(batch.stamps)
         legs_at, vib_at = self.columns(batch.names)
         if legs_at is None:
-            self.health.rejected += len(batch.stamps)
+            self._malformed(MalformedMessageError(f"joint state names {list(batch.names)[:14]} lack one of "
+                                                  f"{list(LEG_NAMES)} or repeat one", field="name", kind="names"),
+                            len(batch.stamps))
             return
         legs = batch.position[:, legs_at]
         lengths = legs + (batch.position[:, vib_at] if vib_at is not None else 0.0)
-        good = np.isfinite(lengths).all(axis=1)
+        good = rows_within(lengths, MAX_JOINT_POSITION_M)
         if not good.all():
-            self.health.rejected += int((~good).sum())
-            reject(self, self.diagnostics, "joint state", "non-finite leg positions")
+            self._malformed(MalformedMessageError(f"leg positions not finite or beyond {MAX_JOINT_POSITION_M:g} m (or "
+                                                  "fewer positions than names)", field="position", kind="not_finite"),
+                            int((~good).sum()))
             if not good.any():
                 return
         lengths, stamps, arrivals, legs = lengths[good], batch.stamps[good], arrivals[good], legs[good]
@@ -218,7 +243,7 @@ class KinematicsNode(Node):
             result = forward_kinematics(self.robot, lengths, guess=np.broadcast_to(guess, lengths.shape),
                                         check_limits=False)
         except StewartError as exc:
-            reject(self, self.diagnostics, "joint state", str(exc))
+            self._malformed(MalformedMessageError(f"joint state: {exc}", field="position", kind="range"), len(lengths))
             return
         ok = result.converged & result.assembly_ok
         if not ok.all():
@@ -263,14 +288,13 @@ class KinematicsNode(Node):
         """Wrench estimates: the guard's input (the newest only when it watches no move)."""
         if self.guard.move is None:
             messages = messages[-1:]
-        try:
-            decoded = [cdr.decode_wrench_stamped(m) for m in messages]
-        except StewartError as exc:
+        batch = wrenches_from_cdr(messages, "external wrench estimate")
+        for error in batch.errors:
             self.wrench_decoder_errors += 1
-            reject(self, self.diagnostics, "external wrench estimate", str(exc))
+            self.malformed.refuse("platform/external_wrench_estimate", error)
+        if not len(batch.kept):
             return
-        stamps = np.array([d[0] for d in decoded])
-        wrenches = np.array([d[2] for d in decoded])
+        stamps, wrenches = batch.stamps, batch.values
         was_watching = self.guard.move is not None
         trip = self.guard.observe(stamps, wrenches, self.emulator_now(stamps[-1]), self.batch_period)
         if trip is not None:
@@ -280,9 +304,9 @@ class KinematicsNode(Node):
         if self.state_time is not None and self.guard.blind_stop_over(self.state_time) and self.last_target is not None:
             if self.guard.resume_after_blind():
                 self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the "
-                                          f"move to {np.round(pose_from_msg(self.last_target.pose), 5).tolist()}")
+                                          f"move to {np.round(self.last_target, 5).tolist()}")
                 self.publish_guard_status()
-                self.on_target_pose(self.last_target)
+                self.move_to(self.last_target)
             else:  # the load passed a limit while the guard could not see it: latched, held by the blind stop
                 self.on_trip(self.guard.trip, send_stop=False)
 
@@ -299,12 +323,20 @@ class KinematicsNode(Node):
         self.diagnostics.set(ERROR, f"force guard {message}")
         self.publish_guard_status()
 
-    def on_diagnostics(self, msg: DiagnosticArray) -> None:
-        """A refusal by the hardware emulator right after a stop was sent: stop again (over a wider window)."""
-        for status in msg.status:
-            if not status.name.startswith("hardware_emulator"):
+    def on_diagnostics(self, data: bytes) -> None:
+        """A refusal by the hardware emulator right after a stop was sent: stop again (over a wider window).
+        Malformed statuses (and a malformed count in the emulator's) are counted and ignored."""
+        statuses, errors = statuses_from_cdr(data)
+        for error in errors:
+            self.malformed.refuse("/diagnostics", error)
+        for status in statuses:
+            if status.node != "hardware_emulator":
                 continue
-            count = next((int(kv.value) for kv in status.values if kv.key == "rejections"), None)
+            try:
+                count = emulator_rejections(status)
+            except MalformedMessageError as exc:
+                self.malformed.refuse("/diagnostics", exc)
+                continue
             if count is None or count <= self.emulator_rejections:
                 continue
             self.emulator_rejections = count
@@ -315,6 +347,27 @@ class KinematicsNode(Node):
                     self.get_logger().error(f"force guard: the emulator refused the stop ({status.message}); "
                                             f"stopping again over {retry.duration:.2f} s")
                     self.send_stop(retry)
+
+    def on_vibration_status(self, data: bytes) -> None:
+        """The emulator's vibration/status (raw): a stop of the struts it made itself (STRUT_STOPS, or a latched
+        physics fault) ends kinematics' move -- the guard drops it and the target is not resumed after a pause;
+        a new target is needed once the robot is back (reset). A malformed status is counted and ignored."""
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
+            return
+        stopped = report.fault or (report.ramp_start is not None and report.ramp_reason in STRUT_STOPS)
+        key = (report.ramp_start, report.ramp_reason, report.fault)
+        if not stopped or key == self.robot_stop_seen:
+            return
+        self.robot_stop_seen = key
+        dropped = self.guard.robot_stopped()
+        target, self.last_target = self.last_target, None
+        if dropped or target is not None:
+            why = f"physics fault: {report.fault}" if report.fault else report.ramp_reason
+            self.get_logger().warning(f"the emulator stopped the robot ({why}): the move to "
+                                      f"{None if target is None else np.round(target, 5).tolist()} is abandoned; "
+                                      "send a new target once it is back")
+            self.publish_guard_status()
 
     def send_stop(self, stop: StopPlan) -> None:
         """One-point leg trajectory (stamp 0 = now): the struts come to rest at ``stop.lengths``."""
@@ -366,10 +419,22 @@ class KinematicsNode(Node):
         return SetParametersResult(successful=True)
 
     # -- target pose -> trajectory ----------------------------------------
-    def on_target_pose(self, msg: PoseStamped) -> None:
+    def on_target_pose(self, data: bytes) -> None:
+        """A raw target PoseStamped: frame base (or empty), finite, a unit quaternion (within 1e-3), else refused
+        (counted as malformed, WARN with the reason)."""
         try:
-            check_frame(msg.header.frame_id, "target pose")
-            target = pose_from_msg(msg.pose)
+            _, target = pose_from_cdr(data, "target pose", MESSAGE_QUATERNION_TOLERANCE)
+        except MalformedMessageError as exc:
+            self.malformed.refuse("platform/target_pose", exc)
+            reject(self, self.diagnostics, "target pose", str(exc), log=False)
+            return
+        self.move_to(target)
+
+    def move_to(self, target: np.ndarray) -> None:
+        """Plan and send the checked move to ``target`` (6,) (m, rad; base); refused with the reason when the
+        pose or the path is infeasible, the guard blocks that direction, a move is pending or under way, or
+        targets come faster than target_rate_hz."""
+        try:
             goal_lengths = check_pose(self.robot, target)
         except StewartError as exc:
             reject(self, self.diagnostics, "target pose", str(exc))
@@ -382,10 +447,9 @@ class KinematicsNode(Node):
         except StewartError as exc:
             reject(self, self.diagnostics, "target pose", str(exc))
             return
-        busy_until = self.guard.move_under_way(self.emulator_now())
-        if busy_until is not None:
-            reject(self, self.diagnostics, "target pose", f"a move is under way until {busy_until:.3f} s (sim time); "
-                   "send the next target once it has ended")
+        refusal = self.target_gate.refusal(self.emulator_now(), time.monotonic())
+        if refusal is not None:
+            reject(self, self.diagnostics, "target pose", refusal)
             return
         try:
             trajectory = self.plan_trajectory(self.lengths, self.pose, goal_lengths, target)
@@ -393,7 +457,7 @@ class KinematicsNode(Node):
             reject(self, self.diagnostics, "target pose", f"path not feasible: {exc}")
             return
         self.traj_pub.publish(trajectory)
-        self.last_target = msg
+        self.last_target = np.array(target, float)
         final = duration_seconds(trajectory.points[-1].time_from_start)
         start_time = self.emulator_now() + RECEIPT_DELAY_S
         self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target)
@@ -408,8 +472,10 @@ class KinematicsNode(Node):
         self.get_logger().info(f"trajectory to {np.round(target, 5).tolist()} over {final:.3f} s")
 
     def plan_trajectory(self, start_lengths, start_pose, goal_lengths, goal_pose) -> JointTrajectory:
-        """Minimum-jerk leg trajectory, every sample checked through FK (stroke, joints, conditioning) and, with a
-        tissue model, for the strut forces it needs (the waypoints are the trajectory's samples)."""
+        """Minimum-jerk leg trajectory (at most MAX_TRAJECTORY_POINTS points), checked along the whole move for what
+        the six struts do together (``kinematics.workspace.check_strut_path``: FK, joints, conditioning, the
+        emulator's check too) and, with a tissue model, for the strut forces it needs (the waypoints are the
+        trajectory's samples)."""
         speed = self.robot.limits.strut_velocity_max * self.get_parameter("speed_scale").value
         guarded = self.guard.speed_limit()  # slower while the wrench estimates lag (busy machine)
         if guarded < speed:
@@ -420,14 +486,16 @@ class KinematicsNode(Node):
         duration = minimum_jerk_duration(start_lengths, goal_lengths, speed, self.get_parameter(
             "trajectory_min_duration_s").value)
         period = self.get_parameter("trajectory_sample_period_s").value
-        count = max(int(np.ceil(duration / period)), 2)
+        count = min(max(int(np.ceil(duration / period)), 2), MAX_TRAJECTORY_POINTS)  # long moves: fewer points
         times = np.linspace(duration / count, duration, count)
         pos, vel, acc = minimum_jerk(start_lengths, goal_lengths, duration, times)
-        guesses = interpolate_poses(start_pose, goal_pose, count + 1)[1:]
-        fk = forward_kinematics(self.robot, pos, guess=guesses)
-        fk.raise_for_failure()
-        check_pose(self.robot, fk.pose)
+        # what the six struts do together along the whole move, the emulator's own check of it
+        check_strut_path(self.robot, lambda t: minimum_jerk(start_lengths, goal_lengths, duration, t)[0], 0.0,
+                         duration, knots=times, start_pose=start_pose, what="the move")
         if self.tissue is not None:  # waypoint k: the trajectory's sample k (0 = the start, where the robot is)
+            guesses = interpolate_poses(start_pose, goal_pose, count + 1)[1:]
+            fk = forward_kinematics(self.robot, pos, guess=guesses)
+            fk.raise_for_failure()
             check_path_forces(self.robot, fk.pose, self.tissue, first_index=1, count=count + 1)
         msg = JointTrajectory()
         msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0  # start now (joint_trajectory_controller rule)

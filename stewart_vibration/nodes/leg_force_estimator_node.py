@@ -8,7 +8,9 @@ modelled axial force N, stamp = the state's), platform/external_wrench_estimate
 (WrenchStamped, frame base: the wrench of the environment ON the platform, force
 N and moment N m about the platform origin, = -J^T (F_measured - F_model); zero
 when the model explains the measurement). Running RMS of F_measured - F_model
-and the input stream's health (received, lost, processed, lag) on /diagnostics.
+and the input stream's health (received, lost, processed, lag) on /diagnostics,
+with the count of malformed messages per input (ignored). Started during a
+vibration, it takes the first window it sees as its history (value vibration_mirror).
 
 The math and the per-run state are estimation.ForceEstimator (pure). States
 arrive raw and are processed in vectorised batches of ``batch_size`` (the
@@ -30,12 +32,13 @@ from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from ..emulation.strut_trajectory import build_trajectory
-from ..emulation.vibration_status import report_from_values
-from ..errors import StewartError
+from ..errors import MalformedMessageError, StewartError
 from ..estimation import ForceEstimator
+from ..kinematics.robot_config import load_robot
 from ..messages import cdr
+from ..messages.stamped import MAX_JOINT_POSITION_M, MAX_JOINT_SPEED_M_S, rows_within
+from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
-from ..robot import load_robot
 from .common import (
     BASE_FRAME,
     LEG_NAMES,
@@ -45,6 +48,7 @@ from .common import (
     WARN,
     Diagnostics,
     JointColumns,
+    MalformedInputs,
     RawBatcher,
     declare_float,
     emulator_now,
@@ -75,6 +79,7 @@ class LegForceEstimatorNode(Node):
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         self.estimator = ForceEstimator(self.robot, rms_window_s=window)
         self.diagnostics = Diagnostics(self, "leg force estimator")
+        self.malformed = MalformedInputs(self, self.diagnostics)
         self.health = StreamHealth()
         self.columns = JointColumns()
         self.decoder = cdr.JointStateDecoder()
@@ -89,11 +94,15 @@ class LegForceEstimatorNode(Node):
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 10, raw=True)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
-        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
+        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.diagnostics.set(OK, "waiting for legs/joint_states")
         self.get_logger().info(f"leg force estimator ready (robot {self.robot.source})")
+
+    def _malformed(self, error: MalformedMessageError, count: int = 1) -> None:
+        self.malformed.refuse("legs/joint_states", error, count)
+        self.health.rejected += count
 
     def _reject(self, what: str, reason: str) -> None:
         """reject() once per distinct reason (inputs arrive at the state rate); every one is counted."""
@@ -108,7 +117,7 @@ class LegForceEstimatorNode(Node):
             t = cdr.decode_joint_trajectory(data)
             return build_trajectory(t.names, names, t.stamp, t.times, t.positions, t.velocities, t.accelerations)
         except StewartError as exc:
-            self._reject(what, str(exc))
+            self.malformed.refuse(what, exc)
             return None
 
     def on_vibration(self, data: bytes) -> None:
@@ -116,9 +125,15 @@ class LegForceEstimatorNode(Node):
         if traj is None:
             return
         try:
-            self.estimator.command_vibration(traj)
+            adopted = self.estimator.command_vibration(traj)
         except StewartError as exc:  # the emulator refuses it too (its vibration/status says so)
             self._reject("vibration/joint_trajectory", f"refused as the emulator would: {exc}")
+            return
+        if adopted:
+            text = (f"vibration mirror: this estimator started during a vibration; took the window of t0 = "
+                    f"{traj.start:.3f} s as its history (the emulator accepted it), later windows splice onto it")
+            self.get_logger().warning(text)
+            self.diagnostics.set(WARN, text, vibration_mirror=f"adopted a window mid-vibration (t0 {traj.start:.6f} s)")
 
     def on_leg_trajectory(self, data: bytes) -> None:
         traj = self._trajectory(data, LEG_NAMES, "legs/joint_trajectory")
@@ -130,8 +145,11 @@ class LegForceEstimatorNode(Node):
         except StewartError as exc:
             self._reject("legs/joint_trajectory", str(exc))
 
-    def on_status(self, msg: DiagnosticStatus) -> None:
-        report = report_from_values("ok", {kv.key: kv.value for kv in msg.values})
+    def on_status(self, data: bytes) -> None:
+        """The emulator's safety ramps from its vibration/status (raw); a malformed one is counted and ignored."""
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
+            return
         self.estimator.apply_ramp(report.ramp_start, report.ramp_reason)
 
     # -- batches --------------------------------------------------------------------------
@@ -139,7 +157,7 @@ class LegForceEstimatorNode(Node):
         """Modelled forces for a batch of states; one force and one wrench message per state."""
         self.diagnostics.seen("legs/joint_states")
         batches, kept = cdr.decode_joint_states_dropping_malformed(
-            messages, self.decoder, lambda reason: self._reject("joint state", reason))
+            messages, self.decoder, lambda reason: self._malformed(MalformedMessageError(reason)))
         arrivals = arrivals[kept]
         first = 0
         for batch in batches:
@@ -151,15 +169,19 @@ class LegForceEstimatorNode(Node):
         legs_at, vib_at = self.columns(batch.names)
         self.health.arrived(batch.stamps)
         if legs_at is None or vib_at is None:
-            self._reject("joint state", f"needs {list(LEG_NAMES + VIB_NAMES)}, got names {list(batch.names)}")
+            self._malformed(MalformedMessageError(f"joint state needs {list(LEG_NAMES + VIB_NAMES)} once each, got "
+                                                  f"names {list(batch.names)[:14]}", field="name", kind="names"),
+                            len(batch.stamps))
             return
         cols = np.concatenate([legs_at, vib_at])
         pos, vel = batch.position[:, cols], batch.velocity[:, cols]
         effort = batch.effort[:, legs_at]
-        good = np.isfinite(pos).all(axis=1) & np.isfinite(vel).all(axis=1)
+        good = rows_within(pos, MAX_JOINT_POSITION_M) & rows_within(vel, MAX_JOINT_SPEED_M_S)
         if not good.all():
-            self._reject("joint state", f"{int((~good).sum())} of {len(good)} states without finite positions and "
-                                        "velocities")
+            self._malformed(MalformedMessageError(
+                f"{int((~good).sum())} of {len(good)} states without finite positions and velocities (within "
+                f"{MAX_JOINT_POSITION_M:g} m and {MAX_JOINT_SPEED_M_S:g} m/s)", field="position", kind="not_finite"),
+                int((~good).sum()))
             if not good.any():
                 return
         try:

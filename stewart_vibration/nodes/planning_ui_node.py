@@ -48,12 +48,22 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from ..emulation.vibration_status import report_from_values
-from ..errors import StewartError
-from ..kinematics.rotations import pose_from_position_quaternion
+from ..errors import MalformedMessageError, StewartError
+from ..kinematics.robot_config import load_robot
 from ..messages import cdr
+from ..messages.fields import check_text
+from ..messages.stamped import pose_from_cdr, poses_from_cdr
+from ..messages.status_values import (
+    MAX_PATH,
+    planner_settings,
+    planner_status,
+    recorder_files,
+    start_answer,
+    statuses_from_cdr,
+    vibration_report_from_cdr,
+)
 from ..paper import paper_pose
-from ..robot import STANDARD_GRAVITY, load_robot
+from ..robot import STANDARD_GRAVITY
 from ..ui import model
 from ..ui.server import UiServer, bind
 from ..vibration.settings import SETTINGS
@@ -62,6 +72,7 @@ from .common import (
     OK,
     Diagnostics,
     JointColumns,
+    MalformedInputs,
     declare_float,
     float_param,
     int_param,
@@ -85,12 +96,8 @@ LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 EVENTS_KEPT = 30
 STREAMS_IDLE_S = 5.0  # the 500 Hz subscriptions are dropped this long after the last page closed
 RUNNING_STATES = ("pending", "ramping_in", "running", "ramping_out")
-
-
-def level_of(status: DiagnosticStatus) -> int:
-    """The level of a DiagnosticStatus as an int (0 OK, 1 WARN, 2 ERROR, 3 STALE), given as bytes or int."""
-    level = status.level
-    return level[0] if isinstance(level, (bytes, bytearray)) else int(level)
+MAX_NODE_STATUSES = 256  # distinct /diagnostics status names kept for the page (a spoofer could send millions)
+ESTOP_RESEND_S = 1.0  # an unanswered e-stop call is sent again after this (its answer may be lost; it is idempotent)
 
 
 class PlanningUiNode(Node):
@@ -123,8 +130,11 @@ class PlanningUiNode(Node):
         sock = bind(host, int(port))  # PortInUseError: one line, exit code 2 (run_node)
 
         self.diagnostics = Diagnostics(self, "planning UI")
+        self.malformed = MalformedInputs(self, self.diagnostics)
         self.lock = threading.Lock()  # guards the command queue (filled by the server thread)
         self.commands: collections.deque = collections.deque()
+        self.estops: list = []  # replies of e-stops from the pages not yet sent on (they go first, coalesced)
+        self.estop_call = None  # the e-stop call in flight: {"future", "sent", "deadline", "replies", "again"}
         self.pending_calls: list = []  # (deadline, future, what, reply)
         self.reason_waiters: list = []  # (deadline, prefix, since_seq, reply, result)
 
@@ -159,8 +169,8 @@ class PlanningUiNode(Node):
         self.target_pub = self.create_publisher(PoseStamped, "platform/target_pose", 10)
         self.streams = []  # the 500 Hz subscriptions: only while a page is open or a move / vibration is followed
         self.unwatched_since = time.monotonic()
-        self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS)
-        self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
+        self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
+        self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50, raw=True)
         self.create_subscription(Log, "/rosout", self._on_rosout, ROSOUT_QOS)
         self.clients_ = {
             "plan_path": self.create_client(GetPlan, "kinematics/plan_path"),
@@ -193,9 +203,10 @@ class PlanningUiNode(Node):
     def _on_estimate(self, data: bytes) -> None:
         self.estimate_raw = data
 
-    def _on_status(self, msg: DiagnosticStatus) -> None:
-        level = {0: "ok", 1: "warn"}.get(level_of(msg), "error")
-        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+    def _on_status(self, data: bytes) -> None:
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
+            return
         previous, self.vibration = self.vibration, report
         self.seen["vibration/status"] = time.monotonic()
         if previous is not None and report.event_seq != previous.event_seq and report.event.startswith(
@@ -210,33 +221,44 @@ class PlanningUiNode(Node):
             run["done"] = True
             self._summarize(run, report.since)
 
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
+    def _on_diagnostics(self, data: bytes) -> None:
         now = time.monotonic()
-        for status in msg.status:
+        statuses, errors = statuses_from_cdr(data)
+        for error in errors:
+            self.malformed.refuse("/diagnostics", error)
+        for status in statuses:
+            if status.name not in self.node_status and len(self.node_status) >= MAX_NODE_STATUSES:
+                self.malformed.refuse("/diagnostics", MalformedMessageError(
+                    f"more than {MAX_NODE_STATUSES} status names; {status.name[:60]!r} ignored", field="name",
+                    kind="length"))
+                continue
             self.diag_seq += 1
-            level = level_of(status)
-            values = {kv.key: kv.value for kv in status.values}
+            level, values = status.level, dict(status.values)
             before = self.node_status.get(status.name)
             self.node_status[status.name] = {"level": level, "message": status.message, "values": values,
                                              "seen": now, "seq": self.diag_seq}
-            node = status.name.split(":")[0]
+            node = status.node
             self.node_history.setdefault(node, collections.deque(maxlen=50)).append((self.diag_seq, status.message))
             changed = before is None or before["message"] != status.message
             if changed and level >= 1 and status.name != self.diagnostics._name and (
                     "rejected" in status.message or "aborted" in status.message):
                 self._event(node, status.message, LEVELS.get(level, "ERROR"))
-            if node == "vibration_planner":
-                self._follow_planner(values)
-            if node == "mcap_recorder":  # the file being written (also for a page opened after it started)
-                self._follow_recorder(values)
+            try:
+                if node == "vibration_planner":
+                    self._follow_planner(status)
+                if node == "mcap_recorder":  # the file being written (also for a page opened after it started)
+                    self._follow_recorder(status)
+            except MalformedMessageError as exc:
+                self.malformed.refuse("/diagnostics", exc)
             move = self.move
             if node == "kinematics" and changed and move is not None and move["status"] == "moving" and \
                     "rejected target pose" in status.message:
                 move["status"], move["reason"] = "rejected by kinematics", status.message
             self._resolve_waiters(node, status.message)
 
-    def _follow_recorder(self, values: dict) -> None:
-        path, last = values.get("path", ""), values.get("last_file", "")
+    def _follow_recorder(self, status) -> None:
+        files = recorder_files(status)
+        path, last = files.path, files.last_file
         current = {"path": path, "state": "recording"} if path else ({"path": last, "state": "finished"} if last
                                                                       else None)
         if current and (self.mcap is None or (self.mcap["path"], self.mcap["state"]) != (current["path"],
@@ -248,6 +270,12 @@ class PlanningUiNode(Node):
         if not msg.name.endswith("mcap_recorder"):
             return
         found = re.match(r"recording to (\S+)", msg.msg) or re.match(r"finished (\S+);", msg.msg)
+        try:
+            if found:
+                check_text(found.group(1), "path", MAX_PATH)
+        except MalformedMessageError as exc:
+            self.malformed.refuse("/rosout", exc)
+            return
         if found:
             self.mcap = {"path": found.group(1), "state": "recording" if msg.msg.startswith("recording") else
                          "finished", "seen": time.monotonic()}
@@ -275,18 +303,19 @@ class PlanningUiNode(Node):
             self._decode_poses(truth)
         if self.estimate_raw is not None:
             data, self.estimate_raw = self.estimate_raw, None
-            try:
-                stamp, _, position, quaternion = cdr.decode_pose_stamped(data)
-                self.latest["estimate"] = (stamp, pose_from_position_quaternion(position, quaternion))
-                self.seen["platform/pose_estimate"] = now
-            except StewartError:
-                pass
+            estimate = self.malformed.read("platform/pose_estimate", lambda d: pose_from_cdr(d, "pose estimate"), data)
+            if estimate is not None:
+                self.latest["estimate"], self.seen["platform/pose_estimate"] = estimate, now
 
     def _decode_joints(self, messages) -> None:
-        batches, _ = cdr.decode_joint_states_dropping_malformed(messages, self.decoder)
+        batches, _ = cdr.decode_joint_states_dropping_malformed(
+            messages, self.decoder, lambda r: self.malformed.refuse("legs/joint_states", MalformedMessageError(r)))
         for batch in batches:
             legs, vib = self.columns(batch.names)
             if legs is None or vib is None:
+                self.malformed.refuse("legs/joint_states", MalformedMessageError(
+                    f"names {list(batch.names)[:14]} lack a leg_* or vib_* or repeat one", field="name",
+                    kind="names"), len(batch.stamps))
                 continue
             cols = np.concatenate([legs, vib])
             rows = np.concatenate([batch.position[:, cols], batch.effort[:, cols]], axis=1)
@@ -297,10 +326,15 @@ class PlanningUiNode(Node):
                 self.plots["joints"].append([batch.stamps[i], *(rows[i, 6:12] * 1e6), *rows[i, 12:18]])
 
     def _decode_forces(self, messages) -> None:
-        batches, _ = cdr.decode_joint_states_dropping_malformed(messages, self.force_decoder)
+        batches, _ = cdr.decode_joint_states_dropping_malformed(
+            messages, self.force_decoder, lambda r: self.malformed.refuse("legs/force_estimate",
+                                                                          MalformedMessageError(r)))
         for batch in batches:
             legs, _ = self.columns(batch.names)
             if legs is None:
+                self.malformed.refuse("legs/force_estimate", MalformedMessageError(
+                    f"names {list(batch.names)[:14]} lack a leg_* or repeat one", field="name", kind="names"),
+                    len(batch.stamps))
                 continue
             effort = batch.effort[:, legs]
             self.buffers["forces"].add(batch.stamps, effort)
@@ -308,12 +342,12 @@ class PlanningUiNode(Node):
                 self.plots["forces"].append([batch.stamps[i], *effort[i]])
 
     def _decode_poses(self, messages) -> None:
-        try:
-            decoded = [cdr.decode_pose_stamped(m) for m in messages]
-            stamps = np.array([d[0] for d in decoded])
-            poses = pose_from_position_quaternion(np.array([d[2] for d in decoded]), np.array([d[3] for d in decoded]))
-        except StewartError:
+        batch = poses_from_cdr(messages, "ground-truth pose")
+        for error in batch.errors:
+            self.malformed.refuse("platform/pose", error)
+        if not len(batch.kept):
             return
+        stamps, poses = batch.stamps, batch.values
         self.buffers["truth"].add(stamps, poses)
         self.latest["truth"] = (stamps[-1], poses[-1])
         self._follow_move(stamps, poses)
@@ -416,15 +450,18 @@ class PlanningUiNode(Node):
     def _list_report(self) -> None:
         path = self.mcap["path"]
         folder = Path(path).parent / "report" if path else None
-        self.report_files = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".md", ".json")) \
-            if folder is not None and folder.is_dir() else []
+        try:
+            self.report_files = sorted(p.name for p in folder.iterdir() if p.suffix in (".png", ".md", ".json")) \
+                if folder is not None and folder.is_dir() else []
+        except OSError:  # a path the recorder named that cannot be listed (gone, unreadable, too long)
+            self.report_files = []
 
-    def _follow_planner(self, values: dict) -> None:
+    def _follow_planner(self, status) -> None:
         """A vibration started by another client (the runner, ros2 service call): follow it for the summary."""
-        t0 = values.get("t0_s", "")
-        if values.get("state") != "running" or not t0:
+        planner = planner_status(status)
+        t0 = planner.t0_s
+        if planner.state != "running" or t0 is None:
             return
-        t0 = float(t0)
         if self.run is not None and abs(self.run["t0"] - t0) < 1e-6:
             return
         nominal = self.latest.get("estimate", (None, None))[1]
@@ -459,7 +496,10 @@ class PlanningUiNode(Node):
 
     def command(self, cmd: str, args: dict, reply) -> None:
         with self.lock:
-            self.commands.append((cmd, args, reply))
+            if cmd == "estop":  # never behind another command: sent first, coalesced (_send_estops)
+                self.estops.append(reply)
+            else:
+                self.commands.append((cmd, args, reply))
 
     def file(self, kind: str, name: str) -> Path | None:
         if kind != "report" or name not in self.report_files or not self.mcap["path"]:
@@ -468,9 +508,11 @@ class PlanningUiNode(Node):
 
     # ==== commands (executor thread) ==================================================================
     def _run_commands(self) -> None:
+        self._send_estops()
         if not self.commands:
             return
         while True:
+            self._send_estops()  # an e-stop that came meanwhile goes before the next command
             with self.lock:
                 if not self.commands:
                     return
@@ -573,7 +615,7 @@ class PlanningUiNode(Node):
         if not response.success:
             reply({"ok": False, "refused_by": "vibration_planner", "message": response.message, "preview": preview})
             return
-        answer = model.parse_start_answer(response.message)
+        answer = start_answer(response.message)
         if answer["t0_s"] is not None and answer["settings"] is not None:
             self.run = {"t0": answer["t0_s"], "settings": answer["settings"], "nominal": pose, "source": "this page"}
         match = None
@@ -593,9 +635,62 @@ class PlanningUiNode(Node):
     def _cmd_stop(self, args, reply) -> None:
         self._trigger("stop", reply)
 
-    def _cmd_estop(self, args, reply) -> None:
+    def _send_estops(self) -> None:
+        """The pages' e-stops, first and coalesced: one hardware_emulator/emergency_stop call at a time, sent again
+        every ESTOP_RESEND_S while unanswered (it is idempotent; an answer can be lost), failed after
+        CALL_TIMEOUT_S. E-stops that come while a call is in flight share one more call after it, so each is
+        answered by a call sent after it came (a reset between two e-stops cannot swallow the second)."""
+        with self.lock:
+            replies, self.estops = self.estops, []
+        call = self.estop_call
+        if replies and call is not None:
+            call["again"].extend(replies)
+        elif replies:
+            self._estop_call(replies)
+        call = self.estop_call
+        if call is None:
+            return
+        now, client = time.monotonic(), self.clients_["estop"]
+        if now >= call["deadline"]:
+            self.estop_call = None
+            client.remove_pending_request(call["future"])
+            for reply in call["replies"] + call["again"]:
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"no answer from {client.srv_name} "
+                       f"within {CALL_TIMEOUT_S} s"})
+        elif now - call["sent"] >= ESTOP_RESEND_S:
+            client.remove_pending_request(call["future"])
+            call["future"], call["sent"] = client.call_async(Trigger.Request()), now
+            call["future"].add_done_callback(self._estop_answered)
+
+    def _estop_call(self, replies: list) -> None:
+        client = self.clients_["estop"]
         self._event("planning_ui", "emergency stop requested from the page", "ERROR")
-        self._trigger("estop", reply)
+        if not client.service_is_ready():
+            for reply in replies:
+                reply({"ok": False, "refused_by": "planning_ui",
+                       "message": f"service {client.srv_name} is not available (is its node running?)"})
+            return
+        now = time.monotonic()
+        self.estop_call = {"future": client.call_async(Trigger.Request()), "sent": now, "replies": replies,
+                           "deadline": now + CALL_TIMEOUT_S, "again": []}
+        self.estop_call["future"].add_done_callback(self._estop_answered)
+
+    def _estop_answered(self, future) -> None:
+        call = self.estop_call
+        if call is None or future is not call["future"]:
+            return  # an earlier send of a call that was sent again, or one given up
+        self.estop_call = None
+        if future.cancelled() or future.exception() is not None:
+            result = {"ok": False, "refused_by": "planning_ui", "message": f"emergency_stop failed: "
+                      f"{future.exception()}"}
+        else:
+            response = future.result()
+            result = {"ok": bool(response.success), "message": response.message,
+                      **({} if response.success else {"refused_by": "hardware_emulator"})}
+        for reply in call["replies"]:
+            reply(result)
+        if call["again"]:
+            self._estop_call(call["again"])
 
     def _cmd_reset(self, args, reply) -> None:
         self._trigger("reset", reply)
@@ -620,6 +715,9 @@ class PlanningUiNode(Node):
                 done(f.result())
             except StewartError as exc:
                 reply({"ok": False, "refused_by": "planning_ui", "message": f"{type(exc).__name__}: {exc}"})
+            except Exception as exc:  # noqa: BLE001 - a bug must not kill the node (this runs in the executor)
+                self.get_logger().error(f"answer of {client.srv_name} not handled: {type(exc).__name__}: {exc}")
+                reply({"ok": False, "refused_by": "planning_ui", "message": f"internal error: {exc}"})
 
         future.add_done_callback(finished)
 
@@ -651,6 +749,7 @@ class PlanningUiNode(Node):
             self.pending_calls.remove(call)
             call[3]({"ok": False, "refused_by": "planning_ui", "message": f"no answer from {call[2]} within "
                                                                            f"{CALL_TIMEOUT_S} s"})
+        self._send_estops()  # an e-stop's resend and time-out also when no page is open any more
 
     def _fetch_planner(self) -> None:
         """The planner's current settings and declared ranges (for the preview's checks)."""
@@ -664,9 +763,11 @@ class PlanningUiNode(Node):
         if describe.service_is_ready():
             def described(f):
                 if f.exception() is None:
-                    self.planner_ranges = {d.name: (d.floating_point_range[0].from_value,
-                                                    d.floating_point_range[0].to_value)
-                                           for d in f.result().descriptors if d.floating_point_range}
+                    self.planner_ranges = {
+                        d.name: (d.floating_point_range[0].from_value, d.floating_point_range[0].to_value)
+                        for d in f.result().descriptors if d.name in names and d.floating_point_range and
+                        math.isfinite(d.floating_point_range[0].from_value) and
+                        math.isfinite(d.floating_point_range[0].to_value)}
             describe.call_async(DescribeParameters.Request(names=names)).add_done_callback(described)
 
     def _get_planner_settings(self, then) -> None:
@@ -675,15 +776,29 @@ class PlanningUiNode(Node):
             return
 
         def got(f):
-            if f.exception() is None and len(f.result().values) == len(SETTINGS):
-                then({n: _plain(parameter_value_to_python(v)) for n, v in zip(SETTINGS, f.result().values,
-                                                                              strict=True)})
+            if f.exception() is not None:
+                return
+            try:
+                then(planner_settings(parameter_values(SETTINGS, f.result().values)))
+            except MalformedMessageError as exc:
+                self.malformed.refuse("vibration_planner/get_parameters", exc)
 
         client.call_async(GetParameters.Request(names=list(SETTINGS))).add_done_callback(got)
 
 
-def _plain(value):
-    return list(value) if hasattr(value, "tolist") or isinstance(value, (list, tuple)) else value
+def parameter_values(names, values) -> dict:
+    """{name: Python value} of a get_parameters answer (rcl_interfaces ParameterValue per asked name);
+    MalformedMessageError when the counts differ or a value's type is unknown."""
+    if len(values) != len(names):
+        raise MalformedMessageError(f"{len(values)} values for {len(names)} names", field="values", kind="length")
+    out = {}
+    for name, value in zip(names, values, strict=True):
+        try:
+            python = parameter_value_to_python(value)
+        except (RuntimeError, ValueError, TypeError) as exc:
+            raise MalformedMessageError(f"{name}: {exc}", field=name, kind="type") from None
+        out[name] = list(python) if hasattr(python, "tolist") or isinstance(python, (list, tuple)) else python
+    return out
 
 
 def main(args=None) -> int:

@@ -24,14 +24,20 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from ..emulation.vibration_status import report_from_values
+from ..messages.stamped import pose_from_cdr
+from ..messages.status_values import (
+    GuardStatus,
+    guard_status_from_cdr,
+    statuses_from_cdr,
+    vibration_report_from_cdr,
+)
 from ..motion.force_guard import LAG_MEMORY_S
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
 from ..runtime.steps import StepFailed
 from . import ensure_ament_prefix_path
-from .common import make_executor, pose_from_msg, pose_stamped, stamp_seconds
+from .common import MalformedInputs, make_executor, pose_stamped, stamp_seconds
 from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
 
 if TYPE_CHECKING:
@@ -64,6 +70,7 @@ class SuiteClient:
         self.node = Node("suite_runner", namespace=namespace, context=self.context)
         self.executor = make_executor(self.context)  # EventsExecutor: a third of the CPU per message
         self.clients = ServiceClients(self.node)  # one kept client per service (see nodes.service_calls)
+        self.malformed = MalformedInputs(self.node, None)  # malformed messages: counted, logged, ignored
         self.executor.add_node(self.node)
         self.clock: float | None = None
         self.latest: dict = {}
@@ -77,42 +84,67 @@ class SuiteClient:
         self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
         self.planner_message: str | None = None  # message of the planner's latest /diagnostics status
-        self.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, STATUS_QOS)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50)
-        self._guard = None  # latest kinematics/guard_status
-        self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status",
-                                      lambda m: setattr(self, "_guard", m), STATUS_QOS)
+        self.recorder_fault: str | None = None  # the recorder's write failure (its /diagnostics fault_reason)
+        self.stopping = False  # set for the safe stop after a failure: waits then go on despite the fault
+        self.recorder_ready_clock: float | None = None  # /clock when the recorder was seen recording the states
+        self.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, STATUS_QOS,
+                                      raw=True)
+        self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50, raw=True)
+        self._guard: GuardStatus | None = None  # latest well-formed kinematics/guard_status
+        self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", self._on_guard_status, STATUS_QOS,
+                                      raw=True)
         self._ground_truth_sub: Subscription | None = None
+        self._truth: tuple = (None, None)  # (the raw message last decoded, its pose or the last good one)
 
     # -- callbacks --------------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
         self.clock = msg.clock.sec + msg.clock.nanosec * 1e-9
 
-    def _on_vibration_status(self, msg: DiagnosticStatus) -> None:
-        level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
-        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
+    def _on_vibration_status(self, data: bytes) -> None:
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
+            return
         if not self.status_history or self.status_history[-1][:2] != (report.state, report.since):
             self.status_history.append((report.state, report.since, report.reason))
         self.vibration_status = report
 
-    def _on_diagnostics(self, msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            if status.name.startswith("vibration_planner"):
+    def _on_diagnostics(self, data: bytes) -> None:
+        statuses, errors = statuses_from_cdr(data)
+        for error in errors:
+            self.malformed.refuse("/diagnostics", error)
+        for status in statuses:
+            if status.node == "vibration_planner":
                 self.planner_message = status.message
+            elif status.name.startswith("mcap_recorder") and self.recorder_fault is None:
+                if status.values.get("fault") == "write_failed":  # the typed field, not the message text
+                    self.recorder_fault = status.values.get("fault_reason") or "write failed"
+
+    def _on_guard_status(self, data: bytes) -> None:
+        self._guard = self.malformed.read("kinematics/guard_status", guard_status_from_cdr, data) or self._guard
+
+    def _on_ground_truth(self, data: bytes) -> None:
+        self.latest["platform/pose"] = data  # 500 Hz: checked and decoded only when asked (ground_truth)
 
     # -- waiting ----------------------------------------------------------------------------------------
     def spin_until(self, predicate, timeout: float, what: str) -> None:
-        """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s) or as soon as a node died."""
+        """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s), as soon as a node died, or when the
+        recorder reports a write failure (unless ``stopping``): a run that is not recorded stops its scenario."""
         deadline = time.monotonic() + timeout
         while time.monotonic() < deadline:
             dead = self.dead()
             if dead:
                 raise StepFailed(f"{', '.join(dead)} died while waiting for {what} (see {self.log_dir})")
+            if self.recording_failed():
+                raise StepFailed(f"the recorder stopped recording while waiting for {what}: {self.recorder_fault}")
             if predicate():
                 return
             with INTERRUPTS.deferred():  # Ctrl-C must not land in rclpy's C++
                 self.executor.spin_once(timeout_sec=0.02)
         raise StepFailed(f"timed out after {timeout:.0f} s waiting for {what}")
+
+    def recording_failed(self) -> bool:
+        """Whether the recorder reported a write failure and the run is not already stopping because of one."""
+        return self.recorder_fault is not None and not self.stopping
 
     def spin_once(self, timeout_s: float = 0.5) -> None:
         with INTERRUPTS.deferred():
@@ -163,7 +195,7 @@ class SuiteClient:
                 self.spin_until(predicate, seconds, what)
                 return True
             except StepFailed:
-                if self.dead():
+                if self.dead() or self.recording_failed():
                     raise
                 return False
         return wait
@@ -190,6 +222,7 @@ class SuiteClient:
             return any(i.node_name == "mcap_recorder" for i in infos)
 
         self.spin_until(recorder_subscribed, 60, "the recorder to subscribe to legs/joint_states")
+        self.recorder_ready_clock = self.clock
         progress("ready: mcap_recorder is recording the suite's topics")
         self._wait_estimates_current(progress)
         for sub in self.readiness_subs:  # only the ground truth and /clock are needed from here on
@@ -212,7 +245,7 @@ class SuiteClient:
             self.spin_until(current, ESTIMATES_CURRENT_WAIT_S, "the force estimates to keep up with /clock")
             progress("ready: the force estimates keep up with the clock")
         except StepFailed:
-            if self.dead():
+            if self.dead() or self.recording_failed():
                 raise
             progress(f"WARNING: the force estimates did not keep within {ESTIMATES_CURRENT_S} s of /clock for "
                      f"{ESTIMATES_CURRENT_WAIT_S:.0f} s (busy machine?); going on: the force guard slows the moves")
@@ -229,19 +262,24 @@ class SuiteClient:
         """Subscribe to the 500 Hz platform/pose (only while a move settles) or stop."""
         if on and self._ground_truth_sub is None:
             self.latest.pop("platform/pose", None)
+            self._truth = (None, None)
             self._ground_truth_sub = self.node.create_subscription(
-                PoseStamped, "platform/pose", lambda m: self.latest.__setitem__("platform/pose", m), 1)
+                PoseStamped, "platform/pose", self._on_ground_truth, 1, raw=True)
         elif not on and self._ground_truth_sub is not None:
             self.node.destroy_subscription(self._ground_truth_sub)
             self._ground_truth_sub = None
 
     def ground_truth(self) -> np.ndarray | None:
-        msg = self.latest.get("platform/pose")
-        return None if msg is None else pose_from_msg(msg.pose)
+        """The newest well-formed ground-truth pose (6,); a malformed newest one is counted and the last good one
+        kept."""
+        data = self.latest.get("platform/pose")
+        if data is not None and data is not self._truth[0]:
+            truth = self.malformed.read("platform/pose", lambda d: pose_from_cdr(d, "ground-truth pose"), data)
+            self._truth = (data, truth[1] if truth is not None else self._truth[1])
+        return self._truth[1] if data is not None else None
 
-    def guard_status(self) -> tuple[dict, str]:
-        status = self._guard
-        return ({kv.key: kv.value for kv in status.values}, status.message) if status is not None else ({}, "")
+    def guard_status(self) -> GuardStatus | None:
+        return self._guard
 
     def set_planner_parameters(self, parameters: dict) -> list[str]:
         """Set the planner's parameters (one SetParameters call); the refusals as "name: reason"."""

@@ -13,9 +13,12 @@ import os
 from pathlib import Path
 from typing import cast
 
+import numpy as np
+from std_srvs.srv import Trigger
+
 from ..runtime.bringup import SuiteProcesses
 from ..runtime.scenario import Scenario
-from ..runtime.steps import RunOptions, RunRecord, ScenarioSteps, StepFailed
+from ..runtime.steps import SETTLE_HOLD_S, RunOptions, RunRecord, ScenarioSteps, StepFailed
 from .suite_client import SuiteClient
 
 __all__ = ["RunOptions", "RunRecord", "StepFailed", "SuiteRunner"]
@@ -38,7 +41,13 @@ class SuiteRunner:
 
     # wait_ready, run, call and supervise come after start, which creates the client
     def wait_ready(self) -> None:
-        cast(SuiteClient, self.client).wait_ready(self.options.progress)
+        """Wait until every node works; the recording is judged complete from the moment the recorder records
+        the states (``recording_span``)."""
+        client = cast(SuiteClient, self.client)
+        try:
+            client.wait_ready(self.options.progress)
+        finally:
+            self.record.recording_span[0] = client.recorder_ready_clock
 
     def run(self, scenario: Scenario) -> RunRecord:
         return ScenarioSteps(cast(SuiteClient, self.client), self.options, self.record).run(scenario)
@@ -53,16 +62,65 @@ class SuiteRunner:
         return self.processes.recent_problems(per_node)
 
     def supervise(self, respawn: set[str]) -> None:
-        self.processes.supervise(respawn, idle=cast(SuiteClient, self.client).spin_once)
+        """--keep-running: restart nodes that exit (``SuiteProcesses.supervise``); a recorder write failure is
+        said at once and fails the run (the user's session goes on)."""
+        client = cast(SuiteClient, self.client)
+
+        def idle() -> None:
+            client.spin_once()
+            if client.recording_failed():
+                client.stopping = True  # said once
+                self.options.progress(f"the recorder stopped recording: {client.recorder_fault}")
+                self.record.failures.append(f"the recording failed: {client.recorder_fault}")
+
+        self.processes.supervise(respawn, idle=idle, now=lambda: client.clock)
+
+    def bring_to_rest(self, timeout_s: float = 60.0) -> None:
+        """After a failed step: start nothing more, stop the vibration (the planner's ramp-out) and wait until the
+        units are idle and the platform's ground truth holds still (a move under way ends at its target), so the
+        nodes are stopped with the robot at rest. Says so, or why it could not confirm it."""
+        client, progress = self.client, self.options.progress
+        if client is None:
+            return
+        progress("stopping the scenario safely: no further moves, the vibration ramps out, waiting for the robot "
+                 "to come to rest")
+        client.stopping = True
+        try:
+            report = client.vibration_status
+            if report is not None and report.state not in ("idle", "stopped", "estopped"):
+                answer = client.call(Trigger, "vibration_planner/stop", Trigger.Request(), timeout=10.0)
+                progress(f"the vibration is stopped (vibration_planner/stop: {answer.message})")
+            client.follow_ground_truth(True)
+            last: list = [None, None]  # pose, sim time it was first seen
+
+            def at_rest() -> bool:
+                status, pose = client.vibration_status, client.ground_truth()
+                if pose is None or client.clock is None or \
+                        (status is not None and status.state not in ("idle", "stopped", "estopped")):
+                    return False
+                if last[0] is None or np.abs(pose - last[0]).max() > 1e-7:
+                    last[0], last[1] = pose, client.clock
+                    return False
+                return client.clock - last[1] >= SETTLE_HOLD_S
+
+            client.spin_until(at_rest, timeout_s, "the robot to come to rest")
+            progress("the robot is at rest (vibration units idle, platform still)")
+        except (StepFailed, RuntimeError) as exc:
+            progress(f"could not confirm the robot at rest: {exc}")
+        finally:
+            client.follow_ground_truth(False)
 
     def stop(self) -> None:
         """Stop the recorder (finishes the MCAP), then every process; close the client."""
         path = None
         if self.client is not None:
+            self.record.recording_span[1] = self.client.clock
             answer = self.client.stop_recorder(self.options.progress)
             path = Path(answer) if answer else None
         self.processes.stop()
         if self.client is not None:
+            if self.client.recorder_fault is not None:  # also when the recorder could not log its counts
+                self.record.failures.append(f"the recording failed: {self.client.recorder_fault}")
             self.client.close()
             self.client = None
         if path is None or not path.exists():

@@ -1,7 +1,8 @@
 """vibration planner node: a platform vibration -> self-contained vib_* command windows.
 
-Topics (relative): sub platform/pose_estimate (PoseStamped), vibration/status
-(DiagnosticStatus from the hardware emulator: what the units really do); pub
+Topics (relative): sub platform/pose_estimate (PoseStamped, base), vibration/status
+(DiagnosticStatus from the hardware emulator: what the units really do; a malformed one is counted on
+/diagnostics and ignored, see messages.status_values); pub
 vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m,
 velocities m/s, accelerations m/s^2; header.stamp = the vibration's common
 start time t0, time_from_start relative to t0). Services vibration_planner/start
@@ -45,11 +46,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from ..emulation.vibration_status import report_from_values
-from ..errors import StewartError
-from ..kinematics.rotations import pose_from_position_quaternion
+from ..errors import MalformedMessageError, StewartError
+from ..kinematics.robot_config import load_robot
 from ..messages import cdr
-from ..robot import load_robot
+from ..messages.stamped import pose_from_cdr
+from ..messages.status_values import vibration_report_from_cdr
 from ..runtime.sim_clock import ClockRate
 from ..vibration.settings import (
     DEFAULT_DIRECTION,
@@ -68,6 +69,7 @@ from .common import (
     VIB_NAMES,
     WARN,
     Diagnostics,
+    MalformedInputs,
     declare_float,
     float_param,
     reject,
@@ -101,6 +103,7 @@ class VibrationPlannerNode(Node):
             raise ValueError(f"invalid initial parameters: {reason}")
 
         self.diagnostics = Diagnostics(self, "vibration planner")
+        self.malformed = MalformedInputs(self, self.diagnostics)
         self.state = "idle"
         self.last_error = ""
         self.plan = None
@@ -119,7 +122,7 @@ class VibrationPlannerNode(Node):
         self._last_rate_sample = 0.0
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
-        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS)
+        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.create_service(Trigger, "vibration_planner/start", self.on_start)
         self.create_service(Trigger, "vibration_planner/stop", self.on_stop)
         self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -158,10 +161,13 @@ class VibrationPlannerNode(Node):
         if self._pose_seen % 50 == 1:  # the freshness watch needs no more than a few per second
             self.diagnostics.seen("platform/pose_estimate")
 
-    def on_status(self, msg: DiagnosticStatus) -> None:
+    def on_status(self, data: bytes) -> None:
+        """The emulator's vibration/status (raw). A malformed one is counted and ignored: the planner keeps the
+        last good report (it neither believes the units run nor aborts for it)."""
+        report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
+        if report is None:
+            return
         self.diagnostics.seen("vibration/status")
-        level = {DiagnosticStatus.OK: "ok", DiagnosticStatus.WARN: "warn"}.get(msg.level, "error")
-        report = report_from_values(level, {kv.key: kv.value for kv in msg.values})
         self.emulator = report
         self.emulator_received = time.monotonic()
         if self.state not in ("running", "stopping"):
@@ -229,9 +235,9 @@ class VibrationPlannerNode(Node):
             return self._refuse(response, f"pose estimate is {age:.3f} s old (wall time; pose_timeout_s "
                                           f"{s['pose_timeout_s']})")
         try:
-            pose_stamp, _, position, quaternion = cdr.decode_pose_stamped(data)
-            pose = pose_from_position_quaternion(position, quaternion)
-        except StewartError as exc:
+            pose_stamp, pose = pose_from_cdr(data, "pose estimate")
+        except MalformedMessageError as exc:
+            self.malformed.refuse("platform/pose_estimate", exc)
             return self._refuse(response, f"pose estimate unusable: {exc}")
         # just resumed from a stall, this process may not have taken the latest /clock yet: the
         # fresh pose estimate's stamp (sim time) bounds the present from below

@@ -12,32 +12,69 @@ from collections.abc import Callable
 from pathlib import Path
 
 from ..install import default_config_dir
+from ..safe_yaml import load_yaml
 from .processes import NodeProcess, ros_environment, start_python_module
 from .steps import RunOptions, RunRecord
 from .suite import OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 
 CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT
+# topics whose lost samples the summary prints but that do not fail the run: the emulator keeps 10 /clock samples
+# (0.1 s), so a recorder held up that long on a busy machine misses some, and every recorded message carries its
+# own stamp (the analysis never needs /clock)
+LOSS_REPORTED_ONLY = frozenset({"/clock"})
 
 
 def recorder_stats(log_text: str) -> dict | None:
-    """The recorder's counts of its last file from its log (the MCAP_RECORDER_STATS line)."""
-    lines = [line for line in log_text.splitlines() if line.startswith("MCAP_RECORDER_STATS ")]
-    return json.loads(lines[-1].split(" ", 1)[1]) if lines else None
+    """The recorder's counts of its last file from its log (the last whole MCAP_RECORDER_STATS line: on a full
+    disk the last one may be cut)."""
+    for line in reversed([x for x in log_text.splitlines() if x.startswith("MCAP_RECORDER_STATS ")]):
+        try:
+            stats = json.loads(line.split(" ", 1)[1])
+        except ValueError:
+            continue
+        if isinstance(stats, dict):
+            return stats
+    return None
+
+
+def recorder_failures(stats: dict | None) -> list[str]:
+    """What the recorder's counts of its last file make a failed run: messages dropped (its queue full),
+    samples lost before they reached it (but /clock's: LOSS_REPORTED_ONLY), a write that failed."""
+    if not stats:
+        return []
+    failures = []
+    if stats.get("dropped", 0):
+        failures.append(f"the recorder dropped {stats['dropped']} of {stats['received']} messages")
+    lost = {t: n for t, n in (stats.get("lost_per_topic") or {}).items() if t not in LOSS_REPORTED_ONLY}
+    if lost:
+        topics = ", ".join(f"{t} {n}" for t, n in sorted(lost.items()))
+        failures.append(f"{sum(lost.values())} samples were lost before they reached the recorder (sequence "
+                        f"gaps: {topics})")
+    if stats.get("failure"):
+        failures.append(f"the recording failed: {stats['failure']['reason']}")
+    return failures
 
 
 def node_arguments(options: RunOptions) -> dict[str, list[str]]:
     """Per node name, its ``--ros-args`` for this run: namespace, the suite's parameter file and the run's own
-    settings (real-time factor, output folder, tissue; the emulator waits to be configured and activated)."""
+    settings (real-time factor and lockstep, output folder, tissue, and the robot for every node that reads one; the
+    emulator waits to be configured and activated)."""
     params = options.params_file or default_config_dir() / SUITE_PARAMS_FILE
     common = ["--ros-args", "-r", f"__ns:={options.namespace}", "--params-file", str(params)]
     extra = {
-        "hardware_emulator": ["-p", f"real_time_factor:={options.real_time_factor}", "-p", "autostart:=false"],
+        "hardware_emulator": ["-p", f"real_time_factor:={options.real_time_factor}", "-p", "autostart:=false",
+                              "-p", f"lockstep:={str(options.lockstep).lower()}"],
         "mcap_recorder": ["-p", f"output_dir:={Path(options.out_dir).resolve()}"],
     }
     if options.tissue_config:
         for name in ("hardware_emulator", "kinematics"):
             extra[name] = extra.get(name, []) + ["-p", f"tissue_config:={options.tissue_config}"]
     nodes = SUITE_NODES + [OPTIONAL_NODES[key] for key in options.extra_nodes]
+    if options.robot_config:
+        robot = ["-p", f"robot_config:={Path(options.robot_config).resolve()}"]
+        for node in nodes:
+            if node.robot_config:
+                extra[node.name] = extra.get(node.name, []) + robot
     return {node.name: common + extra.get(node.name, []) for node in nodes}
 
 
@@ -52,6 +89,8 @@ class SuiteProcesses:
     def start(self) -> None:
         """Start every node of the run on its ROS domain, logs in <out>/logs."""
         opts = self.options
+        if opts.params_file is not None:  # refused here, with its reason, rather than by every node's rcl
+            load_yaml(opts.params_file, "node parameter file")
         env = ros_environment(opts.domain_id)
         Path(opts.out_dir).mkdir(parents=True, exist_ok=True)
         self.record.log_dir = Path(opts.out_dir) / "logs"
@@ -77,9 +116,11 @@ class SuiteProcesses:
             lines += [f"{proc.name}: {line.strip()}" for line in marked[-per_node:]]
         return lines
 
-    def supervise(self, respawn: set[str], idle: Callable[[], None]) -> None:
+    def supervise(self, respawn: set[str], idle: Callable[[], None],
+                  now: Callable[[], float | None] = lambda: None) -> None:
         """Keep the suite up until interrupted (--keep-running): a node that exits is reported and, when its
-        name is in ``respawn``, started again with the same arguments; the others keep running. ``idle()``
+        name is in ``respawn``, started again with the same arguments (recorded with the sim time ``now()``
+        its exit was seen: the run summary reports the gap it left); the others keep running. ``idle()``
         runs between the checks (the client spins there)."""
         progress = self.options.progress
         while True:
@@ -89,7 +130,7 @@ class SuiteProcesses:
                     continue
                 if proc.name in respawn:
                     progress(f"{proc.name} exited with code {code}; restarting it (log: {proc.log_path})")
-                    self.record.restarts.append((proc.name, code))
+                    self.record.restarts.append({"node": proc.name, "exit_code": code, "sim_time_s": now()})
                     self.procs[i] = proc.restart()
                 else:
                     progress(f"{proc.name} exited with code {code}; not restarted (--respawn does not name it); "
@@ -116,6 +157,4 @@ class SuiteProcesses:
                 self.record.failures.append(f"{proc.name} exited with code {code} (log: {proc.log_path})")
             if proc.name == "mcap_recorder":
                 self.record.recorder_stats = recorder_stats(proc.log_text())
-        stats = self.record.recorder_stats
-        if stats is not None and stats.get("dropped", 0):
-            self.record.failures.append(f"the recorder dropped {stats['dropped']} of {stats['received']} messages")
+        self.record.failures += recorder_failures(self.record.recorder_stats)

@@ -14,14 +14,17 @@ from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
-import yaml
 
+from ..config_values import Plausible, as_choice, as_number, as_vector, check_keys
 from ..dynamics.tissue import load_tissue
-from ..errors import ConfigError
+from ..errors import ConfigError, StewartError
 from ..install import default_config_dir
+from ..kinematics import check_pose
 from ..paper import paper_pose
 from ..robot import Robot
-from ..vibration.settings import VIBRATION_KEYS, default_settings, duration_reason
+from ..safe_yaml import load_yaml, short_repr
+from ..vibration.decompose import FRAMES
+from ..vibration.settings import VIBRATION_KEYS, default_settings, settings_reason
 
 VIBRATE_KEYS = set(VIBRATION_KEYS)  # a vibrate step sets these planner settings; the planner's values run for the rest
 DEFAULT_BOUNDS = {
@@ -80,73 +83,127 @@ def default_scenario_path() -> Path:
     return default_config_dir() / "scenario_paper.yaml"
 
 
+SCENARIO_KEYS = {"name", "steps", "bounds", "tissue"}
+MAX_STEPS = 1000
+MOVE_KINDS = ("move_to", "guarded_move_to")
+
+
 def load_scenario(robot: Robot, path=None, vibration_duration: float | None = None) -> Scenario:
-    """Parse a scenario file; ``vibration_duration`` (s) overrides every vibrate step's duration_s."""
-    path = Path(path) if path else default_scenario_path()
-    try:
-        tree = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError) as exc:
-        raise ConfigError(f"cannot read scenario {path}: {exc}") from None
-    if not isinstance(tree, dict) or not isinstance(tree.get("steps"), list) or not tree["steps"]:
-        raise ConfigError(f"scenario {path}: needs a non-empty 'steps' list")
+    """Parse and check a scenario file; ``vibration_duration`` (s) overrides every vibrate step's duration_s.
+
+    Every move's target must be a pose ``robot`` can take (``kinematics.check_pose``), every vibrate step's
+    settings pass the planner's check (``vibration.settings.settings_reason``, with the planner's defaults
+    for what the step does not set) and end by themselves, every bound is a known one with a finite value
+    >= 0, and a tissue file loads.
+
+    Args:
+        robot: the robot the scenario runs on.
+        path: the scenario YAML; None = config/scenario_paper.yaml.
+        vibration_duration: overrides every vibrate step's duration_s (s), or None.
+
+    Returns:
+        The Scenario.
+
+    Raises:
+        ConfigError: one line naming the file, the step or key and the reason (a file that cannot be read
+            safely, a wrong type, an unknown key, an unreachable target, a vibration the planner refuses, a
+            bad bound or a bad tissue file).
+    """
+    path = Path(path).expanduser() if path else default_scenario_path()
+    where = f"scenario {path}"
+    tree = load_yaml(path, "scenario")
+    check_keys(tree, SCENARIO_KEYS, where)
+    raw_steps = tree.get("steps")
+    if not isinstance(raw_steps, list) or not raw_steps:
+        raise ConfigError(f"{where}: needs a non-empty 'steps' list, got {short_repr(raw_steps)}")
+    if len(raw_steps) > MAX_STEPS:
+        raise ConfigError(f"{where}: {len(raw_steps)} steps, at most {MAX_STEPS}")
     steps: list[MoveStep | VibrateStep] = []
-    for index, step in enumerate(tree["steps"]):
+    for index, step in enumerate(raw_steps):
         if not isinstance(step, dict) or len(step) != 1:
-            raise ConfigError(f"scenario {path}: step {index} must be one of move_to / guarded_move_to / vibrate")
+            raise ConfigError(f"{where}: step {index} must be one of move_to / guarded_move_to / vibrate, got "
+                              f"{short_repr(step)}")
         (kind, value), = step.items()
-        if kind in ("move_to", "guarded_move_to"):
-            move = _move(robot, value, path, index)
+        if kind in MOVE_KINDS:
+            move = _move(robot, value, where, index, kind)
             steps.append(replace(move, name="guarded", guarded=True) if kind == "guarded_move_to" else move)
         elif kind == "vibrate":
-            params = dict(value or {})
-            unknown = set(params) - VIBRATE_KEYS
-            if unknown:
-                raise ConfigError(f"scenario {path}: step {index} unknown vibrate keys {sorted(unknown)}")
-            if vibration_duration is not None:
-                params["duration_s"] = float(vibration_duration)
-            reason = _duration_reason(params, robot)
-            if reason:
-                raise ConfigError(f"scenario {path}: step {index} {reason}")
-            steps.append(VibrateStep(params))
+            steps.append(VibrateStep(_vibrate(robot, value, where, index, vibration_duration)))
         else:
-            raise ConfigError(f"scenario {path}: step {index} has unknown kind '{kind}'")
+            raise ConfigError(f"{where}: step {index} has unknown kind {short_repr(kind)} (known: "
+                              f"{[*MOVE_KINDS, 'vibrate']})")
     bounds = dict(DEFAULT_BOUNDS)
-    bounds.update({k: float(v) for k, v in (tree.get("bounds") or {}).items()})
-    tissue = resolve_tissue_path(tree["tissue"], path.parent) if tree.get("tissue") else None
-    if tissue is not None:
+    given = tree.get("bounds") or {}
+    if not isinstance(given, dict):
+        raise ConfigError(f"{where}: 'bounds' must be a mapping (name: value lines), got {short_repr(given)}")
+    check_keys(given, DEFAULT_BOUNDS, where, "bounds")
+    bounds.update({k: as_number(v, f"bounds.{k}", where, BOUND_RANGE) for k, v in given.items()})
+    name = tree.get("name", path.stem)
+    if not isinstance(name, (str, int, float)) or isinstance(name, bool):
+        raise ConfigError(f"{where}: 'name' must be text, got {short_repr(name)}")
+    tissue = None
+    if tree.get("tissue"):
+        if not isinstance(tree["tissue"], str):
+            raise ConfigError(f"{where}: 'tissue' must be a file name, got {short_repr(tree['tissue'])}")
+        tissue = resolve_tissue_path(tree["tissue"], path.parent)
         load_tissue(tissue, robot)  # a bad tissue file fails here, with its reason, before anything starts
-    return Scenario(name=str(tree.get("name", path.stem)), steps=steps, bounds=bounds, source=str(path),
-                    tissue=tissue)
+    return Scenario(name=str(name), steps=steps, bounds=bounds, source=str(path), tissue=tissue)
 
 
-def _duration_reason(params: dict, robot: Robot) -> str | None:
-    """A scenario's vibration must end by itself (duration_s > 0) and follow the planner's rule for a
-    duration against its ramps (the planner's default ramp_s where the step sets none)."""
-    try:
-        duration = float(params.get("duration_s", 0.0))
-        ramp = float(params.get("ramp_s", default_settings(robot)["ramp_s"]))
-    except (TypeError, ValueError):
-        return "duration_s and ramp_s must be numbers"
-    if not duration > 0:
-        return f"duration_s must be > 0 (a scenario's vibration must end), got {duration}"
-    return duration_reason(duration, ramp)
+BOUND_RANGE = Plausible(0.0, 1e9)  # a pass/fail bound: finite and >= 0, in the bound's own unit
+
+
+def _vibrate(robot: Robot, value, where: str, index: int, vibration_duration: float | None) -> dict:
+    """A vibrate step's settings, typed and passed through the planner's check (its defaults for the rest)."""
+    params = {} if value is None else value
+    if not isinstance(params, dict):
+        raise ConfigError(f"{where}: step {index} vibrate needs a mapping of planner settings, got "
+                          f"{short_repr(value)}")
+    check_keys(params, VIBRATE_KEYS, where, f"step {index} vibrate")
+    params = dict(params)
+    for key, item in params.items():
+        if key == "direction":
+            params[key] = as_vector(item, f"step {index} vibrate.direction", where, 3).tolist()
+        elif key == "frame":
+            params[key] = as_choice(item, f"step {index} vibrate.frame", where, FRAMES)
+        else:
+            params[key] = as_number(item, f"step {index} vibrate.{key}", where)
+    if vibration_duration is not None:
+        params["duration_s"] = float(vibration_duration)
+    settings = {**default_settings(robot), **params}
+    if not settings["duration_s"] > 0:
+        raise ConfigError(f"{where}: step {index} duration_s must be > 0 (a scenario's vibration must end), got "
+                          f"{settings['duration_s']}")
+    if reason := settings_reason(robot, settings):
+        raise ConfigError(f"{where}: step {index} vibrate: {reason}")
+    return params
 
 
 def resolve_tissue_path(value, base: Path) -> str:
-    """A tissue file named by a scenario or --tissue: as given, beside the scenario (``base``), or in config/."""
+    """A tissue file named by a scenario or --tissue: as given, beside the scenario (``base``), or in config/.
+
+    Raises:
+        ConfigError: no such file in any of the three places.
+    """
     given = Path(str(value)).expanduser()
     for candidate in (given, base / given, default_config_dir() / given):
-        if candidate.is_file():
+        if candidate.exists():
             return str(candidate.resolve())
     raise ConfigError(f"tissue file {value!r} not found (as given, in {base} or in {default_config_dir()})")
 
 
-def _move(robot: Robot, value, path, index) -> MoveStep:
-    if value == "home":
-        return MoveStep("home", robot.home_pose.copy())
-    if value == "paper":
-        return MoveStep("paper", paper_pose(robot))
-    pose = np.asarray(value, dtype=float) if isinstance(value, list) else None
-    if pose is None or pose.shape != (6,) or not np.isfinite(pose).all():
-        raise ConfigError(f"scenario {path}: step {index} move_to needs paper, home or 6 numbers")
-    return MoveStep("pose", pose)
+def _move(robot: Robot, value, where: str, index: int, kind: str) -> MoveStep:
+    """A move step's target: home, paper or 6 numbers, a pose ``robot`` can take."""
+    if value in ("home", "paper"):
+        name, pose = str(value), robot.home_pose.copy() if value == "home" else paper_pose(robot)
+    elif isinstance(value, list) and len(value) == 6:
+        name, pose = "pose", as_vector(value, f"step {index} {kind}", where, 6)
+    else:
+        raise ConfigError(f"{where}: step {index} {kind} needs paper, home or 6 numbers [x, y, z, roll, pitch, "
+                          f"yaw], got {short_repr(value)}")
+    try:
+        check_pose(robot, pose)
+    except StewartError as exc:
+        raise ConfigError(f"{where}: step {index} {kind} {value if name != 'pose' else pose.tolist()} cannot be "
+                          f"reached by the robot ({robot.source}): {type(exc).__name__}: {exc}") from None
+    return MoveStep(name, pose)

@@ -10,6 +10,11 @@ from collections import deque
 
 import numpy as np
 
+REAL_TIME_FACTOR_MAX = 100.0  # the emulator's real_time_factor parameter: sim seconds per wall second at most
+# the slowest a run's sim clock may be set to (0 = as fast as possible aside): the runner's wall-time waits
+# assume at least this rate
+REAL_TIME_FACTOR_MIN = 0.05
+
 
 class ClockRate:
     """d(sim)/d(wall) over the last ``window_s`` of wall time, from (wall, sim) samples in seconds: the

@@ -13,6 +13,8 @@ from typing import Any, Protocol, cast
 
 import numpy as np
 
+from ..errors import MalformedMessageError
+from ..messages.status_values import GuardStatus, ran_settings
 from .scenario import MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor
 from .suite import DEFAULT_NAMESPACE
@@ -32,10 +34,12 @@ class RunOptions:
     namespace: str = DEFAULT_NAMESPACE
     domain_id: int = 42
     real_time_factor: float = 1.0
+    lockstep: bool = False  # the emulator waits for late estimates: sim time slows instead of moves pausing
     out_dir: Path = Path("runs")
     params_file: Path | None = None
     extra_nodes: tuple = ()  # runtime.suite.OPTIONAL_NODES keys to start as well ("foxglove", "ui")
     tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
+    robot_config: str | None = None  # robot YAML for every node that reads one (None: config/robot.yaml)
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -53,7 +57,8 @@ class RunRecord:
     interrupted: bool = False
     failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
     recorder_stats: dict | None = None  # the recorder's counts of its last file (received, written, dropped)
-    restarts: list = field(default_factory=list)  # (node, exit code) of nodes restarted under --keep-running
+    restarts: list = field(default_factory=list)  # dicts: node, exit_code, sim_time_s (restarted, --keep-running)
+    recording_span: list = field(default_factory=lambda: [None, None])  # sim s: recorder ready .. its stop
     guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
 
 
@@ -80,21 +85,14 @@ class SuiteClient(Protocol):
     def follow_ground_truth(self, on: bool) -> None:
         """Subscribe to the 500 Hz ground-truth platform/pose (``on``; only while a move settles) or stop."""
 
-    def guard_status(self) -> tuple[dict, str]:
-        """(key/value strings, message) of the latest kinematics/guard_status; ({}, "") before the first."""
+    def guard_status(self) -> GuardStatus | None:
+        """The latest well-formed kinematics/guard_status (messages.status_values.GuardStatus); None before one."""
 
     def set_planner_parameters(self, parameters: dict) -> list[str]:
         """Set the planner's parameters in one call; returns the refusals as "name: reason" (empty: all set)."""
 
     def start_vibration(self) -> tuple[bool, str]:
         """Call the planner's start: (success, its answer: the settings that ran, or why it refused)."""
-
-
-def ran_settings(start_answer: str) -> dict:
-    """The settings the planner reports it ran: the JSON after "settings: " in its start answer (with t0_s)."""
-    import json
-
-    return json.loads(start_answer.rsplit("settings: ", 1)[1])
 
 
 class ScenarioSteps:
@@ -156,9 +154,9 @@ class ScenarioSteps:
         client.send_target(step.pose)
 
         def tripped():
-            values = client.guard_status()[0]
-            return values.get("state") == "tripped" and values.get("trip_limit") in ("force", "moment") and \
-                float(values.get("trip_time_s", -1.0)) >= start - 1e-6  # not a pause for late estimates
+            guard = client.guard_status()
+            return guard is not None and guard.state == "tripped" and guard.trip_limit in ("force", "moment") and \
+                cast(float, guard.trip_time_s) >= start - 1e-6  # not a pause for late estimates
 
         def reached():
             pose = client.ground_truth()
@@ -183,8 +181,10 @@ class ScenarioSteps:
 
         client.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
         held = cast(np.ndarray, last[0])  # at rest: at_rest kept a pose
-        values, message = client.guard_status()
-        record = {"target": step.pose.tolist(), "time": client.clock, "guard": values, "stopped_pose": held.tolist(),
+        guard = cast(GuardStatus, client.guard_status())  # tripped (above)
+        message = guard.message
+        record = {"target": step.pose.tolist(), "time": client.clock, "guard": dict(guard.values),
+                  "stopped_pose": held.tolist(),
                   "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3]))}
         self.record.guard_stops.append(record)
         opts.progress(f"{label}: the force guard stopped the move as expected: {message}; "
@@ -202,7 +202,10 @@ class ScenarioSteps:
         ok, answer = client.start_vibration()
         if not ok:
             raise StepFailed(f"vibration start refused: {answer}")
-        ran = ran_settings(answer)
+        try:
+            ran = ran_settings(answer)
+        except MalformedMessageError as exc:
+            raise StepFailed(f"the planner's start answer is malformed: {exc}") from None
         start, t0 = client.clock, float(ran["t0_s"])
         ramp, duration = float(ran["ramp_s"]), float(ran["duration_s"])
         opts.progress(f"{label}: vibrating: {answer.rsplit('; settings: ', 1)[0]}")

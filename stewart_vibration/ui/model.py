@@ -10,8 +10,7 @@ computed with the core's own checks:
 - the vibration preview: the decomposition (leg amplitudes, phases 0 or pi, gains), the peak leg
   acceleration against the unit's limit and the reason it is infeasible from the planner's own start check
   (``vibration.settings.start_check``);
-- the planner's start answer parsed (gains, leg amplitudes and phases, t0, settings JSON);
-- a token-bucket rate limiter, a decimator for the browser streams and a buffer of the full-rate streams
+- a decimator for the browser streams and a buffer of the full-rate streams
   that feeds the run summary (``run_summary.summarize_vibration``) after a vibration.
 
 Every result is JSON-ready (``jsonable``: lists and floats, non-finite numbers as None).
@@ -19,9 +18,7 @@ Every result is JSON-ready (``jsonable``: lists and floats, non-finite numbers a
 
 from __future__ import annotations
 
-import json
 import math
-import re
 from collections import deque
 from typing import Any
 
@@ -248,48 +245,7 @@ def vibration_preview(robot: Robot, pose, settings: dict, ranges=None) -> dict:
     return jsonable(out)
 
 
-_LIST = r"(\[[^\]]*\])"
-
-
-def parse_start_answer(message: str) -> dict:
-    """The vibration planner's start answer -> {gains, leg_amplitudes_um, leg_phases_rad, t0_s, settings}
-    (None where a part is missing)."""
-    def find(pattern):
-        m = re.search(pattern, message)
-        return json.loads(m.group(1)) if m else None
-
-    settings = None
-    if "settings: " in message:
-        try:
-            settings = json.loads(message.rsplit("settings: ", 1)[1])
-        except ValueError:
-            settings = None
-    t0 = re.search(r"t0 = ([-+0-9.eE]+) s", message)
-    return {"gains": find(r"gains k = " + _LIST), "leg_amplitudes_um": find(r"leg amplitudes um = " + _LIST),
-            "leg_phases_rad": find(r"leg phases rad = " + _LIST), "t0_s": float(t0.group(1)) if t0 else None,
-            "settings": settings, "text": message.rsplit("; settings: ", 1)[0]}
-
-
 # -- streams ---------------------------------------------------------------------------------------
-class RateLimiter:
-    """Token bucket: ``rate`` per second, bursts of ``burst``; ``allow(now)`` takes a token if there is one."""
-
-    def __init__(self, rate: float, burst: float):
-        self.rate, self.burst = float(rate), float(burst)
-        self.last: float | None
-        self.tokens, self.last = float(burst), None
-
-    def allow(self, now: float) -> bool:
-        """Take a token at ``now`` (s) if one is left; True when the action is allowed."""
-        if self.last is not None:
-            self.tokens = min(self.burst, self.tokens + (now - self.last) * self.rate)
-        self.last = now
-        if self.tokens >= 1.0:
-            self.tokens -= 1.0
-            return True
-        return False
-
-
 class Decimator:
     """Keeps every ``every``-th sample of a stream across batches (the browser gets rate / every)."""
 

@@ -39,8 +39,8 @@ from websockets.asyncio.server import serve
 from websockets.datastructures import Headers
 from websockets.http11 import Response
 
+from ..rate_limit import RateLimiter
 from . import STATIC_DIR
-from .model import RateLimiter
 
 TOKEN_COOKIE = "stewart_ui_token"
 COMMANDS = ("plan_path", "move", "start", "reset")

@@ -1,4 +1,4 @@
-"""Vibration superposition and decomposition (paper section 4, corrected per REVIEW.md).
+"""Vibration superposition and decomposition (paper section 4, with the corrections in docs/dynamics.md).
 
 decompose: platform vibration -> six leg vibration equations (gains, phases,
 exact IK signals); superpose: six leg vibrations -> platform motion (exact

@@ -1,7 +1,7 @@
 """Decomposition: a desired platform vibration -> six leg vibration equations.
 
 The platform vibrates by delta(t) = A sin(2 pi f t + phase) along a screw
-(REVIEW.md "Vibration"): a translation along the unit direction u (the force
+(the paper's section 4, corrected): a translation along the unit direction u (the force
 line; default the platform z axis, the tibia axis) or a small rotation about
 an axis through a point. To first order leg i gets k_i delta(t) with
 k_i = J_i s (for a translation k_i = n_i . u): every leg carries the same

@@ -20,6 +20,7 @@ from typing import cast
 import numpy as np
 
 from ..errors import InvalidInputError, StewartError, VibrationLimitError
+from ..input_checks import safe_norm
 from ..robot import Robot
 from .decompose import FRAMES, VibrationDecomposition, decompose_vibration
 from .feasibility import check_command_limits
@@ -124,13 +125,16 @@ def settings_reason(robot: Robot, s: dict) -> str | None:
         s: {name: value} for every name of SETTINGS (direction 3 values, frame, the rest in SI units).
 
     Returns:
-        The first reason found (direction, frame, finiteness, frequency band, ranges, window size,
-        amplitude / acceleration, ramps and duration, streaming timing, sampling), or None if valid.
+        The first reason found (direction: 3 finite values with a non-zero norm that does not overflow;
+        frame, finiteness, frequency band, signs, window size, amplitude / acceleration, ramps and duration,
+        streaming timing, sampling, then every declared range of ``parameters``), or None if valid.
     """
     unit = robot.vibration_unit
     direction = np.asarray(list(s["direction"]), dtype=float)
-    if direction.shape != (3,) or not np.isfinite(direction).all() or np.linalg.norm(direction) < 1e-9:
+    if direction.shape != (3,) or not np.isfinite(direction).all() or safe_norm(direction) < 1e-9:
         return f"direction must be 3 finite values, not all zero; got {list(s['direction'])}"
+    if not math.isfinite(safe_norm(direction)):
+        return f"direction {list(s['direction'])} is too long: its length overflows (only its direction counts)"
     if s["frame"] not in FRAMES:
         return f"frame must be one of {list(FRAMES)}, got {s['frame']!r}"
     for name, value in s.items():
@@ -167,6 +171,9 @@ def settings_reason(robot: Robot, s: dict) -> str | None:
     if s["sample_period_s"] * s["frequency_hz"] > 0.1:
         return (f"sample_period_s {s['sample_period_s']} is too coarse for {s['frequency_hz']} Hz "
                 "(need >= 10 samples per period)")
+    for name, p in parameters(robot).items():  # what the planner's parameter descriptors enforce, for every caller
+        if not p.low <= s[name] <= p.high:
+            return f"{name} {s[name]} is outside its range [{p.low:g}, {p.high:g}]"
     return None
 
 

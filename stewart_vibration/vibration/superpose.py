@@ -5,7 +5,7 @@ length at the pose. The platform motion is the forward kinematics of
 l0 + dl(t) (exact; batched Newton, every sample warm-started from its
 linear prediction) and, to first order, dx = J^-1 dl ([dp; dphi], base
 frame). The paper's "superposition" sum_i n_i dl_i applies the force map to
-displacements and is wrong (REVIEW.md); it is computed only as a labelled
+displacements and is wrong (an error of the paper); it is computed only as a labelled
 comparison (``naive``).
 """
 

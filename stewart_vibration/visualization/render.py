@@ -24,11 +24,12 @@ from PIL import Image  # noqa: E402 - matplotlib's own dependency
 
 from ..analysis.run_report import extract  # noqa: E402
 from ..errors import StewartError  # noqa: E402
+from ..kinematics.robot_config import load_robot  # noqa: E402
 from ..kinematics.rotations import rotation_from_quaternion  # noqa: E402
 from ..mcap_log.files import McapFileError  # noqa: E402
 from ..mcap_log.reader import open_run  # noqa: E402
 from ..messages import cdr  # noqa: E402
-from ..robot import VIB_NAMES, load_robot  # noqa: E402
+from ..robot import VIB_NAMES  # noqa: E402
 from .scene import Scene, SceneBuilder, vibration_direction_from_window  # noqa: E402
 
 COLORS = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]  # tab10 is a ListedColormap
