@@ -8,14 +8,10 @@ from robot.yaml: bounds from which the errors are drawn reproducibly from ``seed
 overrides that win over the drawn values. Only the emulator, the run summary and tests read it; no
 controller node may.
 
-The documented response of one vibration unit on a fixed base, from its displacement demand d to its
-displacement x (both m, along the leg), is a second-order resonance behind the driver's first-order
-bandwidth and a transport delay:
-
-    X/D (s) = g w_n^2 / (s^2 + 2 zeta w_n s + w_n^2) * 1 / (1 + s / w_d) * exp(-s T)
-
-with g the unit's static gain, w_n = 2 pi f_n its closed-loop resonance, zeta its damping ratio,
-w_d = 2 pi f_d the driver bandwidth and T the delay. ``unit_response`` evaluates it.
+Each vibration unit is a resonant voice-coil stage with its own drive (emulation/vibration_unit.py
+gives the physical model, why it is plausible, and its documented fixed-base response); the plant file
+sets its resonance and damping on its rated load, their spread from unit to unit, the amplifier's
+bandwidth and delay.
 """
 
 from __future__ import annotations
@@ -43,6 +39,7 @@ DAMPING = Plausible(0.01, 2.0)
 GAIN = Plausible(0.5, 2.0)
 DRIVER_BANDWIDTH = Plausible(50.0, 100000.0, "Hz")
 DELAY = Plausible(0.0, 0.02, "s")
+RATED_LOAD = Plausible(0.0, 50.0, "kg")
 SERVO_BANDWIDTH = Plausible(1.0, 500.0, "Hz")
 FRICTION_FORCE = Plausible(0.0, 100.0, "N")
 VISCOUS_FRICTION = Plausible(0.0, 10000.0, "N s/m")
@@ -61,7 +58,8 @@ SEED = Plausible(0, 2**32 - 1)
 
 SECTIONS = ("plant", "seed", "geometry", "vibration_units", "struts", "sensors", "overrides")
 GEOMETRY_KEYS = ("hinge_error_max_m", "strut_zero_offset_max_m", "payload_mass_spread", "payload_com_error_max_m")
-UNIT_KEYS = ("model", "resonance_hz", "damping_ratio", "spread", "driver_bandwidth_hz", "delay_s")
+UNIT_KEYS = ("model", "resonance_hz", "damping_ratio", "spread", "driver_bandwidth_hz", "delay_s",
+             "suspension_damping_ratio", "rated_load_kg")
 STRUT_KEYS = ("model", "bandwidth_hz", "coulomb_friction_n", "viscous_friction_n_s_m")
 SENSOR_KEYS = ("encoder_quantization_m", "unit_sensor_noise_m", "load_cell_noise_n", "load_cell_offset_max_n",
                "imu", "tracker")
@@ -74,18 +72,24 @@ OVERRIDE_KEYS = ("base_hinge_errors_m", "platform_hinge_errors_m", "strut_zero_o
 
 @dataclass(frozen=True)
 class UnitDynamics:
-    """Each vibration unit's demand-to-displacement dynamics (arrays (6,), legs 1..6).
+    """Each vibration unit's dynamics (arrays (6,), legs 1..6).
 
-    model "ideal": the unit is its demand (today's displacement source); "resonant": the response of the
-    module docstring.
+    model "ideal": the unit is its demand (a displacement source); "resonant": a voice-coil stage
+    (emulation/vibration_unit.py) whose resonance on its rated load is ``resonance_hz`` and whose coil's
+    force constant is ``gain`` times nominal, its drive tuned for ``nominal_resonance_hz`` and
+    ``damping_ratio``, with ``suspension_damping_ratio`` of it passive; ``rated_load_kg``: the load the
+    drive is tuned for (besides the slider).
     """
 
     model: str
     resonance_hz: np.ndarray
-    damping_ratio: np.ndarray
+    damping_ratio: float
     gain: np.ndarray
     driver_bandwidth_hz: float
     delay_s: float
+    nominal_resonance_hz: float = 60.0
+    suspension_damping_ratio: float = 0.05
+    rated_load_kg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -141,19 +145,6 @@ class Plant:
     def platform_hinge_errors(self) -> np.ndarray:
         """(6, 3) m: true minus drawn platform hinges (platform frame)."""
         return self.robot.platform_hinges - self.nominal.platform_hinges
-
-
-def unit_response(units: UnitDynamics, frequencies_hz) -> np.ndarray:
-    """Complex demand-to-displacement response (6, F) of each unit on a fixed base at ``frequencies_hz`` (F,);
-    all ones for the ideal model."""
-    f = np.asarray(frequencies_hz, float)
-    if units.model == "ideal":
-        return np.ones((6, f.size), complex)
-    s = 2j * np.pi * f[None, :]
-    wn = 2 * np.pi * units.resonance_hz[:, None]
-    resonance = units.gain[:, None] * wn**2 / (s**2 + 2 * units.damping_ratio[:, None] * wn * s + wn**2)
-    driver = 1.0 / (1.0 + s / (2 * np.pi * units.driver_bandwidth_hz))
-    return resonance * driver * np.exp(-s * units.delay_s)
 
 
 def _section(tree: dict, key: str, allowed, where: str) -> dict:
@@ -220,19 +211,25 @@ def plant_from_dict(tree, nominal: Robot, source: str = "<dict>") -> Plant:
 
     unit_model = as_choice(units_tree.get("model", "ideal"), "vibration_units.model", where, ("ideal", "resonant"))
     spread = _number(units_tree, "spread", "vibration_units", where, SPREAD, 0.0)
-    resonance = _number(units_tree, "resonance_hz", "vibration_units", where, RESONANCE, 60.0) * \
-        (1.0 + spread * rng.uniform(-1.0, 1.0, 6))
+    nominal_resonance = _number(units_tree, "resonance_hz", "vibration_units", where, RESONANCE, 60.0)
+    resonance = nominal_resonance * (1.0 + spread * rng.uniform(-1.0, 1.0, 6))
     gain = 1.0 + spread * rng.uniform(-1.0, 1.0, 6)
     if "unit_resonance_hz" in over:
         resonance = as_vector(over["unit_resonance_hz"], "overrides.unit_resonance_hz", where, 6, RESONANCE)
     if "unit_gain" in over:
         gain = as_vector(over["unit_gain"], "overrides.unit_gain", where, 6, GAIN)
+    damping = _number(units_tree, "damping_ratio", "vibration_units", where, DAMPING, 0.15)
     units = UnitDynamics(
-        model=unit_model, resonance_hz=resonance, gain=gain,
-        damping_ratio=np.full(6, _number(units_tree, "damping_ratio", "vibration_units", where, DAMPING, 0.15)),
+        model=unit_model, resonance_hz=resonance, gain=gain, damping_ratio=damping,
         driver_bandwidth_hz=_number(units_tree, "driver_bandwidth_hz", "vibration_units", where, DRIVER_BANDWIDTH,
                                     1000.0),
-        delay_s=_number(units_tree, "delay_s", "vibration_units", where, DELAY, 0.0))
+        delay_s=_number(units_tree, "delay_s", "vibration_units", where, DELAY, 0.0),
+        nominal_resonance_hz=nominal_resonance,
+        suspension_damping_ratio=_number(units_tree, "suspension_damping_ratio", "vibration_units", where,
+                                         Plausible(0.0, damping), min(0.05, damping)),
+        # the share of the moving body one unit carries (robot.yaml's platform and payload, over six legs)
+        rated_load_kg=_number(units_tree, "rated_load_kg", "vibration_units", where, RATED_LOAD,
+                              nominal.moving_body.mass / 6))
     struts = StrutServos(
         model=as_choice(struts_tree.get("model", "ideal"), "struts.model", where, ("ideal", "servo")),
         bandwidth_hz=_number(struts_tree, "bandwidth_hz", "struts", where, SERVO_BANDWIDTH, 30.0),
