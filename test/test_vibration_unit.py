@@ -18,12 +18,14 @@ CONFIG = Path(__file__).resolve().parents[1] / "config"
 DT = 0.0005  # the emulator's physics period (2 kHz)
 
 
-def slider_rig(mass: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
-    """Six sliders of ``mass`` kg, each on a slide joint fixed to the world (a unit's test rig), semi-implicit
-    Euler at DT, no gravity: forces on them are the actuators' alone."""
+def slider_rig(mass: float, stiffness) -> tuple[mujoco.MjModel, mujoco.MjData]:
+    """Six sliders of ``mass`` kg, each on a slide joint fixed to the world (a unit's test rig) with its
+    flexure's ``stiffness`` (6,) N/m as MuJoCo's joint spring (as in the robot's model), semi-implicit Euler
+    at DT, no gravity."""
     bodies = "".join(
-        f'<body name="slider_{i}" pos="{0.1 * i} 0 0"><joint name="unit_{i}" type="slide" axis="0 0 1"/>'
-        f'<inertial pos="0 0 0" mass="{mass!r}" diaginertia="1e-4 1e-4 1e-4"/></body>' for i in range(6))
+        f'<body name="slider_{i}" pos="{0.1 * i} 0 0"><joint name="unit_{i}" type="slide" axis="0 0 1" '
+        f'stiffness="{float(k)!r}" springref="0"/>'
+        f'<inertial pos="0 0 0" mass="{mass!r}" diaginertia="1e-4 1e-4 1e-4"/></body>' for i, k in enumerate(stiffness))
     motors = "".join(f'<motor joint="unit_{i}" gear="1"/>' for i in range(6))
     xml = (f'<mujoco><option timestep="{DT!r}" integrator="Euler" gravity="0 0 0"/>'
            f'<worldbody>{bodies}</worldbody><actuator>{motors}</actuator></mujoco>')
@@ -34,7 +36,7 @@ def slider_rig(mass: float) -> tuple[mujoco.MjModel, mujoco.MjData]:
 def run_rig(hw, demand: np.ndarray, load_n=None, start_loaded: bool = False) -> np.ndarray:
     """Drive the six units of ``hw`` on the rig with ``demand`` (n,) m for every unit; constant external
     force ``load_n`` (6,) N on each slider; returns the sliders' displacements (n, 6) m."""
-    model, data = slider_rig(hw.rated_mass_kg)
+    model, data = slider_rig(hw.rated_mass_kg, hw.stiffness_n_m)
     load = np.zeros(6) if load_n is None else np.asarray(load_n, float)
     loop = UnitLoop(hw)
     if start_loaded:
@@ -44,7 +46,7 @@ def run_rig(hw, demand: np.ndarray, load_n=None, start_loaded: bool = False) -> 
     for n, d in enumerate(demand):
         x, v = data.qpos.copy(), data.qvel.copy()
         out[n] = x
-        data.ctrl[:] = loop.coil_force(np.full(6, d), x) - hw.stiffness_n_m * x - hw.damping_n_s_m * v
+        data.ctrl[:] = loop.coil_force(np.full(6, d), x) - hw.damping_n_s_m * v  # the flexure's damping
         mujoco.mj_step(model, data)
     return out
 
@@ -109,3 +111,51 @@ def test_a_loaded_unit_started_with_its_holding_force_does_not_move(robot, hardw
 def test_the_ideal_plant_has_no_unit_dynamics(robot):
     plant = load_plant(CONFIG / "plant_ideal.yaml", robot)
     assert plant.units.model == "ideal"
+
+
+def passive_robot(robot, hardware, damped: bool):
+    """The robot as built with its units as sliders (mjcf ``units``), every actuator off, RK4 at 0.1 ms,
+    struts held at home by springs (20 kN/m, a stand-in for the servos), the flexures' springs and, if
+    ``damped``, their damping as MuJoCo joint damping; every joint given a random velocity."""
+    from stewart_vibration.sim.mjcf import SimulationSettings, UnitSliders, build_model
+
+    model = build_model(robot, SimulationSettings(), units=UnitSliders(hardware.moving_mass_kg,
+                                                                        tuple(hardware.stiffness_n_m)))
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    legs = [model.joint(f"leg_{i}").id for i in range(1, 7)]
+    units = [model.joint(f"vib_{i}").id for i in range(1, 7)]
+    for j in legs:
+        model.jnt_stiffness[j] = 2e4
+        model.qpos_spring[model.jnt_qposadr[j]] = model.qpos0[model.jnt_qposadr[j]]
+    unit_dofs = np.array([model.jnt_dofadr[j] for j in units])
+    model.dof_damping[unit_dofs] = hardware.damping_n_s_m if damped else 0.0
+    data = mujoco.MjData(model)
+    data.qvel[[model.jnt_dofadr[j] for j in units + legs]] = np.random.default_rng(0).normal(size=12) * 0.01
+    mujoco.mj_forward(model, data)
+    return model, data, unit_dofs
+
+
+def energy_balance(robot, hardware, damped: bool) -> tuple[float, float, float]:
+    """(energy change, the flexures' damping work, peak kinetic energy) over 0.5 s (J)."""
+    model, data, dofs = passive_robot(robot, hardware, damped)
+    c = hardware.damping_n_s_m if damped else np.zeros(6)
+    start, work, peak = data.energy.sum(), 0.0, 0.0
+    for _ in range(5000):
+        before = -np.sum(c * data.qvel[dofs] ** 2)
+        mujoco.mj_step(model, data)
+        work += 0.5 * (before - np.sum(c * data.qvel[dofs] ** 2)) * model.opt.timestep
+        peak = max(peak, data.energy[1])
+    return data.energy.sum() - start, work, peak
+
+
+def test_the_robot_with_unit_sliders_keeps_its_power_balance(robot):
+    """Loops and damping off, the passive model conserves energy (kinetic + gravity + springs) to 0.5 % of
+    its peak kinetic energy over 0.5 s; with the flexures' damping the energy lost is the damping's work
+    (trapezoid rule on the step ends), and the same bound would miss that loss (the check can fail)."""
+    plant = load_plant(CONFIG / "plant_realistic.yaml", robot)
+    hardware = unit_hardware(plant.units, robot.leg.vibration_unit_mass, 1e-4)
+    change, _, peak = energy_balance(plant.robot, hardware, damped=False)
+    assert abs(change) < 0.005 * peak, (change, peak)
+    change, work, peak = energy_balance(plant.robot, hardware, damped=True)
+    assert abs(change - work) < 0.005 * peak, (change, work, peak)
+    assert abs(change) > 0.1 * peak  # the damping takes a real share: without its work the balance fails

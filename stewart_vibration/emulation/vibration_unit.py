@@ -31,6 +31,9 @@ feedforward and the response keeps the suspension's resonance.
 
 ``fixed_base_response`` is the exact response of this sampled drive on a slider of mass ``M`` integrated
 by semi-implicit Euler (MuJoCo's Euler) at ``dt``: the unit's documented demand-to-displacement response.
+It holds for the physics the emulator runs: the flexure's spring is MuJoCo's joint stiffness (explicit in
+Euler) and its damping is applied with the coil force from the velocity at the step's start (MuJoCo's
+Euler would take joint damping implicitly, another response).
 """
 
 from __future__ import annotations

@@ -21,6 +21,13 @@ Every body's frame has its z axis along the home leg axis (legs) or is the
 platform frame; the model is assembled at the home pose by IK, so all
 constraints hold at qpos0. Leg masses follow ``Robot.leg_bodies`` (vibration
 unit lumped into the piston), the same as the Newton-Euler model.
+
+With ``units`` (a ``UnitSliders``, the emulated robot as built) each vibration unit is a body of its own:
+body ``unit_i`` inside ``piston_i`` at the piston's tip, on the slide joint ``vib_i`` along the leg (its
+position is the unit's displacement, m, 0 at rest; a flexure spring of the unit's stiffness towards 0),
+holding site ``tip_i``; the piston then carries its own mass only, the slider the unit's moving mass, and
+actuator ``vib_i`` (a pure force motor like ``leg_i``) is the unit's coil. The hinge-to-hinge length is
+then leg_i + vib_i.
 """
 
 from __future__ import annotations
@@ -36,10 +43,19 @@ from ..errors import ConfigError
 from ..install import default_config_dir
 from ..kinematics import leg_vectors
 from ..kinematics.rotations import quaternion_from_rpy
-from ..robot import LEG_NAMES, Robot
+from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..safe_yaml import load_yaml, short_repr
 
 BASE_JOINTS = ("universal", "ball")
+SLIDER_INERTIA = 1e-7  # kg m^2, a slider's own rotational inertia (it turns with its leg; a token value)
+
+
+@dataclass(frozen=True)
+class UnitSliders:
+    """The vibration units as bodies: each slider's moving mass (kg) and flexure stiffness (6,) (N/m)."""
+
+    mass_kg: float
+    stiffness_n_m: tuple
 
 
 @dataclass(frozen=True)
@@ -185,13 +201,15 @@ def _f(values) -> str:
     return " ".join(f"{float(v):.17g}" for v in np.atleast_1d(values))
 
 
-def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal") -> str:
+def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal",
+               units: UnitSliders | None = None) -> str:
     """MJCF XML string of the robot at its home pose (see module docstring).
 
     Args:
         robot: the robot.
         settings: numerical settings; None = SimulationSettings() defaults.
         base_joint: "universal" (the real robot) or "ball" (exact static check).
+        units: the vibration units as slider bodies; None = lumped into the pistons.
 
     Returns:
         The MJCF document (str).
@@ -203,6 +221,7 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
         raise ConfigError(f"base_joint must be one of {BASE_JOINTS}, got {base_joint!r}")
     s = settings or SimulationSettings()
     p = robot.leg_bodies
+    piston_mass = p.piston_mass if units is None else robot.leg.piston_mass
     cyl_com, pis_com = p.cylinder_com_offset, p.piston_com_offset
     cyl_inertia = _f([p.cylinder_inertia_transverse, p.cylinder_inertia_transverse, p.cylinder_inertia_axial])
     pis_inertia = _f([p.piston_inertia_transverse, p.piston_inertia_transverse, p.piston_inertia_axial])
@@ -245,12 +264,22 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
             f'      <geom type="capsule" fromto="0 0 0 0 0 {2 * cyl_com:.17g}" size="0.010" rgba="0.3 0.4 0.8 1"/>',
             f'      <body name="piston_{n}" pos="0 0 {lengths[i]:.17g}">',
             f'        <joint name="{LEG_NAMES[i]}" type="slide" axis="0 0 1" ref="{lengths[i]:.17g}"/>',
-            f'        <inertial pos="0 0 {-pis_com:.17g}" mass="{p.piston_mass:.17g}" diaginertia="{pis_inertia}"/>',
+            f'        <inertial pos="0 0 {-pis_com:.17g}" mass="{piston_mass:.17g}" diaginertia="{pis_inertia}"/>',
             f'        <geom type="capsule" fromto="0 0 {-2 * pis_com:.17g} 0 0 0" size="0.006" rgba="0.8 0.8 0.8 1"/>',
-            f'        <site name="tip_{n}" pos="0 0 0" size="0.004"/>',
-            '      </body>',
-            '    </body>',
         ]
+        if units is None:
+            lines.append(f'        <site name="tip_{n}" pos="0 0 0" size="0.004"/>')
+        else:
+            lines += [
+                f'        <body name="unit_{n}">',
+                f'          <joint name="{VIB_NAMES[i]}" type="slide" axis="0 0 1" '
+                f'stiffness="{float(units.stiffness_n_m[i]):.17g}" springref="0"/>',
+                f'          <inertial pos="0 0 0" mass="{units.mass_kg:.17g}" '
+                f'diaginertia="{_f([SLIDER_INERTIA] * 3)}"/>',
+                f'          <site name="tip_{n}" pos="0 0 0" size="0.004"/>',
+                '        </body>',
+            ]
+        lines += ['      </body>', '    </body>']
     lines += [
         f'    <body name="platform" pos="{_f(home[:3])}" quat="{_f([xyzw[3], xyzw[0], xyzw[1], xyzw[2]])}">',
         '      <freejoint name="platform"/>',
@@ -261,21 +290,24 @@ def build_mjcf(robot: Robot, settings: SimulationSettings | None = None, base_jo
     lines += ['    </body>', '  </worldbody>', '  <equality>']
     lines += [f'    <connect name="hinge_{i + 1}" site1="tip_{i + 1}" site2="a_{i + 1}"/>' for i in range(6)]
     lines += ['  </equality>', '  <actuator>']
+    motors = LEG_NAMES + (VIB_NAMES if units is not None else ())
     lines += [f'    <general name="{name}" joint="{name}" gear="1" gainprm="1" biastype="affine" '
-              'biasprm="0 0 0"/>' for name in LEG_NAMES]
+              'biasprm="0 0 0"/>' for name in motors]
     lines += ['  </actuator>', '  <sensor>']
     lines += [f'    <actuatorfrc name="force_{name}" actuator="{name}"/>' for name in LEG_NAMES]
     lines += ['  </sensor>', '</mujoco>']
     return "\n".join(lines) + "\n"
 
 
-def build_model(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal"):
+def build_model(robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal",
+                units: UnitSliders | None = None):
     """Compiled mujoco.MjModel of ``build_mjcf``.
 
     Args:
         robot: the robot.
         settings: numerical settings; None = SimulationSettings() defaults.
         base_joint: "universal" or "ball".
+        units: the vibration units as slider bodies; None = lumped into the pistons.
 
     Returns:
         The mujoco.MjModel.
@@ -286,4 +318,4 @@ def build_model(robot: Robot, settings: SimulationSettings | None = None, base_j
     """
     import mujoco
 
-    return mujoco.MjModel.from_xml_string(build_mjcf(robot, settings, base_joint))
+    return mujoco.MjModel.from_xml_string(build_mjcf(robot, settings, base_joint, units))
