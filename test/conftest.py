@@ -12,20 +12,29 @@ import pytest
 from stewart_vibration import load_robot
 from stewart_vibration.runtime.processes import claim_ros_domain
 
+# Every process this test session starts inherits this mark in its environment: the left-behind check looks
+# at those alone, never at another checkout's run (a CI run, a benchmark) on the same machine.
+SESSION_MARK_ENV = "STEWART_TEST_SESSION"
+os.environ.setdefault(SESSION_MARK_ENV, f"{os.getpid()}-{time.time_ns()}")
+_SESSION_MARK = f"{SESSION_MARK_ENV}={os.environ[SESSION_MARK_ENV]}".encode()
+
 
 def _suite_processes() -> dict[int, str]:
-    """pid -> command line of every live process (not a zombie) running this package's code, the test
-    process itself excepted."""
+    """pid -> command line of every live process (not a zombie) of this test session (its environment holds
+    the session's mark) running this package's code, the test process itself excepted."""
     found = {}
     for entry in Path("/proc").iterdir():
         if not entry.name.isdigit() or int(entry.name) == os.getpid():
             continue
         try:
             cmdline = (entry / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            if "stewart_vibration" not in cmdline and "stewart-vibration" not in cmdline:
+                continue
             state = (entry / "stat").read_text().rsplit(")", 1)[1].split()[0]
-        except OSError:  # gone meanwhile
+            ours = _SESSION_MARK in (entry / "environ").read_bytes().split(b"\0")
+        except OSError:  # gone meanwhile, or another user's
             continue
-        if state != "Z" and ("stewart_vibration" in cmdline or "stewart-vibration" in cmdline):
+        if state != "Z" and ours:
             found[int(entry.name)] = cmdline.strip()
     return found
 

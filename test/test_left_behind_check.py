@@ -1,0 +1,26 @@
+"""The tests' left-behind process check (conftest) looks at this test session's processes only: a process
+of the package's started outside the session (another checkout's CI run, a benchmark) is neither reported
+nor killed; one started inside is found."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+from conftest import SESSION_MARK_ENV, _suite_processes
+
+SLEEPER = [sys.executable, "-c", "import time; time.sleep(60)", "stewart_vibration_left_behind_probe"]
+
+
+def test_only_this_sessions_processes_are_watched():
+    outside_env = {k: v for k, v in os.environ.items() if k != SESSION_MARK_ENV}
+    outside = subprocess.Popen(SLEEPER, env=outside_env)
+    inside = subprocess.Popen(SLEEPER)
+    try:
+        found = _suite_processes()
+        assert inside.pid in found and outside.pid not in found
+    finally:
+        for proc in (outside, inside):
+            proc.kill()
+            proc.wait(10)
