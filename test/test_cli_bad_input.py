@@ -535,6 +535,7 @@ def test_a_params_file_that_would_block_or_explode_is_refused_before_rcl_reads_i
     ("hardware_emulator", "robot_config", "not_utf8"),
     ("hardware_emulator", "simulation_config", "too_deep"),
     ("hardware_emulator", "tissue_config", "length_1e-6"),
+    ("hardware_emulator", "plant_config", "fifo"),
 ])
 def test_a_node_refuses_a_bad_config_file_parameter_with_the_reason(hostile_files, ros_domain, tmp_path, node,
                                                                     parameter, kind):

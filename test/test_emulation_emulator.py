@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from emulator_runs import PERIOD, move_and_settle, start_tibia_vibration
 
 from stewart_vibration import inverse_kinematics
 from stewart_vibration.analysis.fits import direction_error_deg, fit_sinusoid, line_vibration
@@ -19,25 +20,14 @@ from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration import decompose_vibration
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream
 
-PERIOD = 0.002  # state period (s): one block of physics steps
-
 
 @pytest.fixture(scope="module")
 def vibrated(robot):
     """Move to the paper's pose, vibrate 2 s (35 Hz, 0.3 g along the tibia axis); record every state."""
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
     pose = paper_pose(robot)
-    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, pose)
-    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
-    times = np.linspace(duration / 40, duration, 40)
-    emu.command_struts(LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
-    while emu.time < duration + 0.5:
-        emu.advance(PERIOD)
-    settled = emu.platform_pose()
-    plan = decompose_vibration(robot, pose, [0.0, 0.0, 1.0], acceleration_g=0.3, frequency=35.0, method="exact")
-    t0 = emu.time + 0.3
-    window = VibrationStream(robot, plan, StreamSettings(duration=2.0)).next_window(emu.time - t0)
-    emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity, window.acceleration)
+    settled = move_and_settle(emu, robot, pose)
+    plan, t0 = start_tibia_vibration(emu, robot, pose)
     rows, states, raw = [], [], []
     while emu.time < t0 + 2.2:
         emu.advance(PERIOD)

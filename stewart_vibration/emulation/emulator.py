@@ -18,6 +18,14 @@ world frame: the tissue's moment about the platform origin minus (R c_m) x F). `
 holds the wrench applied from the current time (about the platform origin, base frame). The struts are
 leadscrew actuators, stiff position sources: the servos' feedforward takes the applied load in exactly
 (servo_drive ``load_body``), so the tissue changes the strut forces, not the motion.
+
+The robot as built (``plant``, an ``emulation.plant.Plant`` of kind "realistic"): MuJoCo runs the plant's
+true geometry and payload with each vibration unit as a body of its own (mjcf ``UnitSliders``), and the
+drives are the plant's (``plant_drive``): strut servos on their encoders, no feedforward from any model,
+with friction, and each unit's own firmware and amplifier. The commands stay in the controller's frame
+(encoder lengths, unit demands); the joint states report the sensors (encoders, unit sensors, load cells
+with their noise and offsets); ``platform_pose`` stays the truth. Without a plant (or the ideal one) the
+robot is the drawing, as above.
 """
 
 from __future__ import annotations
@@ -28,16 +36,20 @@ import mujoco
 import numpy as np
 
 from ..dynamics.tissue import TissueModel, tissue_wrench_single
-from ..kinematics import check_pose
+from ..errors import ConfigError
+from ..kinematics import check_pose, forward_kinematics
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
-from ..sim.mjcf import SimulationSettings
+from ..sim.mjcf import SimulationSettings, UnitSliders
 from ..sim.mujoco_sim import StewartSim
 from .physics_guard import PhysicsFault, PhysicsGuard
+from .plant import Plant
+from .plant_drive import PlantDrive
 from .safety_controller import SafetyController
 from .servo_drive import ServoDrive
 from .strut_trajectory import MAX_START_DELAY_S, JointTrajectory, TrajectoryFollower
 from .vibration_buffer import VibrationBuffer
 from .vibration_status import VibrationReport, VibrationStatusTracker
+from .vibration_unit import unit_hardware
 
 
 class HardwareEmulator:
@@ -55,18 +67,25 @@ class HardwareEmulator:
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
                  reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,
-                 tissue: TissueModel | None = None):
+                 tissue: TissueModel | None = None, plant: Plant | None = None):
         self.robot = robot
-        self.sim = StewartSim(robot, replace(settings, integrator=settings.emulator_integrator))
-        self.sim.reset(robot.home_pose)
+        self.plant = plant if plant is not None and plant.kind == "realistic" else None
+        physics = replace(settings, integrator=settings.emulator_integrator)
         self.tissue = tissue
         self.tissue_wrench = np.zeros(6)  # applied from the current time on (N, N m about the platform origin)
-        self._platform_body = self.sim.model.body("platform").id
-        self._com = robot.moving_body.com.tolist()
         self._rot = np.zeros(9)
-        self._apply_tissue()
-        self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio, gain_interval,
-                                load_body=self._platform_body if tissue is not None else None)
+        built = robot if self.plant is None else self.plant.robot
+        self._com = built.moving_body.com.tolist()
+        self.drive: ServoDrive | PlantDrive
+        if self.plant is None:
+            self.sim = StewartSim(robot, physics)
+            self.sim.reset(robot.home_pose)
+            self._platform_body = self.sim.model.body("platform").id
+            self._apply_tissue()
+            self.drive = ServoDrive(self.sim, settings.servo_bandwidth_hz, settings.drive_damping_ratio,
+                                    gain_interval, load_body=self._platform_body if tissue is not None else None)
+        else:
+            self._build_plant(self.plant, physics)
         self.guard = PhysicsGuard(self.sim.model, self.sim.data, self.sim.slide_qpos, self.sim.slide_dof)
         self.safety = SafetyController(robot, self.dt, watchdog_s, vibration_ramp_s, max_lookahead_s,
                                        max_start_delay_s)
@@ -74,6 +93,32 @@ class HardwareEmulator:
         self.reference_horizon_s = float(reference_horizon_s)
         self._refs = None  # (version, first step time, arrays) of the sampled references
         self._planned = None  # (version, time, controls) for the block starting at ``time``
+
+    def _build_plant(self, plant: Plant, physics: SimulationSettings) -> None:
+        """``sim``: MuJoCo with the plant's geometry, payload and unit sliders at rest at home; ``drive``: the
+        plant's drives."""
+        if plant.units.model != "resonant" or plant.struts.model != "servo":
+            raise ConfigError(f"plant config {plant.source}: a realistic plant needs vibration_units.model "
+                              f"'resonant' and struts.model 'servo' (got {plant.units.model!r}, "
+                              f"{plant.struts.model!r})")
+        units = unit_hardware(plant.units, plant.robot.leg.vibration_unit_mass, float(physics.timestep))
+        sliders = UnitSliders(units.moving_mass_kg, tuple(units.stiffness_n_m))
+        self.sim = StewartSim(plant.robot, physics, units=sliders)
+        self._platform_body = self.sim.model.body("platform").id
+        self.sim.reset(self._true_pose(check_pose(self.robot, self.robot.home_pose), self.robot.home_pose))
+        self._apply_tissue()
+        rigid = StewartSim(plant.robot, physics)
+        rigid.reset(self.sim.platform_pose())
+        self.drive = PlantDrive(self.sim, plant, units, plant.struts.bandwidth_hz, physics.drive_damping_ratio,
+                                seed=plant.seed, rigid=rigid)
+        self.drive.restart()
+
+    def _true_pose(self, lengths: np.ndarray, guess) -> np.ndarray:
+        """The plant's true pose (6,) where its struts read ``lengths`` (6,) m on their encoders (the controller's
+        frame): FK of the robot as built at the true lengths (encoder + zero offset)."""
+        assert self.plant is not None
+        result = forward_kinematics(self.plant.robot, lengths + self.plant.strut_zero_offsets, guess=guess)
+        return np.asarray(result.pose, float).reshape(6)
 
     @property
     def time(self) -> float:
@@ -170,10 +215,19 @@ class HardwareEmulator:
         pose = self.robot.home_pose if pose is None else np.asarray(pose, dtype=float)
         lengths = check_pose(self.robot, pose)
         self.safety.place_at_rest(lengths)
-        self.sim.set_state(pose)
-        self.drive.restart()
+        if self.plant is None:
+            self.sim.set_state(pose)
+            self.drive.restart()
+            self._apply_tissue()
+            self.guard.check(lengths)  # the new last good state
+            return
+        assert isinstance(self.drive, PlantDrive)
+        data = self.sim.data
+        data.qpos[self.drive.vib_q], data.qvel[self.drive.vib_v] = 0.0, 0.0
+        self.sim.set_state(self._true_pose(lengths, pose))
         self._apply_tissue()
-        self.guard.check(lengths)  # the new last good state
+        self.drive.restart()
+        self.guard.check(lengths + self.plant.strut_zero_offsets)
 
     def latch_fault(self, reason: str) -> None:
         """Latch a physics fault now (the divergence detector, or an exception in the physics thread): the last
@@ -243,8 +297,8 @@ class HardwareEmulator:
         planned = self._planned
         if planned is not None and planned[0] == self._version and planned[1] == time and len(planned[2]) == steps:
             return planned[2]
-        lengths, rates_half, accels, _, _ = self._references(time, steps) if references is None else references
-        return self.drive.plan(time, lengths[:steps], rates_half[:steps], accels[:steps])
+        lengths, rates_half, accels, vib, _ = self._references(time, steps) if references is None else references
+        return self.drive.plan(time, lengths[:steps], rates_half[:steps], accels[:steps], vib[:steps])
 
     def advance(self, duration: float) -> int:
         """Run round(duration / dt) physics steps as one block; returns the number of steps.
@@ -263,7 +317,7 @@ class HardwareEmulator:
             self.drive.run(self._controls(start, steps))
             now = self.time
             references = self._references(now, steps)  # the next block's; its first row: the commanded lengths now
-            reason = self.guard.check(references[0][0])
+            reason = self.guard.check(self._true_strut_reference(references))
             if reason is None:
                 self._apply_tissue()  # the tissue's wrench over the next block, from the state now
                 controls = self._controls(now, steps, references)
@@ -280,10 +334,19 @@ class HardwareEmulator:
         self.forces = forces
         return steps
 
+    def _true_strut_reference(self, references) -> np.ndarray:
+        """What the MuJoCo slides should be now (6,) m: the commanded hinge lengths (ideal: the slides are
+        strut + unit), or the commanded struts in the true frame (the plant: the slides are the struts)."""
+        if self.plant is None:
+            return references[0][0]
+        return references[0][0] - references[3][0] + self.plant.strut_zero_offsets
+
     # -- read-back ---------------------------------------------------------------
     def joint_state(self):
         """(names, positions, velocities, efforts) for leg_1..6, vib_1..6 at the current time (after a physics
         fault: the held lengths at rest, the vibration units at zero, the last good forces)."""
+        if self.plant is not None and self.fault is None:
+            return self._sensor_state()
         total, rate = self.drive.lengths(), self.drive.rates()
         if self.fault is not None:
             zeros = np.zeros(6)
@@ -295,6 +358,18 @@ class HardwareEmulator:
         velocities = np.concatenate([rate - vib_rate, vib_rate])
         efforts = np.concatenate([self.forces, self.forces])
         return LEG_NAMES + VIB_NAMES, positions, velocities, efforts
+
+    def _sensor_state(self):
+        """The plant's joint states: encoders and unit sensors (their readings and rates over the last step)
+        and the load cells (the strut forces with the plant's noise and offsets)."""
+        assert self.plant is not None and isinstance(self.drive, PlantDrive)
+        drive, sensors = self.drive, self.plant.sensors
+        (strut, unit), (strut_rate, unit_rate) = drive.readings(), drive.reading_rates()
+        cells = self.forces + sensors.load_cell_offsets_n
+        if sensors.load_cell_noise_n > 0:
+            cells = cells + drive.rng.normal(0.0, sensors.load_cell_noise_n, 6)
+        return (LEG_NAMES + VIB_NAMES, np.concatenate([strut, unit]), np.concatenate([strut_rate, unit_rate]),
+                np.concatenate([cells, cells]))
 
     def platform_pose(self) -> np.ndarray:
         """The platform's ground-truth pose (6,) [x, y, z, roll, pitch, yaw] (m, rad) in the base frame."""

@@ -23,6 +23,7 @@ import numpy as np
 
 from ..config_values import Plausible, as_choice, as_number, as_vector, check_keys
 from ..errors import ConfigError
+from ..install import default_config_dir
 from ..robot import RigidBody, Robot
 from ..safe_yaml import load_yaml
 
@@ -40,6 +41,7 @@ GAIN = Plausible(0.5, 2.0)
 DRIVER_BANDWIDTH = Plausible(50.0, 100000.0, "Hz")
 DELAY = Plausible(0.0, 0.02, "s")
 RATED_LOAD = Plausible(0.0, 50.0, "kg")
+REFLECTED_MASS = Plausible(0.0, 1000.0, "kg")
 SERVO_BANDWIDTH = Plausible(1.0, 500.0, "Hz")
 FRICTION_FORCE = Plausible(0.0, 100.0, "N")
 VISCOUS_FRICTION = Plausible(0.0, 10000.0, "N s/m")
@@ -60,7 +62,7 @@ SECTIONS = ("plant", "seed", "geometry", "vibration_units", "struts", "sensors",
 GEOMETRY_KEYS = ("hinge_error_max_m", "strut_zero_offset_max_m", "payload_mass_spread", "payload_com_error_max_m")
 UNIT_KEYS = ("model", "resonance_hz", "damping_ratio", "spread", "driver_bandwidth_hz", "delay_s",
              "suspension_damping_ratio", "rated_load_kg")
-STRUT_KEYS = ("model", "bandwidth_hz", "coulomb_friction_n", "viscous_friction_n_s_m")
+STRUT_KEYS = ("model", "bandwidth_hz", "coulomb_friction_n", "viscous_friction_n_s_m", "reflected_mass_kg")
 SENSOR_KEYS = ("encoder_quantization_m", "unit_sensor_noise_m", "load_cell_noise_n", "load_cell_offset_max_n",
                "imu", "tracker")
 IMU_KEYS = ("accel_noise_density_m_s2_rthz", "gyro_noise_density_rad_s_rthz", "accel_bias_max_m_s2",
@@ -95,12 +97,14 @@ class UnitDynamics:
 @dataclass(frozen=True)
 class StrutServos:
     """The strut drives: model "ideal" (today's computed-force servo) or "servo" (a position loop of
-    ``bandwidth_hz`` on the encoder), with Coulomb (N) and viscous (N s/m) friction per strut (6,)."""
+    ``bandwidth_hz`` on the encoder), with Coulomb (N) and viscous (N s/m) friction per strut (6,) and the
+    motor's rotor inertia reflected through the leadscrew onto the strut's axis (kg)."""
 
     model: str
     bandwidth_hz: float
     coulomb_friction_n: np.ndarray
     viscous_friction_n_s_m: np.ndarray
+    reflected_mass_kg: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -236,7 +240,8 @@ def plant_from_dict(tree, nominal: Robot, source: str = "<dict>") -> Plant:
         coulomb_friction_n=np.full(6, _number(struts_tree, "coulomb_friction_n", "struts", where, FRICTION_FORCE,
                                               0.0)),
         viscous_friction_n_s_m=np.full(6, _number(struts_tree, "viscous_friction_n_s_m", "struts", where,
-                                                  VISCOUS_FRICTION, 0.0)))
+                                                  VISCOUS_FRICTION, 0.0)),
+        reflected_mass_kg=_number(struts_tree, "reflected_mass_kg", "struts", where, REFLECTED_MASS, 0.0))
     cell_offset = _number(sensors_tree, "load_cell_offset_max_n", "sensors", where, FORCE_NOISE, 0.0)
     accel_bias = _number(imu, "accel_bias_max_m_s2", "sensors.imu", where, ACCEL_BIAS, 0.0)
     gyro_bias = _number(imu, "gyro_bias_max_rad_s", "sensors.imu", where, GYRO_BIAS, 0.0)
@@ -284,3 +289,18 @@ def load_plant(path: str | Path, nominal: Robot, seed: int | None = None) -> Pla
     if seed is not None:
         tree = dict(tree, seed=seed)
     return plant_from_dict(tree, nominal, str(path))
+
+
+def load_plant_option(value: str | None, nominal: Robot, seed: int | None = None) -> Plant | None:
+    """The emulator's ``plant_config`` parameter (or the main job's --plant): '' or None = the drawing
+    (no plant); "ideal" or "realistic" = config/plant_<name>.yaml; else a YAML path (a relative path that is
+    not a file is tried in the config directory). ``seed`` (>= 0) replaces the file's. ConfigError as
+    ``load_plant``."""
+    if not value:
+        return None
+    path = Path(value).expanduser()
+    if value in PLANT_KINDS:
+        path = default_config_dir() / f"plant_{value}.yaml"
+    elif not path.exists() and not path.is_absolute() and (default_config_dir() / path).exists():
+        path = default_config_dir() / path
+    return load_plant(path, nominal, seed)

@@ -130,9 +130,10 @@ class ServoDrive:
         d.xfrc_applied[body] = load
         return gain
 
-    def plan(self, time: float, lengths, rates_half_back, accels) -> np.ndarray:
+    def plan(self, time: float, lengths, rates_half_back, accels, vib=None) -> np.ndarray:
         """Controls [n, 6] for the next n steps from ``time`` (s): reference lengths (m), rates half a step
-        back (m/s) and step accelerations (m/s^2), each [n, 6].
+        back (m/s) and step accelerations (m/s^2), each [n, 6] (``vib``, the unit demands, is already in
+        the lengths: the units are part of the slides here).
 
         b comes for free from the last step (b = L_ddot - G F at that step's start: MuJoCo's
         accelerations are affine in the forces) and is extrapolated linearly over the block from the

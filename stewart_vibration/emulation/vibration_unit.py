@@ -12,7 +12,7 @@ displacement demand d and its own displacement sensor's reading y:
     coil force = kappa f_n                                 (kappa the unit's force-constant error)
 
 ``k0 d`` is the force that holds the nominal spring at the demand (the drive), ``Kd`` adds velocity
-damping to the suspension's own, and the integral (corner a decade below the resonance) holds the static
+damping to the suspension's own, and the integral (corner two decades below the resonance) holds the static
 leg force, so the unit's mean position does not sag under the platform's weight. The manufacturer sets
 k0 and Kd for the rated load ``M`` (slider plus the share of the platform one unit carries) on a fixed base:
 a resonance ``f_n`` and a damping ratio ``zeta`` (``design_hardware``; Kd is raised by 1 / cos of the
@@ -44,7 +44,9 @@ import numpy as np
 
 from .plant import UnitDynamics
 
-INTEGRAL_CORNER = 0.1  # the integral's corner, a fraction of the resonance: holds the load, barely shapes the band
+# the integral's corner, a fraction of the resonance: it holds the load without shaping the band, and is slow
+# beside the strut servo's integral in series with it (at a tenth of the resonance the two beat and grow)
+INTEGRAL_CORNER = 0.01
 
 
 @dataclass(frozen=True)

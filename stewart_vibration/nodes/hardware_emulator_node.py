@@ -48,6 +48,7 @@ from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_comma
 from ..emulation.consumer_pace import MAX_WAIT_S, ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator
 from ..emulation.physics_guard import PhysicsFault
+from ..emulation.plant import load_plant_option
 from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
@@ -114,6 +115,13 @@ class HardwareEmulatorNode(LifecycleNode):
         self.declare_parameter("tissue_config", "", text_param(
             "soft-tissue YAML applied to the platform (e.g. tissue.yaml: a name is looked up in config/; '' = no "
             "tissue; read at configure)", ro))
+        self.declare_parameter("plant_config", "", text_param(
+            "the robot as built: '' or 'ideal' = the drawing (robot.yaml), 'realistic' = "
+            "config/plant_realistic.yaml (resonant vibration units, strut servos on encoders, geometry errors, "
+            "sensor noise), or a plant YAML path (read at configure)", ro))
+        self.declare_parameter("plant_seed", -1, int_param(
+            "seed of the plant's drawn errors; -1 = the plant file's own (read at configure)", -1, 2**31 - 1,
+            read_only=ro))
         self.declare_parameter("autostart", True, ParameterDescriptor(
             description="configure and activate at start (false: wait for the lifecycle transitions)", read_only=ro))
         declare_float(self, "physics_rate_hz", 2000.0, float_param(
@@ -194,9 +202,11 @@ class HardwareEmulatorNode(LifecycleNode):
             settings = load_simulation_settings(param("simulation_config").value or None,
                                                 timestep=1.0 / param("physics_rate_hz").value)
             tissue = load_tissue_option(param("tissue_config").value, robot)
+            seed = int(param("plant_seed").value)
+            plant = load_plant_option(param("plant_config").value, robot, seed if seed >= 0 else None)
             emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
                                         param("drive_gain_interval").value, param("max_lookahead_s").value,
-                                        tissue=tissue)
+                                        tissue=tissue, plant=plant)
         except (StewartError, ValueError, OSError) as exc:
             self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
             self.diagnostics.set(ERROR, f"configure failed: {exc}")
@@ -224,10 +234,12 @@ class HardwareEmulatorNode(LifecycleNode):
         self.diagnostics.set(OK, "configured (inactive: commands are refused until activate)",
                              physics_rate_hz=param("physics_rate_hz").value,
                              servo_bandwidth_hz=settings.servo_bandwidth_hz,
-                             tissue=tissue.source if tissue is not None else "none")
+                             tissue=tissue.source if tissue is not None else "none",
+                             plant=f"{plant.kind} (seed {plant.seed})" if plant is not None else "ideal")
+        built = f"{plant.kind} seed {plant.seed} ({plant.source})" if plant is not None else "ideal"
         self.get_logger().info(f"configured: MuJoCo dt {emulator.dt} s, {settings.emulator_integrator}, "
                                f"robot {robot.source}, tissue "
-                               f"{f'{tissue.name} ({tissue.source})' if tissue is not None else 'none'}")
+                               f"{f'{tissue.name} ({tissue.source})' if tissue is not None else 'none'}, plant {built}")
         return TransitionCallbackReturn.SUCCESS
 
     def on_activate(self, state: LifecycleState) -> TransitionCallbackReturn:

@@ -29,7 +29,7 @@ from ..kinematics import leg_vectors
 from ..kinematics.legs import leg_motion
 from ..kinematics.rotations import quaternion_from_rpy, rotation_from_rpy, rpy_from_rotation
 from ..robot import LEG_NAMES, Robot
-from .mjcf import SimulationSettings, build_model, leg_frame
+from .mjcf import SimulationSettings, UnitSliders, build_model, leg_frame
 
 
 class StewartSim:
@@ -39,18 +39,20 @@ class StewartSim:
     gain_interval: recompute the drive's force-to-acceleration matrix every
     this many steps (1 = exact computed-force drive, used by the validation;
     larger is faster, the feedback absorbs the slowly changing gain).
+    units: the vibration units as slider bodies (``mjcf.UnitSliders``; the emulated robot as built); the
+    slides ``leg_i`` are then the struts alone.
     Attributes: model, data (mujoco), robot, settings.
     """
 
     def __init__(self, robot: Robot, settings: SimulationSettings | None = None, base_joint: str = "universal",
-                 gain_interval: int = 1):
+                 gain_interval: int = 1, units: UnitSliders | None = None):
         self.robot = robot
         self.gain_interval = max(1, int(gain_interval))
         self._gain: np.ndarray | None
         self._gain, self._gain_age = None, 0
         self.settings = settings or SimulationSettings()
         self.base_joint = base_joint
-        self.model = build_model(robot, self.settings, base_joint)
+        self.model = build_model(robot, self.settings, base_joint, units)
         self.data = mujoco.MjData(self.model)
         self._scratch = mujoco.MjData(self.model)
         m = self.model
