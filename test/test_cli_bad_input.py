@@ -376,6 +376,13 @@ def test_every_subcommand_refuses_a_bad_robot_file_in_one_line(hostile_files, ba
     assert not (tmp_path / "report").exists() and not (tmp_path / "run").exists()  # nothing half-written
 
 
+@pytest.mark.parametrize("kind", ["missing", "fifo", "not_utf8"])
+def test_run_refuses_a_bad_plant_file_in_one_line(hostile_files, nothing_starts, capsys, tmp_path, kind):
+    path = hostile_files[kind]
+    refused_in_one_line(["run", "--plant", path, "--out", tmp_path / "run"], capsys, str(path.name),
+                        FILE_CLASSES[kind][1])
+
+
 @pytest.mark.parametrize("kind", ALL_CLASSES)
 @pytest.mark.parametrize("option", ["--scenario", "--tissue"])
 def test_run_refuses_a_bad_scenario_or_tissue_file_in_one_line(hostile_files, nothing_starts, capsys, tmp_path,
@@ -421,6 +428,7 @@ NUMERIC_OPTIONS = {  # (argv before the value, argv after it, values that are va
     "run --duration": (["run", "--duration"], [], set()),
     "run --real-time-factor": (["run", "--real-time-factor"], [], set()),
     "run --domain-id": (["run", "--domain-id"], [], set()),
+    "run --plant-seed": (["run", "--plant-seed"], [], set()),
     "validate-dynamics --paper-duration": (["validate-dynamics", "--paper-duration"], [], set()),
     "validate-dynamics --clinical-duration": (["validate-dynamics", "--clinical-duration"], [], set()),
     "validate-dynamics --timestep": (["validate-dynamics", "--timestep"], [], set()),

@@ -33,16 +33,22 @@ def main_job(out: Path, domain: int, *extra: str) -> subprocess.Popen:
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, start_new_session=True)
 
 
-def passing_summary(out: Path, domain: int, *extra: str) -> tuple[dict, str]:
-    """Run the main job to its end (400 s at most; killed otherwise); assert exit 0 and no missed bound or
-    failure; returns its summary.json and its output."""
+def finished_job(out: Path, domain: int, *extra: str) -> tuple[int, str]:
+    """Run the main job to its end (400 s at most; killed otherwise); returns (exit code, output)."""
     proc = main_job(out, domain, *extra)
     try:
         stdout, _ = proc.communicate(timeout=400)
     finally:
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
-    assert proc.returncode == 0, stdout[-4000:]
+    return proc.returncode, stdout
+
+
+def passing_summary(out: Path, domain: int, *extra: str) -> tuple[dict, str]:
+    """Run the main job to its end; assert exit 0 and no missed bound or failure; returns its summary.json and
+    its output."""
+    code, stdout = finished_job(out, domain, *extra)
+    assert code == 0, stdout[-4000:]
     summary = json.loads((out / "summary.json").read_text())
     assert not summary["bound_failures"] and summary["failure"] is None
     return summary, stdout
@@ -93,6 +99,25 @@ def test_main_job_summary_within_bounds(tmp_path, ros_domain):
     assert 0 < limits["strut velocity"]["worst"] <= 0.02 and limits["stroke"]["least"] >= 0.1
     rec = summary["recording"]  # one file covering the run's whole span, no gap
     assert len(rec["files"]) == 1 and rec["gaps"] == [] and rec["recorded"] == rec["expected"]
+    assert not processes_on_domain(ros_domain)
+
+
+def test_main_job_on_the_realistic_plant_runs_end_to_end_with_the_truth_and_the_controllers_view(tmp_path, ros_domain):
+    """--plant realistic: the same scenario on the robot as built, today's controller unchanged. It runs to its
+    end; the moves settle on the controller's estimate while the truth misses by the geometry's errors, the
+    uncompensated vibration misses its direction, and the verdict says so (exit 1: bounds missed, no failure)."""
+    out = tmp_path / "run"
+    code, stdout = finished_job(out, ros_domain, "--plant", "realistic", "--plant-seed", "2", "--duration", "1.6")
+    assert code == 1, stdout[-4000:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failure"] is None and not summary["problems"], stdout[-4000:]
+    assert summary["plant"]["kind"] == "realistic" and summary["plant"]["seed"] == 2
+    assert "plant: realistic seed 2" in stdout and "the controller's estimate" in stdout
+    for move in summary["moves"]:
+        assert move["estimate_error_m"] <= 10e-6 and move["pose_error_m"] > 1e-4, move
+    (vib,) = summary["vibrations"]
+    assert vib["direction_error_deg"] > 1.0
+    assert any("pose error" in line for line in summary["bound_failures"])
     assert not processes_on_domain(ros_domain)
 
 

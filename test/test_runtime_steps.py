@@ -18,8 +18,10 @@ class ScriptedSuite:
     """A suite that answers at once: moves reach their target after 0.2 s of sim time (or stop 1 mm short when
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
-    def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0):
+    def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
+        # the robot as built: the truth is off the controller's estimate by this much (6,)
+        self.truth_offset = np.zeros(6) if truth_offset is None else np.asarray(truth_offset, float)
         self.vibration_status, self.planner_message = None, None
         self.status_history = []
         self.report_period_s, self._reported = report_period_s, float("-inf")
@@ -59,9 +61,12 @@ class ScriptedSuite:
         self.target, self.sent_at = np.asarray(pose, float), self.clock
 
     def ground_truth(self):
+        return self.pose + self.truth_offset
+
+    def pose_estimate(self):
         return self.pose.copy()
 
-    def follow_ground_truth(self, on):
+    def follow_poses(self, on):
         self.following.append(on)
 
     def guard_status(self):
@@ -97,6 +102,16 @@ def test_moves_settle_and_vibrations_are_recorded_with_the_settings_that_ran():
     assert vib["parameters"]["ramp_s"] == 0.2 and vib["parameters"]["duration_s"] == 2.0  # from the answer
     assert vib["t0"] == pytest.approx(vib["start_time"] + 1.0) and vib["status_active_s"] == pytest.approx(2.0)
     assert "failure" not in vib
+
+
+def test_a_move_settles_on_the_controllers_estimate_and_records_the_truths_error():
+    """On the robot as built the truth misses the target the estimate holds (geometry errors): the move settles
+    (the runner waits on the robot's own view) and its judged error is the truth's, the estimate's beside it."""
+    client = ScriptedSuite(truth_offset=[3e-4, 0, -2e-4, 0, np.radians(0.02), 0])
+    record = run(client, [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0])])
+    move = record.moves[0]
+    assert move["pose_error_m"] == pytest.approx(3e-4) and move["pose_error_deg"] == pytest.approx(0.02)
+    assert move["estimate_error_m"] == 0.0 and move["estimate_error_deg"] == 0.0
 
 
 def test_a_short_vibration_or_a_refused_start_fails_the_step():

@@ -621,6 +621,11 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
         if not (move["pose_error_m"] <= bounds["pose_error_m"] and move["pose_error_deg"] <= bounds["pose_error_deg"]):
             failures.append(f"move to {move['name']}: pose error {move['pose_error_m'] * 1e6:.2f} um / "
                             f"{move['pose_error_deg']:.4f} deg")
+        # the controller's own view of the move (what the runner settled on), where the record has it
+        believed = (move.get("estimate_error_m", 0.0), move.get("estimate_error_deg", 0.0))
+        if not (believed[0] <= bounds["pose_error_m"] and believed[1] <= bounds["pose_error_deg"]):
+            failures.append(f"move to {move['name']}: the controller's estimate is off by {believed[0] * 1e6:.2f} um "
+                            f"/ {believed[1]:.4f} deg")
     for i, vib in enumerate(summary["vibrations"], start=1):
         checks = [
             ("direction error", vib["direction_error_deg"], bounds["direction_error_deg"], "deg"),

@@ -19,6 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from ..dynamics.tissue import load_tissue
+from ..emulation.plant import load_plant_option
 from ..errors import InvalidInputError
 from ..kinematics.robot_config import load_robot
 from ..runtime.interrupts import INTERRUPTS
@@ -49,6 +50,12 @@ def register(subparsers) -> None:
                      help="the emulator waits while the pose or wrench estimates lag (its lockstep parameter): on a "
                           "machine too slow for the suite at real time, sim time slows down instead of the force "
                           "guard pausing moves for late estimates")
+    cmd.add_argument("--plant", default="ideal",
+                     help="the emulated robot: 'ideal' (the drawing, config/robot.yaml; default), 'realistic' "
+                          "(config/plant_realistic.yaml: resonant vibration units, strut servos on their encoders, "
+                          "geometry errors, sensor noise) or a plant YAML (looked up in config/ too)")
+    cmd.add_argument("--plant-seed", type=plant_seed, default=None,
+                     help="seed of the plant's drawn errors (a whole number >= 0; default: the plant file's)")
     cmd.add_argument("--out", default=None,
                      help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
                           "runs/latest pointing at it")
@@ -89,6 +96,14 @@ def real_time_factor(text: str) -> float:
         raise argparse.ArgumentTypeError(f"must be 0 (as fast as possible) or in [{REAL_TIME_FACTOR_MIN:g}, "
                                          f"{REAL_TIME_FACTOR_MAX:g}], got {text}")
     return value
+
+
+def plant_seed(text: str) -> int:
+    """A plant seed: a whole number in 0..2^31 - 1."""
+    value = nonnegative_float(text)
+    if value != int(value) or value > 2**31 - 1:
+        raise argparse.ArgumentTypeError(f"must be a whole number in 0..{2**31 - 1}, got {text}")
+    return int(value)
 
 
 def node_names(text: str) -> str:
@@ -151,6 +166,12 @@ def run(args) -> int:
         tissue = None if args.tissue.lower() in ("", "none") else resolve_tissue_path(args.tissue, Path.cwd())
         if tissue is not None:
             load_tissue(tissue, robot)
+    plant = load_plant_option(args.plant, robot, args.plant_seed)  # refused here, before anything starts
+    # the ideal plant is the drawing: the emulator runs today's model without a plant file
+    built = plant if plant is not None and plant.kind != "ideal" else None
+    plant_config = str(Path(built.source).resolve()) if built is not None else None
+    plant_summary = {"kind": built.kind, "seed": built.seed, "config": plant_config} if built is not None else \
+        {"kind": "ideal", "seed": None, "config": None}
     respawn = {n for n in args.respawn.split(",") if n}
     given, source = _given_domain(args.domain_id)
     out = _output_folder(args.out)
@@ -164,14 +185,16 @@ def run(args) -> int:
 
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
                          lockstep=args.lockstep, out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue,
-                         robot_config=robot_config)
+                         robot_config=robot_config, plant_config=plant_config,
+                         plant_seed=built.seed if built is not None else None)
     INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None
     lockstep = " (lockstep)" if args.lockstep else ""
     _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
          f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}{lockstep}; output {out.resolve()}; "
-         f"robot {robot.source}; soft tissue: {tissue or 'none'}")
+         f"robot {robot.source}; soft tissue: {tissue or 'none'}; plant: {plant_summary['kind']}"
+         f"{f' seed {built.seed} ({plant_config})' if built is not None else ''}")
     _log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
          "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     try:
@@ -203,6 +226,7 @@ def run(args) -> int:
                "moves": record.moves, "vibrations": [], "failure": failure, "interrupted": record.interrupted,
                "problems": list(record.failures), "recorder": record.recorder_stats,
                "restarts": record.restarts, "ros_domain_id": domain, "tissue_config": tissue,
+               "plant": plant_summary,
                "guard_stops": record.guard_stops}
     if not list(out.glob("*.mcap")):
         _log("no MCAP was written")
@@ -333,8 +357,9 @@ def _print_summary(summary: dict, bounds: dict) -> None:
     print(f"scenario: {summary['scenario']}")
     for move in summary["moves"]:
         print(f"move to {move['name']}: ground-truth error {move['pose_error_m'] * 1e6:.3f} um, "
-              f"{move['pose_error_deg']:.5f} deg (bounds {bounds['pose_error_m'] * 1e6:g} um, "
-              f"{bounds['pose_error_deg']:g} deg)")
+              f"{move['pose_error_deg']:.5f} deg; the controller's estimate {move['estimate_error_m'] * 1e6:.3f} um, "
+              f"{move['estimate_error_deg']:.5f} deg (bounds {bounds['pose_error_m'] * 1e6:g} um, "
+              f"{bounds['pose_error_deg']:g} deg, both)")
     for i, vib in enumerate(summary["vibrations"], start=1):
         print(f"vibration {i}: {vib['frequency_hz']:g} Hz, planned {vib['planned_amplitude_m'] * 1e6:.2f} um along "
               f"{np.round(vib['planned_direction'], 4).tolist()} (base frame)")

@@ -46,6 +46,8 @@ if TYPE_CHECKING:
     from ..emulation.vibration_status import VibrationReport
 
 # planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
+# the 500 Hz poses a settling move follows (raw, checked and decoded only when asked): topic -> what it is
+FOLLOWED_POSES = {"platform/pose": "ground-truth pose", "platform/pose_estimate": "pose estimate"}
 NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
 # before the first move the force estimates must have kept within ESTIMATES_CURRENT_S (sim s) of /clock for longer
 # than the force guard remembers a lag (it slows moves by the largest lag of the last LAG_MEMORY_S; 0.15 s still
@@ -93,8 +95,10 @@ class SuiteClient:
         self._guard: GuardStatus | None = None  # latest well-formed kinematics/guard_status
         self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", self._on_guard_status, STATUS_QOS,
                                       raw=True)
-        self._ground_truth_sub: Subscription | None = None
-        self._truth: tuple = (None, None)  # (the raw message last decoded, its pose or the last good one)
+        self._pose_subs: list[Subscription] = []  # the followed poses' subscriptions (follow_poses)
+        self._raw_poses: dict[str, bytes] = {}  # topic -> its newest raw message while followed
+        # topic -> (the raw message last decoded, its pose or the last good one)
+        self._decoded: dict[str, tuple] = {topic: (None, None) for topic in FOLLOWED_POSES}
 
     # -- callbacks --------------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
@@ -121,9 +125,6 @@ class SuiteClient:
 
     def _on_guard_status(self, data: bytes) -> None:
         self._guard = self.malformed.read("kinematics/guard_status", guard_status_from_cdr, data) or self._guard
-
-    def _on_ground_truth(self, data: bytes) -> None:
-        self.latest["platform/pose"] = data  # 500 Hz: checked and decoded only when asked (ground_truth)
 
     # -- waiting ----------------------------------------------------------------------------------------
     def spin_until(self, predicate, timeout: float, what: str) -> None:
@@ -258,25 +259,37 @@ class SuiteClient:
                         "kinematics to subscribe to platform/target_pose")
         self.target_pub.publish(pose_stamped(pose, self.node.get_clock().now().to_msg()))
 
-    def follow_ground_truth(self, on: bool) -> None:
-        """Subscribe to the 500 Hz platform/pose (only while a move settles) or stop."""
-        if on and self._ground_truth_sub is None:
-            self.latest.pop("platform/pose", None)
-            self._truth = (None, None)
-            self._ground_truth_sub = self.node.create_subscription(
-                PoseStamped, "platform/pose", self._on_ground_truth, 1, raw=True)
-        elif not on and self._ground_truth_sub is not None:
-            self.node.destroy_subscription(self._ground_truth_sub)
-            self._ground_truth_sub = None
+    def follow_poses(self, on: bool) -> None:
+        """Subscribe to the 500 Hz ground truth (platform/pose) and the controller's pose estimates
+        (platform/pose_estimate) while a move settles (``on``), or stop: the runner must not load the machine."""
+        if on and not self._pose_subs:
+            for topic in FOLLOWED_POSES:
+                self._raw_poses.pop(topic, None)
+                self._decoded[topic] = (None, None)
+                self._pose_subs.append(self.node.create_subscription(  # the ignore: as readiness_subs'
+                    PoseStamped, topic, lambda data, t=topic: self._raw_poses.__setitem__(t, data),  # type: ignore[misc]
+                    1, raw=True))
+        elif not on and self._pose_subs:
+            for sub in self._pose_subs:
+                self.node.destroy_subscription(sub)
+            self._pose_subs = []
+
+    def _followed_pose(self, topic: str) -> np.ndarray | None:
+        """The newest well-formed pose (6,) of a followed topic, decoded when asked; a malformed newest one is
+        counted and the last good one kept; None before one (or when not followed)."""
+        data = self._raw_poses.get(topic)
+        if data is not None and data is not self._decoded[topic][0]:
+            pose = self.malformed.read(topic, lambda d: pose_from_cdr(d, FOLLOWED_POSES[topic]), data)
+            self._decoded[topic] = (data, pose[1] if pose is not None else self._decoded[topic][1])
+        return self._decoded[topic][1] if data is not None else None
 
     def ground_truth(self) -> np.ndarray | None:
-        """The newest well-formed ground-truth pose (6,); a malformed newest one is counted and the last good one
-        kept."""
-        data = self.latest.get("platform/pose")
-        if data is not None and data is not self._truth[0]:
-            truth = self.malformed.read("platform/pose", lambda d: pose_from_cdr(d, "ground-truth pose"), data)
-            self._truth = (data, truth[1] if truth is not None else self._truth[1])
-        return self._truth[1] if data is not None else None
+        """The newest ground-truth pose (6,) while followed (``follow_poses``)."""
+        return self._followed_pose("platform/pose")
+
+    def pose_estimate(self) -> np.ndarray | None:
+        """Kinematics' newest pose estimate (6,) while followed (``follow_poses``)."""
+        return self._followed_pose("platform/pose_estimate")
 
     def guard_status(self) -> GuardStatus | None:
         return self._guard

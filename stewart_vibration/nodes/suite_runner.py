@@ -90,7 +90,7 @@ class SuiteRunner:
             if report is not None and report.state not in ("idle", "stopped", "estopped"):
                 answer = client.call(Trigger, "vibration_planner/stop", Trigger.Request(), timeout=10.0)
                 progress(f"the vibration is stopped (vibration_planner/stop: {answer.message})")
-            client.follow_ground_truth(True)
+            client.follow_poses(True)
             last: list = [None, None]  # pose, sim time it was first seen
 
             def at_rest() -> bool:
@@ -108,7 +108,7 @@ class SuiteRunner:
         except (StepFailed, RuntimeError) as exc:
             progress(f"could not confirm the robot at rest: {exc}")
         finally:
-            client.follow_ground_truth(False)
+            client.follow_poses(False)
 
     def stop(self) -> None:
         """Stop the recorder (finishes the MCAP), then every process; close the client."""

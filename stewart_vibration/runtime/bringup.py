@@ -57,8 +57,8 @@ def recorder_failures(stats: dict | None) -> list[str]:
 
 def node_arguments(options: RunOptions) -> dict[str, list[str]]:
     """Per node name, its ``--ros-args`` for this run: namespace, the suite's parameter file and the run's own
-    settings (real-time factor and lockstep, output folder, tissue, and the robot for every node that reads one; the
-    emulator waits to be configured and activated)."""
+    settings (real-time factor and lockstep, output folder, tissue, the plant for the emulator alone, and the robot
+    for every node that reads one; the emulator waits to be configured and activated)."""
     params = options.params_file or default_config_dir() / SUITE_PARAMS_FILE
     common = ["--ros-args", "-r", f"__ns:={options.namespace}", "--params-file", str(params)]
     extra = {
@@ -66,6 +66,10 @@ def node_arguments(options: RunOptions) -> dict[str, list[str]]:
                               "-p", f"lockstep:={str(options.lockstep).lower()}"],
         "mcap_recorder": ["-p", f"output_dir:={Path(options.out_dir).resolve()}"],
     }
+    if options.plant_config:  # the robot as built: the emulator alone reads it
+        extra["hardware_emulator"] += ["-p", f"plant_config:={options.plant_config}"]
+        if options.plant_seed is not None:
+            extra["hardware_emulator"] += ["-p", f"plant_seed:={options.plant_seed}"]
     if options.tissue_config:
         for name in ("hardware_emulator", "kinematics"):
             extra[name] = extra.get(name, []) + ["-p", f"tissue_config:={options.tissue_config}"]

@@ -40,6 +40,8 @@ class RunOptions:
     extra_nodes: tuple = ()  # runtime.suite.OPTIONAL_NODES keys to start as well ("foxglove", "ui")
     tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
     robot_config: str | None = None  # robot YAML for every node that reads one (None: config/robot.yaml)
+    plant_config: str | None = None  # the emulator's robot as built (None: the drawing)
+    plant_seed: int | None = None  # its seed (None: the plant file's)
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -52,7 +54,8 @@ class RunRecord:
 
     mcap_path: Path | None = None
     log_dir: Path | None = None
-    moves: list = field(default_factory=list)  # dicts: name, target, pose_error_m, pose_error_deg, time
+    # dicts: name, target, time, pose_error_m / _deg (ground truth), estimate_error_m / _deg (the controller's view)
+    moves: list = field(default_factory=list)
     vibrations: list = field(default_factory=list)  # dicts: parameters (what ran), start_time, t0, stop_time, ...
     interrupted: bool = False
     failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
@@ -82,8 +85,11 @@ class SuiteClient(Protocol):
     def ground_truth(self) -> np.ndarray | None:
         """The latest ground-truth platform pose (6,) (m, rad, base frame); None if not followed or none yet."""
 
-    def follow_ground_truth(self, on: bool) -> None:
-        """Subscribe to the 500 Hz ground-truth platform/pose (``on``; only while a move settles) or stop."""
+    def pose_estimate(self) -> np.ndarray | None:
+        """The controller's latest pose estimate (6,) (kinematics' platform/pose_estimate); None before one."""
+
+    def follow_poses(self, on: bool) -> None:
+        """Subscribe to the 500 Hz ground truth and pose estimates (``on``; only while a move settles) or stop."""
 
     def guard_status(self) -> GuardStatus | None:
         """The latest well-formed kinematics/guard_status (messages.status_values.GuardStatus); None before one."""
@@ -116,36 +122,42 @@ class ScenarioSteps:
         """Send the target; wait until it settles (or, for a guarded move, until the force guard stops it)."""
         self.options.progress(f"{label}: move to {step.name} {np.round(step.pose, 5).tolist()}")
         start = cast(float, self.client.clock)  # the clock runs (the suite was ready)
-        # the 500 Hz ground truth only while a move settles: the runner must not load the machine
-        self.client.follow_ground_truth(True)
+        # the 500 Hz poses only while a move settles: the runner must not load the machine
+        self.client.follow_poses(True)
         try:
             (self._guarded if step.guarded else self._settle)(step, label, start)
         finally:
-            self.client.follow_ground_truth(False)
+            self.client.follow_poses(False)
 
     def _settle(self, step: MoveStep, label: str, start: float) -> None:
-        """Wait until the ground truth holds within tolerance for SETTLE_HOLD_S of sim time."""
+        """Wait until the controller's pose estimate holds within tolerance for SETTLE_HOLD_S of sim time (what a
+        user at the robot sees: the robot's own view), and the ground truth has a sample since; record the
+        ground truth's error (the judged figure) and the estimate's."""
         opts, client = self.options, self.client
         client.send_target(step.pose)
         held = HeldFor(SETTLE_HOLD_S)
 
         def settled():
-            pose = client.ground_truth()
-            if pose is None or client.clock is None or client.clock < start + 0.1:
+            pose = client.pose_estimate()
+            if pose is None or client.clock is None or client.clock < start + 0.1 or client.ground_truth() is None:
                 return False
             err = pose - step.pose
             ok = np.abs(err[:3]).max() < opts.settle_tolerance_m and np.abs(err[3:]).max() < opts.settle_tolerance_rad
             return held.update(bool(ok), client.clock)
 
         client.spin_until(settled, opts.step_timeout_s, f"the platform to settle at {step.name}")
-        err = client.ground_truth() - step.pose
+        err = cast(np.ndarray, client.ground_truth()) - step.pose
+        believed = cast(np.ndarray, client.pose_estimate()) - step.pose
         self.record.moves.append({
             "name": step.name, "target": step.pose.tolist(), "time": client.clock,
             "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
+            "estimate_error_m": float(np.abs(believed[:3]).max()),
+            "estimate_error_deg": float(np.degrees(np.abs(believed[3:]).max())),
         })
         opts.progress(f"{label}: settled at {step.name} in {cast(float, client.clock) - start:.2f} s sim; "
-                      "ground-truth error "
-                      f"{np.abs(err[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(err[3:]).max()):.5f} deg")
+                      f"ground-truth error {np.abs(err[:3]).max() * 1e6:.3f} um, "
+                      f"{np.degrees(np.abs(err[3:]).max()):.5f} deg; the controller's estimate "
+                      f"{np.abs(believed[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(believed[3:]).max()):.5f} deg")
 
     def _guarded(self, step: MoveStep, label: str, start: float) -> None:
         """A move the force guard must stop: wait for kinematics/guard_status to report a trip during it, then
