@@ -74,6 +74,16 @@ def find_config_file(name: str, dirs=None) -> Path:
     raise FileNotFoundError(f"cannot find {name} in " + ", ".join(str(d) for d in candidates))
 
 
+def config_path(value) -> Path:
+    """A config file a user names: the path as given, or, when it is relative and no such file exists, the
+    same name in ``default_config_dir()`` if it is there (e.g. ``tissue.yaml``). ConfigError as
+    ``default_config_dir`` when that is needed and not found."""
+    path = Path(value).expanduser()
+    if not path.exists() and not path.is_absolute() and (default_config_dir() / path).exists():
+        path = default_config_dir() / path
+    return path
+
+
 def default_config_dir() -> Path:
     """The directory holding robot.yaml, the scenarios and the node parameters.
 

@@ -34,7 +34,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
@@ -42,7 +41,7 @@ import numpy as np
 from ..config_values import Plausible, as_number, as_vector, check_keys, lookup
 from ..errors import ConfigError, StewartError
 from ..input_checks import as_batch
-from ..install import default_config_dir
+from ..install import config_path
 from ..kinematics import check_pose
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..paper import paper_pose
@@ -528,9 +527,7 @@ def load_tissue(path, robot: Robot) -> TissueModel:
         ConfigError: the file cannot be read safely (``safe_yaml.load_yaml``), a value is bad
             (``tissue_from_dict``), or the config directory is needed and not found (``default_config_dir``).
     """
-    path = Path(path).expanduser()
-    if not path.exists() and not path.is_absolute() and (default_config_dir() / path).exists():
-        path = default_config_dir() / path
+    path = config_path(path)
     return tissue_from_dict(load_yaml(path, "tissue config"), robot, str(path))
 
 

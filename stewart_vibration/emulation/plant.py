@@ -23,7 +23,7 @@ import numpy as np
 
 from ..config_values import Plausible, as_choice, as_number, as_vector, check_keys
 from ..errors import ConfigError
-from ..install import default_config_dir
+from ..install import config_path, default_config_dir
 from ..robot import RigidBody, Robot
 from ..safe_yaml import load_yaml
 
@@ -298,9 +298,5 @@ def load_plant_option(value: str | None, nominal: Robot, seed: int | None = None
     ``load_plant``."""
     if not value:
         return None
-    path = Path(value).expanduser()
-    if value in PLANT_KINDS:
-        path = default_config_dir() / f"plant_{value}.yaml"
-    elif not path.exists() and not path.is_absolute() and (default_config_dir() / path).exists():
-        path = default_config_dir() / path
+    path = default_config_dir() / f"plant_{value}.yaml" if value in PLANT_KINDS else config_path(value)
     return load_plant(path, nominal, seed)

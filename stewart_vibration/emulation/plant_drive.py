@@ -25,7 +25,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from ..robot import VIB_NAMES
+from ..robot import LEG_NAMES, VIB_NAMES
 from ..sim.mujoco_sim import StewartSim
 from .plant import Plant
 from .vibration_unit import UnitHardware, UnitLoop
@@ -33,23 +33,29 @@ from .vibration_unit import UnitHardware, UnitLoop
 INTEGRAL_RATIO = 0.2  # the strut servo's integral corner as a fraction of its bandwidth
 
 
+def acceleration_sensitivity(model, data, dofs, actuators) -> tuple[np.ndarray, np.ndarray]:
+    """(qacc[dofs] with every actuator at zero force, d qacc[dofs] / d ctrl[actuators]) at the state in ``data``
+    (mj_forward, then one partial forward per actuator: the accelerations are affine in the forces); ctrl is
+    left at zero."""
+    data.ctrl[:] = 0.0
+    mujoco.mj_forward(model, data)
+    base = data.qacc[dofs].copy()
+    gain = np.empty((len(dofs), len(actuators)))
+    for k, actuator in enumerate(actuators):
+        data.ctrl[:] = 0.0
+        data.ctrl[actuator] = 1.0
+        mujoco.mj_forwardSkip(model, data, mujoco.mjtStage.mjSTAGE_VEL, 1)
+        gain[:, k] = data.qacc[dofs] - base
+    data.ctrl[:] = 0.0
+    return base, gain
+
+
 def effective_strut_masses(sim: StewartSim) -> np.ndarray:
-    """Each strut's effective mass (6,) kg at the sim's state: 1 / (d L_ddot / d F)_ii (mj_forward; call it on a
-    model without friction: at rest its constraint takes a small force whole)."""
-    m, d = sim.model, sim.data
-    slide = sim.slide_dof
-    d.ctrl[:] = 0.0
-    mujoco.mj_forward(m, d)
-    base = d.qacc[slide].copy()
-    mass = np.empty(6)
-    for k in range(6):
-        d.ctrl[:] = 0.0
-        d.ctrl[k] = 1.0
-        mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
-        mass[k] = 1.0 / (d.qacc[slide[k]] - base[k])
-    d.ctrl[:] = 0.0
-    mujoco.mj_forward(m, d)
-    return mass
+    """Each strut's effective mass (6,) kg at the sim's state: 1 / (d L_ddot / d F)_ii (call it on a model
+    without friction: at rest its constraint takes a small force whole)."""
+    _, gain = acceleration_sensitivity(sim.model, sim.data, sim.slide_dof, range(6))
+    mujoco.mj_forward(sim.model, sim.data)
+    return 1.0 / np.diag(gain)
 
 
 class PlantDrive:
@@ -68,8 +74,8 @@ class PlantDrive:
         vib = [m.joint(name).id for name in VIB_NAMES]
         self.vib_q = np.array([m.jnt_qposadr[j] for j in vib])
         self.vib_v = np.array([m.jnt_dofadr[j] for j in vib])
-        self.strut_act = np.arange(6)
-        self.unit_act = np.array([m.actuator(name).id for name in VIB_NAMES])
+        # mjcf builds the struts' actuators first, then the units': two contiguous blocks of ctrl
+        assert [m.actuator(name).id for name in LEG_NAMES + VIB_NAMES] == list(range(12))
         struts = plant.struts
         for each in (sim,) if rigid is None else (sim, rigid):
             each.model.dof_armature[each.slide_dof] = struts.reflected_mass_kg
@@ -136,25 +142,15 @@ class PlantDrive:
         its constraint would take a small force whole)."""
         m, d = self.model, self.data
         dofs = np.concatenate([self.slide_v, self.vib_v])
-        actuators = np.concatenate([self.strut_act, self.unit_act])
         friction = m.dof_frictionloss[self.slide_v].copy()
         m.dof_frictionloss[self.slide_v] = 0.0
         velocity = d.qvel.copy()
         d.qvel[:] = 0.0
-        d.ctrl[:] = 0.0
-        mujoco.mj_forward(m, d)
-        base = d.qacc[dofs].copy()
-        gain = np.empty((12, 12))
-        for k, actuator in enumerate(actuators):
-            d.ctrl[:] = 0.0
-            d.ctrl[actuator] = 1.0
-            mujoco.mj_forwardSkip(m, d, mujoco.mjtStage.mjSTAGE_VEL, 1)
-            gain[:, k] = d.qacc[dofs] - base
+        base, gain = acceleration_sensitivity(m, d, dofs, range(12))  # struts, then units (see __init__)
         forces = np.linalg.solve(gain, -base)
         m.dof_frictionloss[self.slide_v] = friction
         d.qvel[:] = velocity
-        d.ctrl[:] = 0.0
-        d.ctrl[actuators] = forces
+        d.ctrl[:] = forces
         mujoco.mj_forward(m, d)
         return forces[:6], forces[6:]
 
@@ -200,11 +196,11 @@ class PlantDrive:
                       + ki * dt * self._integral)
             self._previous_reference, self._previous_encoder = reference, encoder
             x = d.qpos[self.vib_q]
-            reading = x.copy() if noise is None else x + noise[k]
+            reading = x if noise is None else x + noise[k]  # x: a copy (fancy indexing)
             self._previous_unit_reading, self._unit_reading = self._unit_reading, reading
             unit = loop.coil_force(demand, reading) - c_unit * d.qvel[self.vib_v]
-            ctrl[self.strut_act] = forces
-            ctrl[self.unit_act] = unit
+            ctrl[:6] = forces
+            ctrl[6:12] = unit
             self.strut_forces, self.unit_forces = forces, unit
             step(m, d)
         self.last_accel = d.qacc[self.slide_v].copy()
