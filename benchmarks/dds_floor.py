@@ -3,7 +3,7 @@ suite's 500 Hz streams, with no computation at all.
 
 Starts five processes shaped like the suite (same executor, raw CDR publish/take, same QoS, the suite's
 loopback DDS profile, each its own ROS domain participant):
-- "emulator": publishes legs/joint_states and platform/pose at 500 Hz in bursts of 10 every 20 ms and
+- "emulator": publishes legs/joint_states and ground_truth/platform_pose at 500 Hz in bursts of 10 every 20 ms and
   /clock at 100 Hz (the real emulator's pacing), real message sizes;
 - "kinematics": takes each joint state, publishes one platform/pose_estimate;
 - "estimator": takes each joint state, publishes one legs/force_estimate and one external wrench;
@@ -62,7 +62,7 @@ def run_role(role: str, seconds: float) -> None:
 
     if role == "emulator":
         js = node.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
-        pose = node.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
+        pose = node.create_publisher(PoseStamped, "ground_truth/platform_pose", STREAM_DEPTH)
         clock = node.create_publisher(Clock, "/clock", 10)
         twelve = np.zeros(12)
         t0, k = time.monotonic(), 0
@@ -98,7 +98,7 @@ def run_role(role: str, seconds: float) -> None:
     elif role == "planner":
         node.create_subscription(PoseStamped, "platform/pose_estimate", kept.append, 10, raw=True)
     else:
-        for topic, kind in (("legs/joint_states", JointState), ("platform/pose", PoseStamped),
+        for topic, kind in (("legs/joint_states", JointState), ("ground_truth/platform_pose", PoseStamped),
                             ("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState),
                             ("platform/external_wrench_estimate", WrenchStamped), ("/clock", Clock)):
             node.create_subscription(kind, topic, kept.append, STREAM_DEPTH, raw=True)

@@ -3,7 +3,7 @@
 Not part of the product graph: it stands in for the emulator / estimator where a
 test wants exact, known messages. Messages are real ROS types with plausible values:
 legs/joint_states (leg_1..6 lengths, vib_1..6 displacements, efforts in N),
-platform/pose, legs/force_estimate, /diagnostics events, optional /clock.
+ground_truth/platform_pose, legs/force_estimate, /diagnostics events, optional /clock.
 
     PYTHONPATH=test python -m synthetic_run_publisher --count 200 --rate 100
 
@@ -95,7 +95,7 @@ def main(argv: list[str] | None = None) -> int:
     if "joint_states" in kinds:
         pubs["joint_states"] = node.create_publisher(JointState, "legs/joint_states", 1000)
     if "pose" in kinds:
-        pubs["pose"] = node.create_publisher(PoseStamped, "platform/pose", 1000)
+        pubs["pose"] = node.create_publisher(PoseStamped, "ground_truth/platform_pose", 1000)
     if "force" in kinds:
         pubs["force"] = node.create_publisher(JointState, "legs/force_estimate", 1000)
     if "diag" in kinds:
@@ -143,7 +143,7 @@ def main(argv: list[str] | None = None) -> int:
     time.sleep(0.5)  # reliable delivery of the tail
     topic_of = {
         "joint_states": "legs/joint_states",
-        "pose": "platform/pose",
+        "pose": "ground_truth/platform_pose",
         "force": "legs/force_estimate",
         "diag": "/diagnostics",
         "clock": "/clock",

@@ -41,7 +41,7 @@ def test_lifecycle_transitions_gate_the_commands(robot, ros_domain, tmp_path):
     with node_under_test("emulator", "stewart_vibration.nodes.hardware_emulator_node", ros_domain, tmp_path,
                          ARGS) as (proc, client):
         clock = client.subscribe("/clock", Clock)
-        poses = client.subscribe("platform/pose", PoseStamped)
+        poses = client.subscribe("ground_truth/platform_pose", PoseStamped)
         diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
         legs = client.publisher("legs/joint_trajectory", JointTrajectory)
 

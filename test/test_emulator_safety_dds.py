@@ -58,7 +58,7 @@ class Recorder:
     def __init__(self, client):
         self.client = client
         self.states = client.subscribe("legs/joint_states", JointState, depth=10000)
-        self.poses = client.subscribe("platform/pose", PoseStamped, depth=10000)
+        self.poses = client.subscribe("ground_truth/platform_pose", PoseStamped, depth=10000)
         self.clock = client.subscribe("/clock", Clock)
         self.diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
         self.status: list = []

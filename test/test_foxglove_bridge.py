@@ -30,7 +30,7 @@ SUBPROTOCOL = "foxglove.sdk.v1"  # foxglove-sdk's name for Foxglove WebSocket pr
 # what the emulator alone publishes (suite topics), and the bridge's scene
 EMULATOR_TOPICS = {
     f"{NS}/legs/joint_states": "sensor_msgs/msg/JointState",
-    f"{NS}/platform/pose": "geometry_msgs/msg/PoseStamped",
+    f"{NS}/ground_truth/platform_pose": "geometry_msgs/msg/PoseStamped",
     f"{NS}/vibration/status": "diagnostic_msgs/msg/DiagnosticStatus",
     f"{NS}/robot_markers": "visualization_msgs/msg/MarkerArray",
     "/clock": "rosgraph_msgs/msg/Clock",
@@ -167,7 +167,8 @@ def test_bridge_forwards_raw_cdr_and_publishes_the_scene(emulator_and_bridge):
     client.node.create_subscription(
         JointState, f"{NS}/legs/joint_states", lambda d: dds["states"].setdefault(cdr_stamp_ns(d), d), 1000, raw=True)
     client.node.create_subscription(
-        PoseStamped, f"{NS}/platform/pose", lambda d: dds["poses"].setdefault(cdr_stamp_ns(d), d), 1000, raw=True)
+        PoseStamped, f"{NS}/ground_truth/platform_pose", lambda d: dds["poses"].setdefault(cdr_stamp_ns(d), d), 1000,
+        raw=True)
     stop = threading.Event()
     spinner = threading.Thread(target=lambda: [client.spin_for(0.1) for _ in iter(stop.is_set, True)], daemon=True)
     spinner.start()

@@ -79,7 +79,7 @@ def vib_window(stamp: float, t0: float, t1: float, amp: float = A, at_rest_end: 
 def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
     procs, client = suite
     clock = client.subscribe("/clock", Clock)
-    truth = client.subscribe("platform/pose", PoseStamped)
+    truth = client.subscribe("ground_truth/platform_pose", PoseStamped)
     states = client.subscribe("legs/joint_states", JointState, depth=5000)
     diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)

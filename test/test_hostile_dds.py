@@ -269,7 +269,7 @@ class Hostile:
                       for name, (module, args) in NODES.items()}
         self.client = c = RosTestClient("hostile_client")
         self.states = c.subscribe("legs/joint_states", JointState, depth=5000)
-        self.poses = c.subscribe("platform/pose", PoseStamped, depth=100)
+        self.poses = c.subscribe("ground_truth/platform_pose", PoseStamped, depth=100)
         self.clock = c.subscribe("/clock", Clock, depth=10)
         self.estimates = c.subscribe("platform/pose_estimate", PoseStamped, depth=10)
         self.forces = c.subscribe("legs/force_estimate", JointState, depth=5000)

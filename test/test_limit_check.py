@@ -152,7 +152,8 @@ def test_from_an_mcap_written_by_the_recorders_writer(robot, tmp_path):
     path = tmp_path / "run.mcap"
     w = McapRunWriter(path)
     for topic, kind in (("/s/legs/joint_states", "sensor_msgs/msg/JointState"),
-                        ("/s/platform/pose", "geometry_msgs/msg/PoseStamped"), ("/clock", "rosgraph_msgs/msg/Clock")):
+                        ("/s/ground_truth/platform_pose", "geometry_msgs/msg/PoseStamped"),
+                        ("/clock", "rosgraph_msgs/msg/Clock")):
         w.add_topic(topic, kind, "[]")
     quats = quaternion_from_rpy(poses[:, 3:])
     for k, tk in enumerate(t):
@@ -164,8 +165,8 @@ def test_from_an_mcap_written_by_the_recorders_writer(robot, tmp_path):
         w.submit("/s/legs/joint_states", ns, bytes(store.serialize_cdr(js, "sensor_msgs/msg/JointState")))
         p = T["geometry_msgs/msg/Pose"](T["geometry_msgs/msg/Point"](*poses[k, :3]),
                                         T["geometry_msgs/msg/Quaternion"](*quats[k]))
-        w.submit("/s/platform/pose", ns, bytes(store.serialize_cdr(T["geometry_msgs/msg/PoseStamped"](h, p),
-                                                                   "geometry_msgs/msg/PoseStamped")))
+        pose_cdr = store.serialize_cdr(T["geometry_msgs/msg/PoseStamped"](h, p), "geometry_msgs/msg/PoseStamped")
+        w.submit("/s/ground_truth/platform_pose", ns, bytes(pose_cdr))
         if k % 5 == 0:
             w.submit("/clock", ns, bytes(store.serialize_cdr(T["rosgraph_msgs/msg/Clock"](stamp),
                                                              "rosgraph_msgs/msg/Clock")))

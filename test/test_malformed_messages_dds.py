@@ -72,6 +72,7 @@ def nodes(tmp_path) -> dict:
     }
 
 
+CONTROLLER_NODES = {"kinematics", "vibration_planner", "leg_force_estimator", "planning_ui"}  # no ground truth
 # what each node must have counted as malformed, per input, after the fuzz (its /diagnostics status name)
 EXPECTED = {
     "hardware_emulator: hardware emulator": ["/clock"],
@@ -80,9 +81,10 @@ EXPECTED = {
     "vibration_planner: vibration planner": ["vibration/status", "/clock"],
     "leg_force_estimator: leg force estimator": ["legs/joint_states", "vibration/status", "legs/joint_trajectory",
                                                  "vibration/joint_trajectory", "/clock"],
-    "planning_ui: planning UI": ["vibration/status", "/diagnostics", "/rosout", "legs/joint_states", "platform/pose",
-                                 "legs/force_estimate", "/clock"],
-    "foxglove_bridge: foxglove bridge": ["vibration/status", "vibration/joint_trajectory", "platform/pose", "/clock"],
+    "planning_ui: planning UI": ["vibration/status", "/diagnostics", "/rosout", "legs/joint_states",
+                                 "platform/pose_estimate", "legs/force_estimate", "/clock"],
+    "foxglove_bridge: foxglove bridge": ["vibration/status", "vibration/joint_trajectory", "ground_truth/platform_pose",
+                                         "/clock"],
 }
 
 
@@ -100,7 +102,7 @@ class Suite:
         self.clock = c.subscribe("/clock", Clock, depth=10)
         self.estimates = c.subscribe("platform/pose_estimate", PoseStamped, depth=10)
         self.forces = c.subscribe("legs/force_estimate", JointState, depth=10)
-        self.truth = c.subscribe("platform/pose", PoseStamped, depth=100)
+        self.truth = c.subscribe("ground_truth/platform_pose", PoseStamped, depth=100)
 
     def _on_diagnostics(self, msg) -> None:
         for status in msg.status:
@@ -174,7 +176,7 @@ class Page:
 
 
 class SceneWatcher:
-    """A Foxglove client subscribed to the bridge's scene channels (so the bridge reads platform/pose)."""
+    """A Foxglove client subscribed to the bridge's scene channels (so the bridge reads ground_truth/platform_pose)."""
 
     def __init__(self, port: int, namespace: str = ""):
         self.port, self.messages, self._stop = port, 0, threading.Event()
@@ -251,10 +253,18 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         assert port, suite.logs()
         watcher = SceneWatcher(int(port.group(1)))
         assert spin_until(lambda: subscribed(c, "/legs/force_estimate", "planning_ui") and
-                          subscribed(c, "/platform/pose", "foxglove_bridge") and page.frames > 0, 30), suite.logs()
+                          subscribed(c, "/ground_truth/platform_pose", "foxglove_bridge") and page.frames > 0,
+                          30), suite.logs()
+        # the rule of the emulator, over DDS: with every node up and a page open (the UI's streams subscribed),
+        # only viewers and judges read the truth; the bridge does (the query sees such readers)
+        truth_readers = {name for name, ns in c.node.get_node_names_and_namespaces()
+                         for topic, _ in c.node.get_subscriber_names_and_types_by_node(name, ns)
+                         if "/ground_truth/" in topic}
+        assert "foxglove_bridge" in truth_readers and not truth_readers & CONTROLLER_NODES, truth_readers
 
         raw = {topic: c.node.create_publisher(kind, topic, 50) for topic, kind in (
-            ("legs/joint_states", JointState), ("legs/force_estimate", JointState), ("platform/pose", PoseStamped),
+            ("legs/joint_states", JointState), ("legs/force_estimate", JointState),
+            ("ground_truth/platform_pose", PoseStamped),
             ("platform/pose_estimate", PoseStamped), ("platform/target_pose", PoseStamped),
             ("platform/external_wrench_estimate", WrenchStamped), ("legs/joint_trajectory", JointTrajectory),
             ("vibration/joint_trajectory", JointTrajectory), ("/diagnostics", DiagnosticArray),
@@ -264,7 +274,7 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         raw["vibration/status"], raw["kinematics/guard_status"] = suite.status_pub, suite.guard_pub
         batches = {
             "legs/joint_states": bad.joint_states(rng), "legs/force_estimate": bad.joint_states(rng, LEG_NAMES, 30),
-            "platform/pose": bad.poses(rng), "platform/pose_estimate": bad.poses(rng, 30),
+            "ground_truth/platform_pose": bad.poses(rng), "platform/pose_estimate": bad.poses(rng, 30),
             "platform/target_pose": bad.poses(rng), "platform/external_wrench_estimate": bad.wrenches(rng),
             "legs/joint_trajectory": bad.trajectories(rng, LEG_NAMES),
             "vibration/joint_trajectory": bad.trajectories(rng, VIB_NAMES), "/diagnostics": bad.diagnostic_arrays(rng),
@@ -296,7 +306,7 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         # next one, 10 ms later, may replace a bad one before it is taken): denser streams meet those readers
         negative = serialize_message(Clock(clock=Time(sec=-3, nanosec=0)))
         for i in range(400):
-            for topic in ("platform/pose", "platform/external_wrench_estimate"):
+            for topic in ("ground_truth/platform_pose", "platform/external_wrench_estimate"):
                 raw[topic].publish(batches[topic][i % len(batches[topic])])
             raw["/clock"].publish(negative)
             sent += 3
@@ -365,7 +375,7 @@ def test_a_spoofed_emulator_status_during_a_move_leaves_kinematics_guarding_it(r
     client = RosTestClient("spoof_client")
     robot = load_robot()
     try:
-        truth = client.subscribe("platform/pose", PoseStamped, depth=100)
+        truth = client.subscribe("ground_truth/platform_pose", PoseStamped, depth=100)
         estimates = client.subscribe("platform/external_wrench_estimate", WrenchStamped, depth=10)
         diagnostics = client.subscribe("/diagnostics", DiagnosticArray, depth=200)
         spoofer = client.node.create_publisher(DiagnosticArray, "/diagnostics", 50)
@@ -484,20 +494,26 @@ def test_the_main_job_survives_spoofed_statuses_and_prints_its_summary(ros_domai
             client.spin_for(0.2)
             i += 1
 
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "stewart_vibration", "run", "--out", str(out), "--domain-id", str(ros_domain),
-         "--duration", "1.6", "--json"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
+    log_path = tmp_path / "run.log"
+    with log_path.open("w") as log:
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "stewart_vibration", "run", "--out", str(out), "--domain-id", str(ros_domain),
+             "--duration", "1.6", "--json"], stdout=log, stderr=subprocess.STDOUT, text=True,
+            env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
     spoofer = threading.Thread(target=spoof, daemon=True)
     spoofer.start()
     try:
-        stdout, _ = proc.communicate(timeout=400)
+        finished = proc.wait(timeout=400) is not None
+    except subprocess.TimeoutExpired:
+        finished = False
     finally:
         stop.set()
         spoofer.join(5)
         client.close()
         if proc.poll() is None:
             os.killpg(proc.pid, signal.SIGKILL)
+    stdout = log_path.read_text()
+    assert finished, stdout[-4000:]
     assert "Traceback" not in stdout, stdout[-4000:]
     assert proc.returncode == 0, stdout[-4000:]
     summary = json.loads((out / "summary.json").read_text())

@@ -28,7 +28,7 @@ def _env(ros_domain):
     env = ros_environment(ros_domain)
     env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(Path(__file__).parent), env.get("PYTHONPATH")]))
     return env
-JS, POSE = "/legs/joint_states", "/platform/pose"
+JS, POSE = "/legs/joint_states", "/ground_truth/platform_pose"
 
 
 def _qos_yaml() -> str:

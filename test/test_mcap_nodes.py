@@ -25,7 +25,7 @@ pytestmark = pytest.mark.integration
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 REPLAY = "stewart_vibration.nodes.mcap_replay_node"
 PUBLISHER = "synthetic_run_publisher"  # test scaffolding beside this file (on the children's PYTHONPATH)
-SUITE = ["/legs/joint_states", "/platform/pose", "/legs/force_estimate", "/diagnostics"]
+SUITE = ["/legs/joint_states", "/ground_truth/platform_pose", "/legs/force_estimate", "/diagnostics"]
 
 
 def _env(ros_domain):

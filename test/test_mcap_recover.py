@@ -27,7 +27,7 @@ from stewart_vibration.runtime.processes import ros_environment, start_python_mo
 
 RECORDER = "stewart_vibration.nodes.mcap_recorder_node"
 JS = "/legs/joint_states"
-POSE = "/platform/pose"
+POSE = "/ground_truth/platform_pose"
 
 
 def run_cli(*args, timeout=120):

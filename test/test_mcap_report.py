@@ -19,7 +19,7 @@ def _write_run(path, n=400, f_hz=20.0, dt=0.002):
     direction = np.array([0.3, 0.1, 0.95]) / np.linalg.norm([0.3, 0.1, 0.95])
     w = McapRunWriter(path)
     w.add_topic("/legs/joint_states", "sensor_msgs/msg/JointState", "[]")
-    w.add_topic("/platform/pose", "geometry_msgs/msg/PoseStamped", "[]")
+    w.add_topic("/ground_truth/platform_pose", "geometry_msgs/msg/PoseStamped", "[]")
     w.add_topic("/legs/force_estimate", "sensor_msgs/msg/JointState", "[]")
     w.add_topic("/diagnostics", "diagnostic_msgs/msg/DiagnosticArray", "[]")
     names = [f"leg_{i}" for i in range(1, 7)] + [f"vib_{i}" for i in range(1, 7)]
@@ -37,7 +37,7 @@ def _write_run(path, n=400, f_hz=20.0, dt=0.002):
         p = 5e-4 * s * direction + np.array([0, 0, 0.25])
         point, quat = T["geometry_msgs/msg/Point"](*p), T["geometry_msgs/msg/Quaternion"](0, 0, 0, 1)
         pose = T["geometry_msgs/msg/PoseStamped"](h, T["geometry_msgs/msg/Pose"](point, quat))
-        w.submit("/platform/pose", t_ns, bytes(ts.serialize_cdr(pose, "geometry_msgs/msg/PoseStamped")))
+        w.submit("/ground_truth/platform_pose", t_ns, bytes(ts.serialize_cdr(pose, "geometry_msgs/msg/PoseStamped")))
         if k in (0, n - 1):
             text = "started" if k == 0 else "stopped"
             st = T["diagnostic_msgs/msg/DiagnosticStatus"](0, "vibration_planner", text, "", [])

@@ -68,7 +68,7 @@ class Watch:
 
     def __init__(self):
         self.client = RosTestClient("ui_test_watch")
-        self.truth = self.client.subscribe(f"{DEFAULT_NAMESPACE}/platform/pose", PoseStamped, depth=50)
+        self.truth = self.client.subscribe(f"{DEFAULT_NAMESPACE}/ground_truth/platform_pose", PoseStamped, depth=50)
         self.joints = self.client.subscribe(f"{DEFAULT_NAMESPACE}/legs/joint_states", JointState, depth=500)
         self.commands = {topic: self.client.subscribe(f"{DEFAULT_NAMESPACE}/{topic}", kind, depth=50) for topic, kind in
                          (("platform/target_pose", PoseStamped), ("legs/joint_trajectory", JointTrajectory),

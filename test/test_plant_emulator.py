@@ -16,6 +16,7 @@ from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.plant import load_plant, load_plant_option, plant_from_dict
 from stewart_vibration.errors import ConfigError
 from stewart_vibration.kinematics import forward_kinematics
+from stewart_vibration.kinematics.rotations import rotation_from_quaternion
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import LEG_NAMES
 from stewart_vibration.safe_yaml import load_yaml
@@ -120,3 +121,38 @@ def test_the_plant_option_names_a_file_or_a_kind(robot, tmp_path):
     assert load_plant_option(str(CONFIG / "plant_realistic.yaml"), robot).kind == "realistic"
     with pytest.raises(ConfigError):
         load_plant_option(str(tmp_path / "missing.yaml"), robot)
+
+
+@pytest.mark.parametrize("kind", ["ideal", "realistic"])
+def test_the_platform_sensors_at_rest_read_gravity_and_the_true_pose(robot, realistic, kind):
+    """At rest the IMU reads +g up in the platform frame (plus the plant's bias, within its noise) and no
+    rotation; the tracker's frames are the true pose within its noise; the true joint states are what the
+    encoders read before their offsets and quantization."""
+    plant = realistic if kind == "realistic" else None
+    emu = emulator(robot, plant)
+    imu, frames, truths, sensed = [], [], [], []
+    for _ in range(250):
+        emu.advance(PERIOD)
+        imu.append(emu.imu_sample())
+        frames += [(f, emu.sim.platform_position_quaternion()) for f in emu.tracker_frames()]
+        truths.append(emu.true_joint_state()[1])
+        sensed.append(emu.joint_state()[1])
+    rotation = rotation_from_quaternion(emu.sim.platform_position_quaternion()[1])
+    accel = np.array([s.linear_acceleration for s in imu])
+    gyro = np.array([s.angular_velocity for s in imu])
+    bias = np.zeros(3) if plant is None else plant.sensors.accel_bias_m_s2
+    gyro_bias = np.zeros(3) if plant is None else plant.sensors.gyro_bias_rad_s
+    noise = np.sqrt(imu[0].accel_variance)
+    up = -emu.sim.model.opt.gravity  # MuJoCo's standard gravity, 9.80665 m/s^2
+    assert np.allclose(accel.mean(axis=0) - bias, rotation.T @ up, atol=5 * noise / np.sqrt(250) + 2e-3)
+    assert np.allclose(gyro.mean(axis=0) - gyro_bias, 0.0, atol=5 * np.sqrt(imu[0].gyro_variance) / np.sqrt(250)
+                       + 1e-5)
+    assert len(frames) >= 25
+    truths, sensed = np.array(truths), np.array(sensed)
+    if plant is None:
+        assert np.array_equal(truths, sensed)  # the drawing's sensors are the truth
+        return
+    quantum = plant.sensors.encoder_quantization_m
+    assert np.all(np.abs(sensed[:, :6] - (truths[:, :6] - plant.strut_zero_offsets)) <= quantum / 2 + 1e-12)
+    unit_error = sensed[:, 6:] - truths[:, 6:]
+    assert abs(unit_error.std() / plant.sensors.unit_sensor_noise_m - 1) < 0.1

@@ -1,7 +1,7 @@
 """Soft tissue in the loop (issue 17) with the real nodes over DDS on sim time: hardware_emulator applying
 config/tissue.yaml, kinematics (tissue-aware checks, force guard), leg_force_estimator, vibration_planner.
 
-- the estimator's external wrench matches the wrench the emulator applies (platform/tissue_wrench) during
+- the estimator's external wrench matches the wrench the emulator applies (ground_truth/tissue_wrench) during
   moves and holds (RMS error <= 2 % of the peak applied force and moment) and during a 35 Hz / 0.3 g
   vibration (RMS force error <= 1 N);
 - the force guard stops a move that would exceed guard_force_n with the peak estimated force <= limit +
@@ -67,10 +67,10 @@ def suite(tmp_path_factory):
         client = RosTestClient()
         rec = {
             "clock": client.subscribe("/clock", Clock, depth=10),
-            "applied": client.subscribe("platform/tissue_wrench", WrenchStamped, depth=5000),
+            "applied": client.subscribe("ground_truth/tissue_wrench", WrenchStamped, depth=5000),
             "estimate": client.subscribe("platform/external_wrench_estimate", WrenchStamped, depth=5000),
             "states": client.subscribe("legs/joint_states", JointState, depth=5000),
-            "truth": client.subscribe("platform/pose", PoseStamped, depth=100),
+            "truth": client.subscribe("ground_truth/platform_pose", PoseStamped, depth=100),
             "diagnostics": client.subscribe("/diagnostics", DiagnosticArray),
             "guard": [],
         }

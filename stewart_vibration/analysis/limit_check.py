@@ -13,7 +13,7 @@ the recorded states:
   (a sinusoid at f sampled every dt is underestimated by 2 (1 - cos w dt) / (w dt)^2: 1.6 % at 35 Hz,
   16 % at 120 Hz, 500 Hz states);
 - universal and spherical joint angles and the Jacobian's condition number at every recorded true
-  platform pose (``platform/pose``), from the robot's hinge points;
+  platform pose (``ground_truth/platform_pose``), from the robot's hinge points;
 - finiteness of every recorded position, velocity, effort and pose;
 - time: ``/clock`` never goes back and the joint states' stamps increase.
 
@@ -153,7 +153,7 @@ def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigu
         robot: the robot (its limits, vibration-unit limits and hinge points).
         joints: (stamps [n] (s), {"position", "velocity", "effort": [n, 12]}) of legs/joint_states, leg_1..6
             then vib_1..6 (``messages.arrays.joint_arrays``).
-        pose: (stamps [m] (s), poses [m, 6] (m, rad)) of platform/pose, the true pose.
+        pose: (stamps [m] (s), poses [m, 6] (m, rad)) of ground_truth/platform_pose, the true pose.
         clock_times: /clock values [c] (s) in the order they were recorded; None or empty: not checked.
 
     Returns:

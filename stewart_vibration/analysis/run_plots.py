@@ -74,7 +74,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
             ax.set_ylabel(f"{name} (mm)\nmean {mean[k] * 1e3:.2f}")
             ax.grid(alpha=0.3)
             if k == 0:
-                ax.set_title("Platform position about its mean (platform/pose)")
+                ax.set_title("Platform position about its mean (ground_truth/platform_pose)")
         ax.set_xlabel("time (s)")
         ax3 = fig.add_subplot(1, 2, 2, projection="3d")
         window = data.get("vibration_window")
@@ -156,7 +156,7 @@ def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
     """Soft tissue: the wrench the emulator applied vs the estimator's external wrench, force and moment
     components and the error magnitudes; the force guard's trips as vertical lines."""
     fig, axes = plt.subplots(3, 2, figsize=(13, 8), sharex=True)
-    fig.suptitle("Soft tissue: applied (platform/tissue_wrench, solid) vs estimated "
+    fig.suptitle("Soft tissue: applied (ground_truth/tissue_wrench, solid) vs estimated "
                  "(platform/external_wrench_estimate, dashed); base frame, moment about the platform origin")
     ta, wa = data["wrench_applied_t"], data["wrench_applied"]
     te, we = data.get("wrench_estimated_t"), data.get("wrench_estimated")

@@ -2,8 +2,8 @@
 
 Topics are matched by suffix so namespaced runs work: ``legs/joint_states``
 (leg_* lengths, vib_* displacements, leg_* efforts = measured axial force),
-``platform/pose``, ``legs/force_estimate``, ``/diagnostics`` and ``/rosout``
-(events); with a soft-tissue run also ``platform/tissue_wrench`` (applied) against
+``ground_truth/platform_pose``, ``legs/force_estimate``, ``/diagnostics`` and ``/rosout``
+(events); with a soft-tissue run also ``ground_truth/tissue_wrench`` (applied) against
 ``platform/external_wrench_estimate``, and the force guard's trips
 (``kinematics/guard_status``). Times in the plots are seconds from the first message; lengths and
 displacements are plotted in mm (labelled), everything in the JSON is SI.
@@ -112,14 +112,14 @@ def extract(reader: RunReader | RunFiles) -> dict:
         t, force = _joint_series(reader, est, LEG_NAMES, "effort")
         if len(t):
             data["est_t"], data["est"] = (t - t0) / 1e9, force
-    if pose := _find(reader, "platform/pose"):
+    if pose := _find(reader, "ground_truth/platform_pose"):
         t, xyz = [], []
         for raw, msg in reader.decoded([pose]):
             p = msg.pose.position
             t.append(raw.publish_time)
             xyz.append([p.x, p.y, p.z])
         data["pose_t"], data["pose_xyz"] = (np.array(t) - t0) / 1e9, np.array(xyz)
-    for key, suffix in (("applied", "platform/tissue_wrench"), ("estimated", "platform/external_wrench_estimate")):
+    for key, suffix in (("applied", "ground_truth/tissue_wrench"), ("estimated", "platform/external_wrench_estimate")):
         if (topic := _find(reader, suffix)) and (key == "applied" or "wrench_applied" in data):
             t, wrench = _wrench_series(reader, topic)
             if len(t):

@@ -8,7 +8,7 @@ measured vibration (actual hinge length leg_i + vib_i: amplitude against
 the ground-truth pose error after settling. Checked against the scenario bounds.
 
 With a soft-tissue model (issue 17): the external-wrench estimate against the wrench the emulator
-applied (platform/tissue_wrench), in moves and holds and during vibrations, and every force-guard
+applied (ground_truth/tissue_wrench), in moves and holds and during vibrations, and every force-guard
 trip (kinematics/guard_status) with the peak load it let through.
 """
 
@@ -39,7 +39,9 @@ from .fits import (
 STEADY_MARGIN_S = 0.2  # skip this much after the ramp-in and before the ramp-out
 
 
-STREAM_TOPICS = ("legs/joint_states", "platform/pose", "platform/pose_estimate", "legs/force_estimate",
+# topics a log recorded before the ground truth moved under ground_truth/ (old name -> new name)
+LEGACY_TRUTH = {"platform/pose": "ground_truth/platform_pose", "platform/tissue_wrench": "ground_truth/tissue_wrench"}
+STREAM_TOPICS = ("legs/joint_states", "ground_truth/platform_pose", "platform/pose_estimate", "legs/force_estimate",
                  "platform/external_wrench_estimate")  # the 500 Hz streams; the first is the input of the rest
 
 
@@ -52,8 +54,10 @@ def load_signals(mcap_path) -> dict:
         mcap_path: an MCAP file or run folder path, or an open RunReader / RunFiles.
 
     Returns:
-        {"pose": (times [n] (s), poses [n, 6] (m, rad)), "joints": (times [n], {"position", "velocity",
-        "effort": [n, 12]}, leg_1..6 then vib_1..6), "force_estimate": (times [n], {...: [n, 6]}),
+        {"pose": (times [n] (s), poses [n, 6] (m, rad)) the true poses, "joints": (times [n], {"position",
+        "velocity", "effort": [n, 12]}, leg_1..6 then vib_1..6) the true joint states (ground_truth/joint_states;
+        a log without them: legs/joint_states), "sensed_joints" (legs/joint_states: what the sensors read),
+        "pose_estimate" (as "pose": the controller's estimate), "force_estimate": (times [n], {...: [n, 6]}),
         "vibration_starts": distinct vib window stamps (s), "stream_counts" (``counts_in_common_span``),
         "vibration_status": [{key: value}], "node_diagnostics" (``last_diagnostics``), "tissue_wrench" and
         "wrench_estimate" (``wrench_array``), "guard_status": [({key: value}, message)], "clock": the /clock
@@ -62,10 +66,11 @@ def load_signals(mcap_path) -> dict:
     Raises:
         McapFileError: a path that is missing, a folder without .mcap files, or a file that is empty or not MCAP.
     """
-    wanted: dict[str, list[Any]] = {"platform/pose": [], "legs/joint_states": [], "legs/force_estimate": [],
-              "vibration/joint_trajectory": [], "/diagnostics": [], "vibration/status": [],
-              "platform/tissue_wrench": [], "platform/external_wrench_estimate": [], "kinematics/guard_status": [],
-              "/clock": []}
+    wanted: dict[str, list[Any]] = {
+        "ground_truth/platform_pose": [], "ground_truth/joint_states": [], "legs/joint_states": [],
+        "platform/pose_estimate": [], "legs/force_estimate": [], "vibration/joint_trajectory": [], "/diagnostics": [],
+        "vibration/status": [], "ground_truth/tissue_wrench": [], "platform/external_wrench_estimate": [],
+        "kinematics/guard_status": [], "/clock": [], **{old: [] for old in LEGACY_TRUTH}}
     reader = mcap_path if isinstance(mcap_path, (RunReader, RunFiles)) else open_run(mcap_path, allow_truncated=True)
     stamps, files = stream_stamps(reader)
     counts = counts_in_common_span(stamps)
@@ -74,15 +79,20 @@ def load_signals(mcap_path) -> dict:
         for key, bucket in wanted.items():
             if raw.topic.endswith("/" + key) or raw.topic == key:
                 bucket.append(msg)
+    for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
+        wanted[new] = wanted[new] or wanted[old]
+    sensed = joint_arrays(wanted["legs/joint_states"])
     return {
-        "pose": pose_array(wanted["platform/pose"]),
-        "joints": joint_arrays(wanted["legs/joint_states"]),
+        "pose": pose_array(wanted["ground_truth/platform_pose"]),
+        "joints": joint_arrays(wanted["ground_truth/joint_states"]) if wanted["ground_truth/joint_states"] else sensed,
+        "sensed_joints": sensed,
+        "pose_estimate": pose_array(wanted["platform/pose_estimate"]),
         "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=LEG_NAMES),
         "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
         "stream_counts": counts,
         "vibration_status": [{kv.key: kv.value for kv in m.values} for m in wanted["vibration/status"]],
         "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
-        "tissue_wrench": wrench_array(wanted["platform/tissue_wrench"]),
+        "tissue_wrench": wrench_array(wanted["ground_truth/tissue_wrench"]),
         "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
         "guard_status": [({kv.key: kv.value for kv in m.values}, m.message) for m in wanted["kinematics/guard_status"]],
         "clock": np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in wanted["/clock"]]),
@@ -381,7 +391,7 @@ def platform_vibration(signals: dict, t0: float, t1: float, frequency: float) ->
     sel = (pt >= t0) & (pt <= t1)
     if sel.sum() < 4:  # it never ran (refused, aborted, interrupted) or the log lacks the ground truth
         raise ValueError(f"only {int(sel.sum())} ground-truth poses in its steady part {t0:.3f}..{t1:.3f} s (it did "
-                         "not run, or the log holds no platform/pose for it)")
+                         "not run, or the log holds no ground_truth/platform_pose for it)")
     line = line_vibration(pt[sel], poses[sel, :3], frequency)
     return {"direction": line.direction, "amplitude_m": line.amplitude, "off_axis_ratio": line.off_axis_ratio,
             "samples": int(sel.sum())}
@@ -468,11 +478,35 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
     out.update({"active_duration_s": measured_active, "planned_active_duration_s": planned_active,
                 "active_duration_error_s": abs(measured_active - planned_active)})
     out["force"] = leg_force_error(robot, signals, t0, t1, frequency)
+    out["controller_view"] = controller_view(signals, t0, t1, frequency, plan)
+    return out
+
+
+def controller_view(signals: dict, t0: float, t1: float, frequency: float, plan) -> dict | None:
+    """The vibration as the controller sees it over [t0, t1] (s): the platform line fitted to its pose estimate
+    (platform/pose_estimate) and the leg amplitudes its sensors read (legs/joint_states: encoder + unit
+    sensor), against the plan. None when the log holds fewer than four estimates in the window.
+
+    Returns:
+        {direction_error_deg, amplitude_error, off_axis_ratio, measured_amplitude_m, leg_amplitude_error (6,)}.
+    """
+    estimate = signals.get("pose_estimate")
+    if estimate is None or int(((estimate[0] >= t0) & (estimate[0] <= t1)).sum()) < 4:
+        return None
+    line = platform_vibration({"pose": estimate}, t0, t1, frequency)
+    out = {"direction_error_deg": direction_error_deg(line["direction"], plan.direction),
+           "amplitude_error": abs(line["amplitude_m"] / plan.amplitude - 1.0),
+           "off_axis_ratio": line["off_axis_ratio"], "measured_amplitude_m": line["amplitude_m"]}
+    jt, joints = signals.get("sensed_joints", signals["joints"])
+    sel = (jt >= t0) & (jt <= t1)
+    if sel.sum() >= 4:
+        fit = fit_sinusoid(jt[sel], joints["position"][sel, :6] + joints["position"][sel, 6:12], frequency)
+        out["leg_amplitude_error"] = np.abs(fit.amplitude / plan.leg_amplitudes - 1.0)
     return out
 
 
 def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | float:
-    """The axial forces [n, 6] (N) the applied tissue wrench (platform/tissue_wrench, ground truth) puts on the
+    """The axial forces [n, 6] (N) the applied tissue wrench (ground_truth/tissue_wrench, ground truth) puts on the
     legs at the states ``times`` [n] (s), at the ground-truth poses; 0 without tissue. The leg-force figure
     compares the robot's model (legs/force_estimate: no external load) with the measured efforts minus this:
     the tissue is the environment, not part of the model the figure checks.
@@ -522,7 +556,7 @@ def guard_trips(signals: dict) -> list[dict]:
 
 
 def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) -> dict | None:
-    """External-wrench estimate vs the applied tissue wrench (None without platform/tissue_wrench).
+    """External-wrench estimate vs the applied tissue wrench (None without ground_truth/tissue_wrench).
 
     vibrations: (t0, duration) (s) of each vibration; its states count as "vibration", every other state
     of the run as "moves and holds". Errors: RMS over the states of |estimate - applied| of the force (N) and
@@ -600,7 +634,8 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
 
     Every figure the run summary prints is judged here: pose errors after moves; per vibration the
     platform's direction, amplitude and off-axis ratio, every leg's amplitude, phase (and its sign) and
-    frequency, the active duration and every leg's force error (the worst); with a tissue the wrench
+    frequency, the same platform figures and leg amplitudes in the controller's view (``controller_view``), the
+    active duration and every leg's force error (the worst); with a tissue the wrench
     estimate and the guard trips; the robot's limits over the recorded states (``limit_check``); the sample
     ratio of every derived stream and, per node, its lost input states and its lag.
 
@@ -638,6 +673,17 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
             ("leg frequency error (worst leg)", vib["leg_frequency_error_hz"], bounds["leg_frequency_error_hz"], "Hz"),
             ("active duration error", vib["active_duration_error_s"], bounds["active_duration_error_s"], "s"),
         ]
+        view = vib.get("controller_view")
+        if view is not None:  # what the controller believes it delivered, judged on the same bounds
+            checks += [("direction error in the controller's view", view["direction_error_deg"],
+                        bounds["direction_error_deg"], "deg"),
+                       ("amplitude error in the controller's view", view["amplitude_error"], bounds["amplitude_error"],
+                        ""),
+                       ("off-axis ratio in the controller's view", view["off_axis_ratio"], bounds["off_axis_ratio"],
+                        "")]
+            if view.get("leg_amplitude_error") is not None:
+                checks.append(("leg amplitude error in the controller's view (worst leg)",
+                               float(np.max(view["leg_amplitude_error"])), bounds["leg_amplitude_error"], ""))
         if vib["force"] is not None:
             checks.append(("force RMS error / amplitude", vib["force"]["worst_leg_relative"],
                            bounds["force_rms_relative"], ""))
@@ -789,6 +835,7 @@ def recording_lines(summary: dict) -> list[str]:
             lines.append(f"  /clock: {clock['missing']} of {clock['expected']} ticks not recorded "
                          f"({clock['gap_count']} gaps)")
     if summary.get("limits"):
-        lines.append("limits over the recorded states (independent check of legs/joint_states and platform/pose):")
+        lines.append("limits over the recorded states (independent check of the true joint states and "
+                     "ground_truth/platform_pose):")
         lines += [f"  {f['line']}" for f in summary["limits"]]
     return lines

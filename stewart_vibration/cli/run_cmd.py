@@ -366,6 +366,14 @@ def _print_summary(summary: dict, bounds: dict) -> None:
         print(f"  platform (ground truth): amplitude {vib['measured_amplitude_m'] * 1e6:.3f} um "
               f"(error {vib['amplitude_error'] * 100:.3f} %), direction error {vib['direction_error_deg']:.4f} deg, "
               f"off-axis ratio {vib['off_axis_ratio']:.2e}")
+        view = vib.get("controller_view")
+        if view is not None:
+            legs = view.get("leg_amplitude_error")
+            worst = f"; worst leg amplitude error {float(np.max(legs)) * 100:.3f} %" if legs is not None else ""
+            print(f"  platform (the controller's view: its pose estimate and sensors): amplitude "
+                  f"{view['measured_amplitude_m'] * 1e6:.3f} um (error {view['amplitude_error'] * 100:.3f} %), "
+                  f"direction error {view['direction_error_deg']:.4f} deg, off-axis ratio "
+                  f"{view['off_axis_ratio']:.2e}{worst}")
         print("  leg   amplitude_um  expected_um  phase_deg  expected_deg  freq_Hz")
         for k in range(6):
             amp, expected = vib["leg_amplitude_m"][k] * 1e6, vib["leg_amplitude_expected_m"][k] * 1e6

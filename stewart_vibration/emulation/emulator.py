@@ -38,12 +38,14 @@ import numpy as np
 from ..dynamics.tissue import TissueModel, tissue_wrench_single
 from ..errors import ConfigError
 from ..kinematics import check_pose, forward_kinematics
+from ..kinematics.rotations import rotation_from_quaternion
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..sim.mjcf import SimulationSettings, UnitSliders
 from ..sim.mujoco_sim import StewartSim
 from .physics_guard import PhysicsFault, PhysicsGuard
 from .plant import Plant
 from .plant_drive import PlantDrive
+from .platform_sensors import ImuSample, PlatformImu, PlatformTracker, TrackerFrame, specific_force
 from .safety_controller import SafetyController
 from .servo_drive import ServoDrive
 from .strut_trajectory import MAX_START_DELAY_S, JointTrajectory, TrajectoryFollower
@@ -67,7 +69,7 @@ class HardwareEmulator:
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
                  reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,
-                 tissue: TissueModel | None = None, plant: Plant | None = None):
+                 tissue: TissueModel | None = None, plant: Plant | None = None, sensor_rate_hz: float = 500.0):
         self.robot = robot
         self.plant = plant if plant is not None and plant.kind == "realistic" else None
         physics = replace(settings, integrator=settings.emulator_integrator)
@@ -93,6 +95,21 @@ class HardwareEmulator:
         self.reference_horizon_s = float(reference_horizon_s)
         self._refs = None  # (version, first step time, arrays) of the sampled references
         self._planned = None  # (version, time, controls) for the block starting at ``time``
+        self._build_platform_sensors(plant, sensor_rate_hz)
+
+    def _build_platform_sensors(self, plant: Plant | None, rate_hz: float) -> None:
+        """``imu`` and ``tracker``: the plant's (its noise, biases and latency, seeded from its seed), or
+        noiseless ones without a plant."""
+        self._imu_velocity: tuple[float, np.ndarray] | None = None  # (time s, platform velocity m/s), last IMU sample
+        rng = np.random.default_rng(None if plant is None else [plant.seed, 0x5E5])
+        if plant is None:
+            self.imu, self.tracker = PlatformImu(rate_hz, rng=rng), PlatformTracker(60.0, rng=rng)
+            return
+        s = plant.sensors
+        self.imu = PlatformImu(rate_hz, s.accel_noise_density, s.gyro_noise_density, s.accel_bias_m_s2,
+                               s.gyro_bias_rad_s, rng=rng)
+        self.tracker = PlatformTracker(s.tracker_rate_hz, s.tracker_position_noise_m,
+                                       s.tracker_orientation_noise_deg, s.tracker_latency_s, rng=rng)
 
     def _build_plant(self, plant: Plant, physics: SimulationSettings) -> None:
         """``sim``: MuJoCo with the plant's geometry, payload and unit sliders at rest at home; ``drive``: the
@@ -214,6 +231,7 @@ class HardwareEmulator:
         the pose checks' errors (``check_pose``)."""
         pose = self.robot.home_pose if pose is None else np.asarray(pose, dtype=float)
         lengths = check_pose(self.robot, pose)
+        self._imu_velocity = None  # the state is set, not reached: no acceleration across it
         self.safety.place_at_rest(lengths)
         if self.plant is None:
             self.sim.set_state(pose)
@@ -370,6 +388,41 @@ class HardwareEmulator:
             cells = cells + drive.rng.normal(0.0, sensors.load_cell_noise_n, 6)
         return (LEG_NAMES + VIB_NAMES, np.concatenate([strut, unit]), np.concatenate([strut_rate, unit_rate]),
                 np.concatenate([cells, cells]))
+
+    def true_joint_state(self):
+        """The ground truth of ``joint_state`` (names, positions, velocities, efforts): leg_* the struts' true
+        lengths (m, the plant's frame, no encoder offset) and rates, vib_* the units' true displacements and
+        rates, efforts the true axial strut forces (N). Without a plant, ``joint_state`` (it is the truth)."""
+        if self.plant is None or self.fault is not None:
+            return self.joint_state()
+        assert isinstance(self.drive, PlantDrive)
+        d, drive = self.sim.data, self.drive
+        positions = np.concatenate([d.qpos[drive.slide_q], d.qpos[drive.vib_q]])
+        velocities = np.concatenate([d.qvel[drive.slide_v], d.qvel[drive.vib_v]])
+        return LEG_NAMES + VIB_NAMES, positions, velocities, np.concatenate([self.forces, self.forces])
+
+    def imu_sample(self, quaternion=None) -> ImuSample:
+        """The platform IMU's sample now (platform frame, at its origin; see platform_sensors). The
+        accelerometer reports the mean specific force since its last sample (integrate and dump: the change of
+        the origin's velocity over the interval; qacc is not used, the drives probe the model with it); the
+        gyroscope the rate now. ``quaternion``: the platform's orientation now, if the caller has read it."""
+        sim, fd = self.sim, self.sim.free_dof
+        if quaternion is None:
+            _, quaternion = sim.platform_position_quaternion()
+        rotation = rotation_from_quaternion(quaternion)
+        velocity, now = sim.data.qvel[fd:fd + 3].copy(), self.time
+        last = self._imu_velocity
+        acceleration = (velocity - last[1]) / (now - last[0]) if last is not None and now > last[0] else np.zeros(3)
+        self._imu_velocity = (now, velocity)
+        force = specific_force(rotation, acceleration, sim.model.opt.gravity)
+        return self.imu.read(force, sim.data.qvel[fd + 3:fd + 6])
+
+    def tracker_frames(self, position=None, quaternion=None) -> list[TrackerFrame]:
+        """The optical tracker's frames delivered by now, from the true platform pose now (``position`` (3,) m,
+        ``quaternion`` (4,) [x, y, z, w], if the caller has read them)."""
+        if position is None or quaternion is None:
+            position, quaternion = self.sim.platform_position_quaternion()
+        return self.tracker.step(self.time, position, quaternion)
 
     def platform_pose(self) -> np.ndarray:
         """The platform's ground-truth pose (6,) [x, y, z, roll, pitch, yaw] (m, rad) in the base frame."""

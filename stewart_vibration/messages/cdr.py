@@ -359,59 +359,94 @@ def _stack_uniform(messages, first: JointStateData, counts):
     return stamps, arrays
 
 
-# -- geometry_msgs/PoseStamped, WrenchStamped; rosgraph_msgs/Clock --------------------------------
-class PoseStampedEncoder:
-    """PoseStamped in a fixed frame: position (3,) m and quaternion (4,) [x, y, z, w]."""
+# -- geometry_msgs/PoseStamped, WrenchStamped; sensor_msgs/Imu; rosgraph_msgs/Clock -------------------
+class _HeaderDoublesEncoder:
+    """A message laid out as Header (fixed frame) + float64 fields: a template, and per message its stamp and
+    a writable view of the doubles."""
 
-    def __init__(self, frame_id: str):
+    def __init__(self, frame_id: str, fields):
         w = _Writer()
         w.stamp(0, 0)
         w.string(frame_id)
-        self.offset = w.fixed_doubles(np.zeros(7))
+        self.count = len(fields)
+        self.offset = w.fixed_doubles(fields)
         self.template = bytes(w.buf)
+
+    def _stamped(self, stamp_s: float) -> tuple[bytearray, np.ndarray]:
+        """(a copy of the template stamped ``stamp_s`` (s), the view of its doubles)."""
+        buf = bytearray(self.template)
+        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
+        return buf, np.frombuffer(buf, dtype=_F8, count=self.count, offset=self.offset)
+
+
+class PoseStampedEncoder(_HeaderDoublesEncoder):
+    """PoseStamped in a fixed frame: position (3,) m and quaternion (4,) [x, y, z, w]."""
+
+    def __init__(self, frame_id: str):
+        super().__init__(frame_id, np.zeros(7))
 
     def encode(self, stamp_s: float, position, quaternion) -> bytes:
         """PoseStamped bytes at ``stamp_s`` (s): position (3,) m and quaternion (4,) [x, y, z, w], encoder's frame."""
-        buf = bytearray(self.template)
-        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
-        values = np.frombuffer(buf, dtype=_F8, count=7, offset=self.offset)
+        buf, values = self._stamped(stamp_s)
         values[:3], values[3:] = position, quaternion
         return bytes(buf)
 
 
-def decode_pose_stamped(data) -> tuple[float, str, np.ndarray, np.ndarray]:
-    """(stamp s, frame_id, position (3,), quaternion (4,) [x, y, z, w]) of PoseStamped bytes."""
-    r = _Reader(data, "PoseStamped")
+def _decode_header_doubles(data, type_name: str, count: int) -> tuple[float, str, np.ndarray]:
+    """(stamp s, frame_id, the ``count`` doubles after the header) of a message made of a Header and doubles."""
+    r = _Reader(data, type_name)
     sec, nanosec = r.stamp()
     frame = r.string()
-    values = r.fixed_doubles(7)
-    return stamp_seconds(sec, nanosec), frame, values[:3], values[3:]
+    return stamp_seconds(sec, nanosec), frame, r.fixed_doubles(count)
 
 
-class WrenchStampedEncoder:
+def decode_pose_stamped(data) -> tuple[float, str, np.ndarray, np.ndarray]:
+    """(stamp s, frame_id, position (3,), quaternion (4,) [x, y, z, w]) of PoseStamped bytes."""
+    stamp, frame, values = _decode_header_doubles(data, "PoseStamped", 7)
+    return stamp, frame, values[:3], values[3:]
+
+
+class WrenchStampedEncoder(_HeaderDoublesEncoder):
     """WrenchStamped in a fixed frame: force (3,) N and torque (3,) N m."""
 
     def __init__(self, frame_id: str):
-        w = _Writer()
-        w.stamp(0, 0)
-        w.string(frame_id)
-        self.offset = w.fixed_doubles(np.zeros(6))
-        self.template = bytes(w.buf)
+        super().__init__(frame_id, np.zeros(6))
 
     def encode(self, stamp_s: float, wrench) -> bytes:
         """WrenchStamped bytes at ``stamp_s`` (s): wrench (6,) [force (N), torque (N m)] in the encoder's frame."""
-        buf = bytearray(self.template)
-        _STAMP.pack_into(buf, 4, *stamp_parts(stamp_s))
-        np.frombuffer(buf, dtype=_F8, count=6, offset=self.offset)[:] = wrench
+        buf, values = self._stamped(stamp_s)
+        values[:] = wrench
         return bytes(buf)
+
+
+class ImuEncoder(_HeaderDoublesEncoder):
+    """sensor_msgs/Imu in a fixed frame, without an orientation estimate (orientation_covariance[0] = -1, the
+    message's convention): angular velocity (3,) rad/s and linear acceleration (3,) m/s^2 with diagonal
+    covariances."""
+
+    def __init__(self, frame_id: str):
+        fields = np.zeros(37)  # orientation 4, its covariance 9, angular velocity 3 + 9, linear acceleration 3 + 9
+        fields[3], fields[4] = 1.0, -1.0
+        super().__init__(frame_id, fields)
+
+    def encode(self, stamp_s: float, angular_velocity, linear_acceleration, gyro_variance: float = 0.0,
+               accel_variance: float = 0.0) -> bytes:
+        """Imu bytes at ``stamp_s`` (s): rates (3,) rad/s and specific force (3,) m/s^2, the encoder's frame."""
+        buf, values = self._stamped(stamp_s)
+        values[13:16], values[25:28] = angular_velocity, linear_acceleration
+        values[[16, 20, 24]], values[[28, 32, 36]] = gyro_variance, accel_variance
+        return bytes(buf)
+
+
+def decode_imu(data) -> tuple[float, str, np.ndarray, np.ndarray]:
+    """(stamp s, frame_id, angular velocity (3,) rad/s, linear acceleration (3,) m/s^2) of Imu bytes."""
+    stamp, frame, values = _decode_header_doubles(data, "Imu", 37)
+    return stamp, frame, values[13:16], values[25:28]
 
 
 def decode_wrench_stamped(data) -> tuple[float, str, np.ndarray]:
     """(stamp s, frame_id, wrench (6,) [force N, torque N m]) of WrenchStamped bytes."""
-    r = _Reader(data, "WrenchStamped")
-    sec, nanosec = r.stamp()
-    frame = r.string()
-    return stamp_seconds(sec, nanosec), frame, r.fixed_doubles(6)
+    return _decode_header_doubles(data, "WrenchStamped", 6)
 
 
 def decode_stamped_doubles(messages, count: int, what: str) -> tuple[np.ndarray, list, np.ndarray, np.ndarray, list]:

@@ -18,6 +18,7 @@ import re
 from ..errors import MalformedMessageError
 
 BASE_FRAME = "base"
+PLATFORM_FRAME = "platform"  # the moving platform's frame (its sensors: platform/imu)
 MAX_TEXT = 65536  # characters of one string field (the suite's longest, a status message, is ~1 kB)
 _DECIMAL = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?", re.ASCII)
 _INTEGER = re.compile(r"[+-]?\d+", re.ASCII)

@@ -7,14 +7,14 @@ It adds a 3D scene in Foxglove's own schemas (stewart_vibration.visualization.sc
 ``scene_rate_hz`` from the latest ground-truth pose (the 500 Hz streams are only stored, never
 processed per message):
 
-- ``<ns>/scene/transforms`` (foxglove.FrameTransforms): base -> platform (platform/pose as it is)
+- ``<ns>/scene/transforms`` (foxglove.FrameTransforms): base -> platform (ground_truth/platform_pose as it is)
   and base -> leg_1..leg_6 (origin at the base hinge, z along the leg);
 - ``<ns>/scene/entities`` (foxglove.SceneUpdate): legs, hinges, base and platform rings, and the
   planned vibration direction (an arrow from the platform origin) while vibration/status says a
   vibration is pending, ramping or running, taken from the planner's vibration/joint_trajectory.
 
 ROS subscriptions follow the Foxglove clients: a topic is subscribed only while a client subscribes
-to its channel (platform/pose also while one watches the scene), so with no client the bridge is
+to its channel (ground_truth/platform_pose also while one watches the scene), so with no client the bridge is
 idle; the scene's low-rate inputs (vibration/status, vibration/joint_trajectory) stay subscribed, as
 a vibration may be sent in one window. Channels are advertised as their topics get a publisher on the
 graph; subscriptions take the QoS the publishers offer (rosbag2's rule, as the recorder). Log times:
@@ -120,7 +120,7 @@ class FoxgloveBridgeNode(Node):
         self.malformed = MalformedInputs(self, self.diagnostics)  # the scene's inputs; forwarded data is not read
         self.fox_context = foxglove.Context()
         self._forward = {self.resolve_topic_name(t) for t in (names or SUITE_TOPICS)}
-        self._pose_topic = self.resolve_topic_name("platform/pose")
+        self._pose_topic = self.resolve_topic_name("ground_truth/platform_pose")
         self._scene_inputs = {
             self._pose_topic: self._on_pose,
             self.resolve_topic_name("vibration/status"): self._on_vibration_status,
@@ -254,9 +254,9 @@ class FoxgloveBridgeNode(Node):
             return
         if data is self._bad_pose:
             return  # judged once (the scene timer would count it at every tick)
-        batch = poses_from_cdr([data], "platform/pose", as_quaternion=True)
+        batch = poses_from_cdr([data], "ground_truth/platform_pose", as_quaternion=True)
         if batch.errors:
-            self.malformed.refuse("platform/pose", batch.errors[0])
+            self.malformed.refuse("ground_truth/platform_pose", batch.errors[0])
             self._bad_pose = data
             return
         stamp, position, quaternion = float(batch.stamps[0]), batch.values[0, :3], batch.values[0, 3:]

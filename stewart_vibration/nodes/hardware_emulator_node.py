@@ -3,11 +3,15 @@
 Topics (relative): sub legs/joint_trajectory (leg_*, absolute strut lengths),
 vibration/joint_trajectory (vib_*, header stamp = common start time); pub
 legs/joint_states (leg_*, vib_*: position m, velocity m/s, effort = axial
-force N), platform/pose (ground truth, PoseStamped in `base`),
+force N: the sensors -- encoders, unit sensors, load cells), platform/imu (sensor_msgs/Imu in
+`platform`, one per state: specific force and rates, see emulation.platform_sensors), platform/tracker_pose
+(PoseStamped in `base`, the optical tracker's frames, stamped at capture), the truth for judging runs
+(no controller reads it): ground_truth/joint_states (as legs/joint_states, true strut lengths, unit
+displacements and axial forces), ground_truth/platform_pose (PoseStamped in `base`),
 vibration/status (diagnostic_msgs/DiagnosticStatus, reliable + transient local:
 what the vibration units really do, see emulation.vibration_status),
 robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics; with a
-``tissue_config`` also platform/tissue_wrench (WrenchStamped in `base`, one per
+``tissue_config`` also ground_truth/tissue_wrench (WrenchStamped in `base`, one per
 state: the soft-tissue wrench the emulator applies from that instant, force N
 and moment N m about the platform origin -- the convention of
 platform/external_wrench_estimate).
@@ -38,7 +42,7 @@ from rclpy.clock import ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
-from sensor_msgs.msg import JointState
+from sensor_msgs.msg import Imu, JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
@@ -56,6 +60,7 @@ from ..errors import StewartError
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
+from ..messages.fields import PLATFORM_FRAME
 from ..robot import LEG_NAMES, VIB_NAMES
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
 from ..sim.mjcf import load_simulation_settings
@@ -182,6 +187,8 @@ class HardwareEmulatorNode(LifecycleNode):
         self.state_encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
+        self.imu_encoder = cdr.ImuEncoder(PLATFORM_FRAME)
+        self.tracker_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.tissue_pub = None
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
@@ -206,7 +213,7 @@ class HardwareEmulatorNode(LifecycleNode):
             plant = load_plant_option(param("plant_config").value, robot, seed if seed >= 0 else None)
             emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
                                         param("drive_gain_interval").value, param("max_lookahead_s").value,
-                                        tissue=tissue, plant=plant)
+                                        tissue=tissue, plant=plant, sensor_rate_hz=param("state_rate_hz").value)
         except (StewartError, ValueError, OSError) as exc:
             self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
             self.diagnostics.set(ERROR, f"configure failed: {exc}")
@@ -221,7 +228,11 @@ class HardwareEmulatorNode(LifecycleNode):
         with self.lock:
             self.emulator = emulator
         self.state_pub = self.create_publisher(JointState, "legs/joint_states", STREAM_DEPTH)
-        self.pose_pub = self.create_publisher(PoseStamped, "platform/pose", STREAM_DEPTH)
+        self.imu_pub = self.create_publisher(Imu, "platform/imu", STREAM_DEPTH)
+        self.tracker_pub = self.create_publisher(PoseStamped, "platform/tracker_pose", 10)
+        # the truth, for judging runs (recorder, run summary, tests); no controller reads these
+        self.true_state_pub = self.create_publisher(JointState, "ground_truth/joint_states", STREAM_DEPTH)
+        self.pose_pub = self.create_publisher(PoseStamped, "ground_truth/platform_pose", STREAM_DEPTH)
         # 1 s of ticks: the ticks of a 20 ms pace period leave in one burst, and a reader (the recorder) that
         # stalls longer than the history loses them
         self.clock_pub = self.create_publisher(Clock, "/clock", CLOCK_DEPTH)
@@ -229,7 +240,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
         self.tissue_pub = None
         if tissue is not None:
-            self.tissue_pub = self.create_publisher(WrenchStamped, "platform/tissue_wrench", STREAM_DEPTH)
+            self.tissue_pub = self.create_publisher(WrenchStamped, "ground_truth/tissue_wrench", STREAM_DEPTH)
         self._update_pacing()
         self.diagnostics.set(OK, "configured (inactive: commands are refused until activate)",
                              physics_rate_hz=param("physics_rate_hz").value,
@@ -265,7 +276,8 @@ class HardwareEmulatorNode(LifecycleNode):
         self._brake_to_rest(SHUTDOWN)
         self._stop_physics()
         self._update_pacing(False)
-        for pub in (self.state_pub, self.pose_pub, self.clock_pub, self.marker_pub, self.status_pub, self.tissue_pub):
+        for pub in (self.state_pub, self.imu_pub, self.tracker_pub, self.true_state_pub, self.pose_pub,
+                    self.clock_pub, self.marker_pub, self.status_pub, self.tissue_pub):
             if pub is not None:
                 self.destroy_publisher(pub)
         with self.lock:
@@ -558,17 +570,27 @@ class HardwareEmulatorNode(LifecycleNode):
                              physics_errors=self.physics_errors)
 
     def _read_state(self):
-        """(joint state tuple, (platform position, quaternion, tissue wrench), time) under the lock."""
+        """(sensors: (joint state tuple, IMU sample, tracker frames), truth: (joint state tuple, platform
+        position, quaternion, tissue wrench), time) under the lock."""
         emulator = self.emulator
         position, quaternion = emulator.sim.platform_position_quaternion()
-        return emulator.joint_state(), (position, quaternion, emulator.tissue_wrench), emulator.time
+        sensors = (emulator.joint_state(), emulator.imu_sample(quaternion),
+                   emulator.tracker_frames(position, quaternion))
+        return sensors, (emulator.true_joint_state(), position, quaternion, emulator.tissue_wrench), emulator.time
 
-    def publish_state(self, state, pose, now, clock: bool = True) -> None:
+    def publish_state(self, sensors, truth, now, clock: bool = True) -> None:
+        """Publish one state period: /clock, the sensors (joint states, IMU, the tracker frames due) and the
+        truth (ground_truth/...)."""
         if clock:
             self.clock_pub.publish(cdr.encode_clock(now))
-        _, positions, velocities, efforts = state
+        (_, positions, velocities, efforts), imu, frames = sensors
         self.state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
-        position, quaternion, wrench = pose
+        self.imu_pub.publish(self.imu_encoder.encode(now, imu.angular_velocity, imu.linear_acceleration,
+                                                     imu.gyro_variance, imu.accel_variance))
+        for frame in frames:
+            self.tracker_pub.publish(self.tracker_encoder.encode(frame.stamp, frame.position, frame.quaternion))
+        (_, positions, velocities, efforts), position, quaternion, wrench = truth
+        self.true_state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
         self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
         if self.tissue_pub is not None:
             self.tissue_pub.publish(self.wrench_encoder.encode(now, wrench))
@@ -578,7 +600,7 @@ class HardwareEmulatorNode(LifecycleNode):
         the robot in Foxglove's 3D panel): the legs (base hinge -> platform hinge), the platform and base
         hinge polygons, and every hinge as a sphere."""
         robot = cast(HardwareEmulator, self.emulator).robot  # called from the physics loop: configured
-        position, quaternion = pose[:2]
+        position, quaternion = pose[1:3]
         rot = rotation_from_quaternion(quaternion)
         tips = position + robot.platform_hinges @ rot.T
         sec, nanosec = cdr.stamp_parts(now)

@@ -8,7 +8,8 @@ It uses what any client of the suite uses, nothing private:
 pub platform/target_pose (PoseStamped, base); calls kinematics/plan_path (GetPlan; an empty path's
 reason comes from the kinematics node's /diagnostics), vibration_planner/set_parameters_atomically,
 get_parameters and describe_parameters, vibration_planner/start and /stop, hardware_emulator/emergency_stop
-and /reset (Trigger); subscribes legs/joint_states, platform/pose (ground truth), platform/pose_estimate,
+and /reset (Trigger); subscribes legs/joint_states, platform/pose_estimate (the controller's pose, FK of the
+sensed lengths: the page shows what the controller knows, never the emulator's truth),
 legs/force_estimate (raw, best effort: a slow page never holds up a publisher), vibration/status,
 /diagnostics (the recorder's status names the file it writes) and /rosout (its "recording to <path>").
 
@@ -52,7 +53,7 @@ from ..errors import MalformedMessageError, StewartError
 from ..kinematics.robot_config import load_robot
 from ..messages import cdr
 from ..messages.fields import check_text
-from ..messages.stamped import pose_from_cdr, poses_from_cdr
+from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import (
     MAX_PATH,
     planner_settings,
@@ -85,7 +86,7 @@ from .common import (
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 ROSOUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-SETTLE_POSITION_M = 1e-5  # a move is settled when the ground truth holds within 10 um / 0.01 deg for 0.5 s
+SETTLE_POSITION_M = 1e-5  # a move is settled when the pose estimate holds within 10 um / 0.01 deg for 0.5 s
 SETTLE_ANGLE_RAD = math.radians(0.01)
 SETTLE_HOLD_S = 0.5
 MOVE_TIMEOUT_S = 120.0  # a move not settled by then no longer blocks a start
@@ -141,13 +142,12 @@ class PlanningUiNode(Node):
         # -- live state (executor thread only) --
         self.decoder, self.force_decoder = cdr.JointStateDecoder(), cdr.JointStateDecoder()
         self.columns = JointColumns()
-        self.raw = {"joints": [], "truth": [], "forces": []}
-        self.estimate_raw = None
+        self.raw = {"joints": [], "poses": [], "forces": []}
         self.seen: dict[str, float] = {}  # stream -> wall time last received
         every = max(1, round(500.0 / self.plot_rate))
         self.decimators = {"joints": model.Decimator(every), "forces": model.Decimator(every)}
-        self.buffers = {k: model.StreamBuffer(keep) for k in ("joints", "truth", "forces")}
-        self.latest = {}  # joints: (stamp, positions[12]); truth / estimate: (stamp, pose)
+        self.buffers = {k: model.StreamBuffer(keep) for k in ("joints", "poses", "forces")}
+        self.latest = {}  # joints: (stamp, positions[12]); estimate: (stamp, pose)
         self.plots = {"joints": [], "forces": []}  # decimated rows since the last frame
         self.vibration = None  # latest VibrationReport
         self.node_status: dict[str, dict] = {}  # /diagnostics name -> level, message, values, seen
@@ -199,9 +199,6 @@ class PlanningUiNode(Node):
     # ==== inputs (executor thread) =====================================================================
     def _raw(self, stream: str, data: bytes) -> None:
         self.raw[stream].append(data)
-
-    def _on_estimate(self, data: bytes) -> None:
-        self.estimate_raw = data
 
     def _on_status(self, data: bytes) -> None:
         report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
@@ -297,15 +294,10 @@ class PlanningUiNode(Node):
         if forces:
             self.seen["legs/force_estimate"] = now
             self._decode_forces(forces)
-        truth, self.raw["truth"] = self.raw["truth"], []
-        if truth:
-            self.seen["platform/pose"] = now
-            self._decode_poses(truth)
-        if self.estimate_raw is not None:
-            data, self.estimate_raw = self.estimate_raw, None
-            estimate = self.malformed.read("platform/pose_estimate", lambda d: pose_from_cdr(d, "pose estimate"), data)
-            if estimate is not None:
-                self.latest["estimate"], self.seen["platform/pose_estimate"] = estimate, now
+        poses, self.raw["poses"] = self.raw["poses"], []
+        if poses:
+            self.seen["platform/pose_estimate"] = now
+            self._decode_poses(poses)
 
     def _decode_joints(self, messages) -> None:
         batches, _ = cdr.decode_joint_states_dropping_malformed(
@@ -342,14 +334,14 @@ class PlanningUiNode(Node):
                 self.plots["forces"].append([batch.stamps[i], *effort[i]])
 
     def _decode_poses(self, messages) -> None:
-        batch = poses_from_cdr(messages, "ground-truth pose")
+        batch = poses_from_cdr(messages, "pose estimate")
         for error in batch.errors:
-            self.malformed.refuse("platform/pose", error)
+            self.malformed.refuse("platform/pose_estimate", error)
         if not len(batch.kept):
             return
         stamps, poses = batch.stamps, batch.values
-        self.buffers["truth"].add(stamps, poses)
-        self.latest["truth"] = (stamps[-1], poses[-1])
+        self.buffers["poses"].add(stamps, poses)
+        self.latest["estimate"] = (stamps[-1], poses[-1])
         self._follow_move(stamps, poses)
 
     def _follow_move(self, stamps, poses) -> None:
@@ -382,9 +374,8 @@ class PlanningUiNode(Node):
             self.unwatched_since = now
             if not self.streams:
                 raw = [("legs/joint_states", JointState, lambda d: self._raw("joints", d)),
-                       ("platform/pose", PoseStamped, lambda d: self._raw("truth", d)),
-                       ("legs/force_estimate", JointState, lambda d: self._raw("forces", d)),
-                       ("platform/pose_estimate", PoseStamped, self._on_estimate)]
+                       ("platform/pose_estimate", PoseStamped, lambda d: self._raw("poses", d)),
+                       ("legs/force_estimate", JointState, lambda d: self._raw("forces", d))]
                 self.streams = [self.create_subscription(kind, topic, callback, STREAM_QOS, raw=True)
                                 for topic, kind, callback in raw]
         elif self.streams and now - self.unwatched_since > STREAMS_IDLE_S:
@@ -405,7 +396,7 @@ class PlanningUiNode(Node):
                  "ages": {k: now - t for k, t in self.seen.items()},
                  "plots": {k: np.round(np.asarray(v), 4).tolist() for k, v in self.plots.items()}}
         self.plots = {"joints": [], "forces": []}
-        for key in ("truth", "estimate"):
+        for key in ("estimate",):
             if key in self.latest:
                 stamp, pose = self.latest[key]
                 frame[key] = {"stamp": stamp, "fields": model.pose_fields(pose),
@@ -416,8 +407,8 @@ class PlanningUiNode(Node):
                              "vib_um": (row[6:12] * 1e6).tolist(), "force_n": row[12:18].tolist()}
         if self.move is not None:
             move = dict(self.move)
-            if "truth" in self.latest:
-                position, angle = model.pose_error(self.latest["truth"][1], move["target"])
+            if "estimate" in self.latest:
+                position, angle = model.pose_error(self.latest["estimate"][1], move["target"])
                 move.update(error_um=position * 1e6, error_deg=math.degrees(angle))
             move["target"] = model.pose_fields(move["target"])
             move["elapsed_s"] = now - move.pop("sent")
@@ -472,7 +463,7 @@ class PlanningUiNode(Node):
         if run.get("settings") is None or run.get("nominal") is None:
             return
         try:
-            summary = model.run_summary(self.robot, self.buffers["joints"], self.buffers["truth"],
+            summary = model.run_summary(self.robot, self.buffers["joints"], self.buffers["poses"],
                                         self.buffers["forces"], run["nominal"], run["settings"], run["t0"], ended)
             summary["source"] = run["source"]
             self.summary = summary

@@ -47,7 +47,7 @@ if TYPE_CHECKING:
 
 # planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
 # the 500 Hz poses a settling move follows (raw, checked and decoded only when asked): topic -> what it is
-FOLLOWED_POSES = {"platform/pose": "ground-truth pose", "platform/pose_estimate": "pose estimate"}
+FOLLOWED_POSES = {"ground_truth/platform_pose": "ground-truth pose", "platform/pose_estimate": "pose estimate"}
 NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
 # before the first move the force estimates must have kept within ESTIMATES_CURRENT_S (sim s) of /clock for longer
 # than the force guard remembers a lag (it slows moves by the largest lag of the last LAG_MEMORY_S; 0.15 s still
@@ -260,7 +260,7 @@ class SuiteClient:
         self.target_pub.publish(pose_stamped(pose, self.node.get_clock().now().to_msg()))
 
     def follow_poses(self, on: bool) -> None:
-        """Subscribe to the 500 Hz ground truth (platform/pose) and the controller's pose estimates
+        """Subscribe to the 500 Hz ground truth (ground_truth/platform_pose) and the controller's pose estimates
         (platform/pose_estimate) while a move settles (``on``), or stop: the runner must not load the machine."""
         if on and not self._pose_subs:
             for topic in FOLLOWED_POSES:
@@ -285,7 +285,7 @@ class SuiteClient:
 
     def ground_truth(self) -> np.ndarray | None:
         """The newest ground-truth pose (6,) while followed (``follow_poses``)."""
-        return self._followed_pose("platform/pose")
+        return self._followed_pose("ground_truth/platform_pose")
 
     def pose_estimate(self) -> np.ndarray | None:
         """Kinematics' newest pose estimate (6,) while followed (``follow_poses``)."""

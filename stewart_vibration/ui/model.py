@@ -289,7 +289,8 @@ class StreamBuffer:
 def run_summary(robot: Robot, joints: StreamBuffer, pose: StreamBuffer, forces: StreamBuffer, nominal_pose,
                 parameters: dict, t0: float, ended: float) -> dict:
     """The run summary of one vibration from the live buffers (what ``stewart-vibration run`` reports from the
-    MCAP): platform amplitude and direction error (ground truth), leg amplitudes, phases and frequency, the
+    MCAP): platform amplitude and direction error (of ``pose``: the page passes the
+    controller's pose estimate), leg amplitudes, phases and frequency, the
     leg-force model error. ``parameters``: the settings that ran (the start answer's JSON); ``ended``: the
     sim time the units came to rest (a vibration until stop is summarised over what ran)."""
     from ..analysis.run_summary import summarize_vibration

@@ -105,9 +105,9 @@ def render_run(path, out, at_s: float | None = None, robot_config=None) -> dict:
     default: the middle of the vibration, else the end) to ``out``; returns what it drew."""
     reader = open_run(path)
     topics = {t.topic: t for t in reader.topics() if t.message_count}
-    pose_topic = next((t for t in topics if t.endswith("platform/pose")), None)
+    pose_topic = next((t for t in topics if t.endswith("ground_truth/platform_pose")), None)
     if pose_topic is None:
-        raise StewartError(f"{path}: no platform/pose recorded, nothing to draw")
+        raise StewartError(f"{path}: no ground_truth/platform_pose recorded, nothing to draw")
     data = extract(reader)
     t0 = next(reader.messages()).log_time
     window = data.get("vibration_window")

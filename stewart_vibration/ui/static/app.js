@@ -256,7 +256,6 @@ function poseText(p) {
 }
 
 function showPoses(f) {
-  if (f.truth) $("pose-truth").textContent = poseText(f.truth);
   if (f.estimate) $("pose-estimate").textContent = poseText(f.estimate);
   if (f.legs) {
     $("legs").textContent = f.legs.length_mm.map((l, i) => `${i + 1}: ${fmt(l, 3)} mm ${fmt(f.legs.vib_um[i], 2)} um`)
@@ -282,7 +281,7 @@ function showMove(m) {
   const settle = ui.hello ? ui.hello.settle : { position_um: 10, angle_deg: 0.01 };
   const state = m.status === "settled" ? `<span class="badge ok">settled</span> after ${fmt(m.settled_after_s, 1)} s` :
     `<span class="badge warn">${esc(m.status)}</span> ${fmt(m.elapsed_s, 1)} s`;
-  $("move-follow").innerHTML = `move: ${state}; <span class="truth">ground truth</span> error ` +
+  $("move-follow").innerHTML = `move: ${state}; <span class="truth">estimated</span> error ` +
     `<b id="move-error">${fmt(m.error_um, 3)} um</b>, ${fmt(m.error_deg, 5)} deg ` +
     `(settled = within ${settle.position_um} um / ${settle.angle_deg} deg for 0.5 s) <span class="stale-label"></span>` +
     (m.reason ? `<br><span class="refusal">${esc(m.reason)}</span>` : "") +
@@ -323,7 +322,7 @@ function showSummary(s, report) {
     el.innerHTML = `vibration t0 = ${fmt(s.t0_s, 3)} s to ${fmt(s.ended_s, 3)} s (started by ${esc(s.source)}), ` +
       `${fmt(s.frequency_hz, 2)} Hz: platform amplitude <b>${fmt(s.measured_amplitude_um, 3)} um</b> ` +
       `(planned ${fmt(s.planned_amplitude_um, 3)} um, error ${fmt(s.amplitude_error_pct, 3)} %), direction error ` +
-      `<b>${fmt(s.direction_error_deg, 4)} deg</b> (ground truth); leg phase error <= ` +
+      `<b>${fmt(s.direction_error_deg, 4)} deg</b> (the controller's estimate); leg phase error <= ` +
       `${fmt(Math.max(...s.leg_phase_error_deg), 3)} deg; leg amplitudes [${s.leg_amplitude_um.map((v) => fmt(v, 2)).join(", ")}] um ` +
       `(planned [${s.leg_amplitude_expected_um.map((v) => fmt(v, 2)).join(", ")}]); force model error (worst leg, RMS / ` +
       `amplitude) <b>${fmt(s.force_error_worst_leg_pct, 3)} %</b>; active ${fmt(s.active_duration_s, 2)} s`;
@@ -385,7 +384,7 @@ function drawRobot() {
   const canvas = $("robot"), ctx = canvas.getContext("2d");
   ctx.clearRect(0, 0, canvas.width, canvas.height);
   if (!f || !h) return;
-  const pose = f.truth || f.estimate;
+  const pose = f.estimate;
   if (!pose) return;
   const base = h.robot.base_points_mm, top = pose.points_mm;
   const views = [{ name: "top (x-y)", a: 0, b: 1, ox: 110, oy: 118, s: 1.1, flip: true },
