@@ -49,6 +49,7 @@ from .platform_sensors import ImuSample, PlatformImu, PlatformTracker, TrackerFr
 from .safety_controller import SafetyController
 from .servo_drive import ServoDrive
 from .strut_trajectory import MAX_START_DELAY_S, JointTrajectory, TrajectoryFollower
+from .unit_travel import UnitTravelGuard
 from .vibration_buffer import VibrationBuffer
 from .vibration_status import VibrationReport, VibrationStatusTracker
 from .vibration_unit import unit_hardware
@@ -91,6 +92,7 @@ class HardwareEmulator:
         self.guard = PhysicsGuard(self.sim.model, self.sim.data, self.sim.slide_qpos, self.sim.slide_dof)
         self.safety = SafetyController(robot, self.dt, watchdog_s, vibration_ramp_s, max_lookahead_s,
                                        max_start_delay_s)
+        self.travel = UnitTravelGuard(robot.vibration_unit.amplitude_max)
         self.forces = np.zeros(6)
         self.reference_horizon_s = float(reference_horizon_s)
         self._refs = None  # (version, first step time, arrays) of the sampled references
@@ -336,6 +338,8 @@ class HardwareEmulator:
             now = self.time
             references = self._references(now, steps)  # the next block's; its first row: the commanded lengths now
             reason = self.guard.check(self._true_strut_reference(references))
+            if reason is None and self.plant is not None:
+                self._check_unit_travel(now)
             if reason is None:
                 self._apply_tissue()  # the tissue's wrench over the next block, from the state now
                 controls = self._controls(now, steps, references)
@@ -351,6 +355,14 @@ class HardwareEmulator:
         self._planned = (self._version, now, controls)
         self.forces = forces
         return steps
+
+    def _check_unit_travel(self, now: float) -> None:
+        """The units' own travel protection (``unit_travel``): a unit sensor beyond the travel ramps the
+        vibration out from ``now`` (s); the next block's references then carry the ramp."""
+        assert isinstance(self.drive, PlantDrive)
+        trip = self.travel.check(self.drive.readings()[1])
+        if trip is not None:
+            self.safety.stop_vibration(now, trip)
 
     def _true_strut_reference(self, references) -> np.ndarray:
         """What the MuJoCo slides should be now (6,) m: the commanded hinge lengths (ideal: the slides are

@@ -194,6 +194,16 @@ class SafetyController:
             self.status.safety_ramp(now, reason)
         self.changed()
 
+    def stop_vibration(self, now: float, reason: str) -> None:
+        """Ramp the vibration to zero from ``now`` (s) within the unit's limits for ``reason`` (a unit's own
+        protection, e.g. its travel): the struts keep their commands; nothing latches. Ignored while the e-stop
+        is latched (its ramp is already under way)."""
+        if self.estopped:
+            return
+        self.vibration.stop(now, reason)
+        self.status.safety_ramp(now, reason)
+        self.changed()
+
     def at_rest(self, now: float) -> bool:
         """True when the commanded struts and vibration units are at rest from ``now`` (s) on."""
         return self.struts.finished(now) and self.vibration.commanded_until() <= now
