@@ -37,17 +37,18 @@ from stewart_vibration.runtime.processes import claim_ros_domain, ros_environmen
 LEGS = [f"leg_{i}" for i in range(1, 7)]
 
 
-def start_emulator(domain: int, rtf: float, log_dir: Path):
+def start_emulator(domain: int, rtf: float, log_dir: Path, plant: str = "ideal"):
+    """The hardware_emulator node at the suite's settings, ``rtf`` and ``plant`` (ideal, realistic or a file)."""
     os.environ["ROS_DOMAIN_ID"] = str(domain)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     args = ["--ros-args", "--params-file", str(default_config_dir() / "suite_params.yaml"),
-            "-p", f"real_time_factor:={rtf}"]
+            "-p", f"real_time_factor:={rtf}", "-p", f"plant_config:={plant}"]
     return start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node", args,
                                ros_environment(domain), log_dir)
 
 
-def measure_rtf_and_rate(domain: int, rtf: float, seconds: float, log_dir: Path) -> dict:
-    proc = start_emulator(domain, rtf, log_dir)
+def measure_rtf_and_rate(domain: int, rtf: float, seconds: float, log_dir: Path, plant: str = "ideal") -> dict:
+    proc = start_emulator(domain, rtf, log_dir, plant)
     client = RosTestClient("bench")
     try:
         stamps, walls = [], []
@@ -73,11 +74,11 @@ def measure_rtf_and_rate(domain: int, rtf: float, seconds: float, log_dir: Path)
         proc.stop()
 
 
-def measure_max_speed(seconds: float, log_dir: Path) -> dict:
-    """The emulator alone at real_time_factor 0 on a domain of its own: achieved real-time factor."""
+def measure_max_speed(seconds: float, log_dir: Path, plant: str = "ideal") -> dict:
+    """The emulator alone at real_time_factor 0 on ``plant``, on a domain of its own: achieved real-time factor."""
     domain, lock = claim_ros_domain()
     try:
-        return measure_rtf_and_rate(domain, 0.0, seconds, log_dir)
+        return measure_rtf_and_rate(domain, 0.0, seconds, log_dir, plant)
     finally:
         lock.close()
 

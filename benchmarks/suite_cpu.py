@@ -1,4 +1,4 @@
-"""CPU headroom of the whole node suite at real time (issue 12).
+"""CPU headroom of the whole node suite at real time.
 
 Runs the main job (`stewart-vibration run`, every node its own process over real DDS) with a long
 vibration, and during the steady part of the vibration samples each process's CPU time (user +
@@ -7,8 +7,13 @@ node and in total (the runner included). Then reads the run's summary for the sa
 topic and the output lag, and measures the emulator alone at real_time_factor 0 (its maximum
 real-time factor, benchmarks/emulator.py).
 
-Run: .venv/bin/python benchmarks/suite_cpu.py [--vibration 25] [--window 15] [--json]
-Exit code 0 when the total is within the required 0.5 cores and the run passed; 1 otherwise.
+By default it does so on the ideal plant (the drawing) and on the realistic one (the robot as built,
+config/plant_realistic.yaml) in turn, and compares them: the realistic suite may cost at most 1.25x the ideal
+one, and its emulator must run at least half as fast.
+
+Run: .venv/bin/python benchmarks/suite_cpu.py [--vibration 25] [--window 15] [--plants ideal,realistic] [--json]
+Exit code 0 when every required figure is met (on the ideal plant: total within 0.5 cores and the run passed;
+on both: every estimate per state and a summary; the two ratios); 1 otherwise.
 """
 
 from __future__ import annotations
@@ -120,12 +125,12 @@ def measure_lag(domain: int, seconds: float, namespace: str = "/stewart") -> dic
 
 
 def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: float = 3.0,
-                  lag_s: float = 5.0) -> dict:
+                  lag_s: float = 5.0, plant: str = "ideal") -> dict:
     from stewart_vibration.runtime.processes import claim_ros_domain
 
     domain, lock = claim_ros_domain()
     cmd = [sys.executable, "-m", "stewart_vibration", "run", "--duration", str(vibration_s), "--out", str(out),
-           "--domain-id", str(domain)]
+           "--domain-id", str(domain), "--plant", plant]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, bufsize=1,
                             start_new_session=True)
     lines: list[str] = []
@@ -167,67 +172,114 @@ def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: floa
             "lag_ms": lag, "summary": summary, "log_tail": "".join(lines[-12:])}
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--vibration", type=float, default=28.0, help="vibration duration of the run, s")
-    parser.add_argument("--window", type=float, default=15.0, help="CPU sampling window during the vibration, s")
-    parser.add_argument("--emulator-seconds", type=float, default=6.0, help="max real-time factor measurement, s")
-    parser.add_argument("--json", action="store_true")
-    args = parser.parse_args()
-    sys.path.insert(0, str(Path(__file__).resolve().parent))
+PLANT_CPU_RATIO_MAX = 1.25  # the suite on the robot as built costs at most this much more than on the drawing
+PLANT_SPEED_RATIO_MIN = 0.5  # and its emulator runs at least half as fast
+
+
+def measure_plant(plant: str, args, tmp: Path) -> dict:
+    """The suite at real time and the emulator alone at its maximum speed, both on ``plant``."""
+    suite = measure_suite(args.vibration, args.window, tmp / f"run_{plant}", plant=plant)
     from emulator import measure_max_speed  # noqa: E402 - the emulator benchmark's measurement
 
-    with tempfile.TemporaryDirectory() as tmp:
-        suite = measure_suite(args.vibration, args.window, Path(tmp) / "run")
-        emulator = measure_max_speed(args.emulator_seconds, Path(tmp))
-    streams = suite["summary"].get("streams", {})
-    result = {"suite": {k: v for k, v in suite.items() if k != "summary"}, "streams": streams,
-              "bound_failures": suite["summary"].get("bound_failures"), "emulator_max": emulator}
-    total = suite["total_cores"]
-    worst_ratio = streams.get("worst_ratio", 0.0)
+    emulator = measure_max_speed(args.emulator_seconds, tmp, plant)
+    summary = suite.pop("summary")
+    return {"suite": suite, "streams": summary.get("streams", {}), "summarised": bool(summary),
+            "bound_failures": summary.get("bound_failures"), "emulator_max": emulator}
+
+
+def plant_verdicts(plant: str, row: dict) -> list[tuple[str, bool, bool]]:
+    """(figure, required?, met?) of one plant. On the drawing the main job must pass its bounds; on the robot as
+    built today's controller misses them (that is what the vibration-control work fixes), so there the run
+    must only end with its summary."""
+    suite, total = row["suite"], row["suite"]["total_cores"]
+    worst_ratio = row["streams"].get("worst_ratio", 0.0)
     lag = suite["lag_ms"]
-    worst_lag = max((row["p99"] for topic, row in lag.items() if topic != "legs/joint_states"), default=None)
-    verdicts = [  # (figure, required?, met?)
-        (f"suite CPU {total:.3f} cores <= {REQUIRED_CORES}", True, total <= REQUIRED_CORES),
-        (f"estimates per joint state {worst_ratio * 100:.3f} % >= {SAMPLE_RATIO_MIN * 100:g} %", True,
+    worst_lag = max((r["p99"] for topic, r in lag.items() if topic != "legs/joint_states"), default=None)
+    rtf = row["emulator_max"]["real_time_factor_achieved"]
+    ideal = plant == "ideal"
+    return [
+        (f"{plant}: suite CPU {total:.3f} cores <= {REQUIRED_CORES}", ideal, total <= REQUIRED_CORES),
+        (f"{plant}: estimates per joint state {worst_ratio * 100:.3f} % >= {SAMPLE_RATIO_MIN * 100:g} %", True,
          worst_ratio >= SAMPLE_RATIO_MIN),
-        (f"main job exit code {suite['exit_code']} (every scenario bound)", True, suite["exit_code"] == 0),
-        (f"suite CPU {total:.3f} cores <= {GOAL_CORES} (goal)", False, total <= GOAL_CORES),
-        (f"end-to-end lag p99 {worst_lag if worst_lag is not None else float('nan'):.1f} ms <= {LAG_GOAL_MS:g} ms "
-         "(goal)", False, worst_lag is not None and worst_lag <= LAG_GOAL_MS),
-        (f"emulator max real-time factor {emulator['real_time_factor_achieved']:.2f} >= 10 (goal)", False,
-         emulator["real_time_factor_achieved"] >= 10.0),
+        (f"{plant}: main job exit code {suite['exit_code']} (every scenario bound)", ideal, suite["exit_code"] == 0),
+        (f"{plant}: main job wrote its summary", True, row["summarised"]),
+        (f"{plant}: suite CPU {total:.3f} cores <= {GOAL_CORES} (goal)", False, total <= GOAL_CORES),
+        (f"{plant}: end-to-end lag p99 {worst_lag if worst_lag is not None else float('nan'):.1f} ms <= "
+         f"{LAG_GOAL_MS:g} ms (goal)", False, worst_lag is not None and worst_lag <= LAG_GOAL_MS),
+        (f"{plant}: emulator max real-time factor {rtf:.2f} >= 10 (goal)", False, rtf >= 10.0),
     ]
-    ok = all(met for _, required, met in verdicts if required)
-    result["verdicts"] = [{"figure": f, "required": r, "met": m} for f, r, m in verdicts]
-    if args.json:
-        print(json.dumps(result, indent=2))
-        return 0 if ok else 1
-    print(f"Whole suite at real_time_factor 1, {suite['window_s']:.1f} s of steady vibration (35 Hz, 0.3 g):")
+
+
+def comparison_verdicts(rows: dict) -> list[tuple[str, bool, bool]]:
+    """The realistic plant against the ideal one (both measured in this run)."""
+    if not {"ideal", "realistic"} <= rows.keys():
+        return []
+    cpu = rows["realistic"]["suite"]["total_cores"] / rows["ideal"]["suite"]["total_cores"]
+    speed = (rows["realistic"]["emulator_max"]["real_time_factor_achieved"]
+             / rows["ideal"]["emulator_max"]["real_time_factor_achieved"])
+    return [(f"suite CPU realistic / ideal {cpu:.3f}x <= {PLANT_CPU_RATIO_MAX}x", True, cpu <= PLANT_CPU_RATIO_MAX),
+            (f"emulator max real-time factor realistic / ideal {speed:.3f} >= {PLANT_SPEED_RATIO_MIN}", True,
+             speed >= PLANT_SPEED_RATIO_MIN)]
+
+
+def print_plant(plant: str, row: dict) -> None:
+    suite, streams, lag = row["suite"], row["streams"], row["suite"]["lag_ms"]
+    total, emulator = suite["total_cores"], row["emulator_max"]
+    print(f"Plant {plant}: whole suite at real_time_factor 1, {suite['window_s']:.1f} s of steady vibration "
+          "(35 Hz, 0.3 g):")
     print(f"  {'process':<22}{'cores':>8}")
     for name, cores in sorted(suite["cores"].items(), key=lambda kv: -kv[1]):
         print(f"  {name:<22}{cores:8.3f}")
     print(f"  {'total':<22}{total:8.3f}   (required <= {REQUIRED_CORES}, goal {GOAL_CORES}: "
           f"{'meets the goal' if total <= GOAL_CORES else f'{total / GOAL_CORES:.2f}x the goal'})")
     if streams:
-        print("Samples per topic over the run (vs legs/joint_states):")
-        for topic, row in streams.get("topics", {}).items():
-            print(f"  {topic:<36}{row['count']:8d}  {row['ratio'] * 100:8.3f} %")
-        print("Each node's input (its own diagnostics): received, lost, processing lag (arrival -> output, ms):")
-        for node, row in streams.get("nodes", {}).items():
-            print(f"  {node:<22}{row['received']:8d} received, {row['lost']} lost, lag p50 {row['lag_p50_ms']:.2f}"
-                  f" / p99 {row['lag_p99_ms']:.2f}")
+        print("  Samples per topic over the run (vs legs/joint_states):")
+        for topic, r in streams.get("topics", {}).items():
+            print(f"    {topic:<36}{r['count']:8d}  {r['ratio'] * 100:8.3f} %")
+        print("  Each node's input (its own diagnostics): received, lost, processing lag (arrival -> output, ms):")
+        for node, r in streams.get("nodes", {}).items():
+            print(f"    {node:<22}{r['received']:8d} received, {r['lost']} lost, lag p50 {r['lag_p50_ms']:.2f}"
+                  f" / p99 {r['lag_p99_ms']:.2f}")
     if lag:
-        print("End-to-end lag (state stamp -> received by a separate reader, ms; goal p99 <= "
-              f"{LAG_GOAL_MS:g}):")
-        for topic, row in lag.items():
-            print(f"  {topic:<36}p50 {row['p50']:6.2f}  p99 {row['p99']:6.2f}  max {row['max']:6.2f}  "
-                  f"({row['count']} messages)")
+        print(f"  End-to-end lag (state stamp -> received by a separate reader, ms; goal p99 <= {LAG_GOAL_MS:g}):")
+        for topic, r in lag.items():
+            print(f"    {topic:<36}p50 {r['p50']:6.2f}  p99 {r['p99']:6.2f}  max {r['max']:6.2f}  "
+                  f"({r['count']} messages)")
     else:
-        print("End-to-end lag: not measured (the vibration was too short for a window after the CPU window)")
-    print(f"Emulator alone (real_time_factor 0): max real-time factor {emulator['real_time_factor_achieved']:.2f} "
+        print("  End-to-end lag: not measured (the vibration was too short for a window after the CPU window)")
+    print(f"  Emulator alone (real_time_factor 0): max real-time factor {emulator['real_time_factor_achieved']:.2f} "
           f"(goal >= 10), {emulator['state_rate_hz_wall']:.0f} joint states per wall second")
-    print(f"main job exit code {suite['exit_code']}; bound failures: {suite['summary'].get('bound_failures')}")
+    print(f"  main job exit code {suite['exit_code']}; bound failures: {row['bound_failures']}")
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--vibration", type=float, default=28.0, help="vibration duration of the run, s")
+    parser.add_argument("--window", type=float, default=15.0, help="CPU sampling window during the vibration, s")
+    parser.add_argument("--emulator-seconds", type=float, default=6.0, help="max real-time factor measurement, s")
+    parser.add_argument("--plants", default="ideal,realistic",
+                        help="comma-separated plants, each measured in turn (default: ideal,realistic, and their "
+                             "ratios)")
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+    plants = [p.strip() for p in args.plants.split(",") if p.strip()]
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    with tempfile.TemporaryDirectory() as tmp:
+        rows = {plant: measure_plant(plant, args, Path(tmp)) for plant in plants}
+    verdicts = [v for plant, row in rows.items() for v in plant_verdicts(plant, row)] + comparison_verdicts(rows)
+    ok = all(met for _, required, met in verdicts if required)
+    result = {"plants": rows, "verdicts": [{"figure": f, "required": r, "met": m} for f, r, m in verdicts]}
+    if args.json:
+        print(json.dumps(result, indent=2))
+        return 0 if ok else 1
+    for plant, row in rows.items():
+        print_plant(plant, row)
+    if {"ideal", "realistic"} <= rows.keys():
+        print("Realistic against ideal (cores per process):")
+        ideal, real = rows["ideal"]["suite"]["cores"], rows["realistic"]["suite"]["cores"]
+        for name in sorted(ideal, key=lambda n: -ideal[n]):
+            if name in real and ideal[name] > 0:
+                print(f"  {name:<22}{ideal[name]:8.3f}{real[name]:8.3f}   {real[name] / ideal[name]:.2f}x")
     print("Verdict (exit code 0 when every required figure is met; goals are reported, not required):")
     for figure, required, met in verdicts:
         print(f"  {'ok  ' if met else ('FAIL' if required else 'miss')}  {figure}")

@@ -498,7 +498,7 @@ def test_the_main_job_survives_spoofed_statuses_and_prints_its_summary(ros_domai
     with log_path.open("w") as log:
         proc = subprocess.Popen(
             [sys.executable, "-m", "stewart_vibration", "run", "--out", str(out), "--domain-id", str(ros_domain),
-             "--duration", "1.6", "--json"], stdout=log, stderr=subprocess.STDOUT, text=True,
+             "--duration", "1.6", "--lockstep", "--json"], stdout=log, stderr=subprocess.STDOUT, text=True,
             env=dict(os.environ, PYTHONUNBUFFERED="1"), start_new_session=True)
     spoofer = threading.Thread(target=spoof, daemon=True)
     spoofer.start()
