@@ -401,12 +401,13 @@ class HardwareEmulator:
         return (LEG_NAMES + VIB_NAMES, np.concatenate([strut, unit]), np.concatenate([strut_rate, unit_rate]),
                 np.concatenate([cells, cells]))
 
-    def true_joint_state(self):
+    def true_joint_state(self, sensed=None):
         """The ground truth of ``joint_state`` (names, positions, velocities, efforts): leg_* the struts' true
         lengths (m, the plant's frame, no encoder offset) and rates, vib_* the units' true displacements and
-        rates, efforts the true axial strut forces (N). Without a plant, ``joint_state`` (it is the truth)."""
+        rates, efforts the true axial strut forces (N). Without a plant (or after a fault) the sensors are the
+        truth: ``sensed`` (``joint_state``'s answer now, if the caller has it) or ``joint_state``."""
         if self.plant is None or self.fault is not None:
-            return self.joint_state()
+            return self.joint_state() if sensed is None else sensed
         assert isinstance(self.drive, PlantDrive)
         d, drive = self.sim.data, self.drive
         positions = np.concatenate([d.qpos[drive.slide_q], d.qpos[drive.vib_q]])

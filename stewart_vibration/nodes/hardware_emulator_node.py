@@ -188,7 +188,6 @@ class HardwareEmulatorNode(LifecycleNode):
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
         self.imu_encoder = cdr.ImuEncoder(PLATFORM_FRAME)
-        self.tracker_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.tissue_pub = None
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
@@ -574,9 +573,9 @@ class HardwareEmulatorNode(LifecycleNode):
         position, quaternion, tissue wrench), time) under the lock."""
         emulator = self.emulator
         position, quaternion = emulator.sim.platform_position_quaternion()
-        sensors = (emulator.joint_state(), emulator.imu_sample(quaternion),
-                   emulator.tracker_frames(position, quaternion))
-        return sensors, (emulator.true_joint_state(), position, quaternion, emulator.tissue_wrench), emulator.time
+        state = emulator.joint_state()
+        sensors = (state, emulator.imu_sample(quaternion), emulator.tracker_frames(position, quaternion))
+        return sensors, (emulator.true_joint_state(state), position, quaternion, emulator.tissue_wrench), emulator.time
 
     def publish_state(self, sensors, truth, now, clock: bool = True) -> None:
         """Publish one state period: /clock, the sensors (joint states, IMU, the tracker frames due) and the
@@ -588,7 +587,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.imu_pub.publish(self.imu_encoder.encode(now, imu.angular_velocity, imu.linear_acceleration,
                                                      imu.gyro_variance, imu.accel_variance))
         for frame in frames:
-            self.tracker_pub.publish(self.tracker_encoder.encode(frame.stamp, frame.position, frame.quaternion))
+            self.tracker_pub.publish(self.pose_encoder.encode(frame.stamp, frame.position, frame.quaternion))
         (_, positions, velocities, efforts), position, quaternion, wrench = truth
         self.true_state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
         self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
