@@ -56,6 +56,19 @@ def test_quaternion_matches_rotation(roll, p, yaw):
     assert np.allclose(rotation_from_rpy(rpy), rot, atol=1e-9)
 
 
+def test_quaternions_in_a_batch_give_the_rotations_of_each_alone():
+    """The batched path ([..., 4]) and the one-quaternion path agree with the independent Euler reference."""
+    rng = np.random.default_rng(5)
+    rpy = rng.uniform([-np.pi, -1.4, -np.pi], [np.pi, 1.4, np.pi], (7, 3))
+    quats = np.array([quaternion_from_rpy(a) for a in rpy])
+    batch = rotation_from_quaternion(quats.reshape(7, 1, 4))
+    assert batch.shape == (7, 1, 3, 3)
+    for k, (roll, p, yaw) in enumerate(rpy):
+        reference = reference_rotation(roll, p, yaw)
+        assert np.abs(batch[k, 0] - reference).max() < 1e-12
+        assert np.abs(rotation_from_quaternion(quats[k]) - reference).max() < 1e-12
+
+
 def test_pose_quaternion_round_trip():
     rng = np.random.default_rng(0)
     poses = np.concatenate([rng.normal(size=(50, 3)), rng.uniform(-1, 1, (50, 3))], axis=1)

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
-from stewart_vibration.runtime.sim_clock import ClockRate, HeldFor
+from stewart_vibration.runtime.sim_clock import STILL_BAND_M, ClockRate, HeldFor, StillFor
 
 
 @pytest.mark.parametrize("factor", [0.5, 1.0, 3.0, 7.25])
@@ -59,3 +60,27 @@ def test_held_for_needs_an_unbroken_stretch_of_sim_time():
     assert not held.update(True, 0.5)
     assert not held.update(True, 0.99)
     assert held.update(True, 1.0)
+
+
+def test_still_for_accepts_sensor_jitter_inside_the_band_and_restarts_on_a_move():
+    """A pose dithering by a tenth of the band for the whole stretch is at rest; a step of twice the band
+    restarts the stretch from the new place."""
+    still = StillFor(0.5)
+    rng = np.random.default_rng(3)
+    rest = np.array([0.01, -0.02, 0.2, 0.001, 0.002, 0.003])
+    times = np.arange(0.0, 0.5 + 1e-9, 0.002)
+    answers = [still.update(rest + rng.uniform(-0.1, 0.1, 6) * STILL_BAND_M, t) for t in times]
+    assert not any(answers[:-1]) and answers[-1]
+    moved = rest + np.r_[2 * STILL_BAND_M, 0, 0, 0, 0, 0]
+    assert not still.update(moved, 0.6)
+    assert not still.update(moved, 1.09)
+    assert still.update(moved, 1.1)
+    assert np.array_equal(still.anchor, moved)
+
+
+def test_still_for_sees_a_slow_creep_that_never_jumps():
+    """Steps each far inside the band add up: a creep of a band per 0.2 s is never at rest."""
+    still = StillFor(0.5)
+    times = np.arange(0.0, 3.0, 0.002)
+    creep = times / 0.2 * STILL_BAND_M
+    assert not any(still.update(np.r_[c, 0, 0, 0, 0, 0], t) for c, t in zip(creep, times))

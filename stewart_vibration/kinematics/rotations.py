@@ -316,6 +316,11 @@ def rotation_from_quaternion(quat) -> np.ndarray:
         R [..., 3, 3].
     """
     q = np.asarray(quat, dtype=float)
+    if q.shape == (4,):  # one quaternion (a sensor's sample): scalars, not 0-d arrays stacked nine times
+        a, b, c, d = (float(v) for v in q)
+        return np.array([[1 - 2 * (b * b + c * c), 2 * (a * b - c * d), 2 * (a * c + b * d)],
+                         [2 * (a * b + c * d), 1 - 2 * (a * a + c * c), 2 * (b * c - a * d)],
+                         [2 * (a * c - b * d), 2 * (b * c + a * d), 1 - 2 * (a * a + b * b)]])
     x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
     rows = [
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],

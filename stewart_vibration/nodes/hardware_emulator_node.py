@@ -582,14 +582,20 @@ class HardwareEmulatorNode(LifecycleNode):
         truth (ground_truth/...)."""
         if clock:
             self.clock_pub.publish(cdr.encode_clock(now))
-        (_, positions, velocities, efforts), imu, frames = sensors
-        self.state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
+        sensed, imu, frames = sensors
+        _, positions, velocities, efforts = sensed
+        sensed_cdr = self.state_encoder.encode(now, positions, velocities, efforts)
+        self.state_pub.publish(sensed_cdr)
         self.imu_pub.publish(self.imu_encoder.encode(now, imu.angular_velocity, imu.linear_acceleration,
                                                      imu.gyro_variance, imu.accel_variance))
         for frame in frames:
             self.tracker_pub.publish(self.pose_encoder.encode(frame.stamp, frame.position, frame.quaternion))
-        (_, positions, velocities, efforts), position, quaternion, wrench = truth
-        self.true_state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
+        true_state, position, quaternion, wrench = truth
+        if true_state is sensed:  # the ideal plant: its sensors are the truth, the same bytes
+            self.true_state_pub.publish(sensed_cdr)
+        else:
+            _, positions, velocities, efforts = true_state
+            self.true_state_pub.publish(self.state_encoder.encode(now, positions, velocities, efforts))
         self.pose_pub.publish(self.pose_encoder.encode(now, position, quaternion))
         if self.tissue_pub is not None:
             self.tissue_pub.publish(self.wrench_encoder.encode(now, wrench))

@@ -13,11 +13,11 @@ import os
 from pathlib import Path
 from typing import cast
 
-import numpy as np
 from std_srvs.srv import Trigger
 
 from ..runtime.bringup import SuiteProcesses
 from ..runtime.scenario import Scenario
+from ..runtime.sim_clock import StillFor
 from ..runtime.steps import SETTLE_HOLD_S, RunOptions, RunRecord, ScenarioSteps, StepFailed
 from .suite_client import SuiteClient
 
@@ -91,17 +91,14 @@ class SuiteRunner:
                 answer = client.call(Trigger, "vibration_planner/stop", Trigger.Request(), timeout=10.0)
                 progress(f"the vibration is stopped (vibration_planner/stop: {answer.message})")
             client.follow_poses(True)
-            last: list = [None, None]  # pose, sim time it was first seen
+            still = StillFor(SETTLE_HOLD_S)
 
             def at_rest() -> bool:
                 status, pose = client.vibration_status, client.ground_truth()
                 if pose is None or client.clock is None or \
                         (status is not None and status.state not in ("idle", "stopped", "estopped")):
                     return False
-                if last[0] is None or np.abs(pose - last[0]).max() > 1e-7:
-                    last[0], last[1] = pose, client.clock
-                    return False
-                return client.clock - last[1] >= SETTLE_HOLD_S
+                return still.update(pose, client.clock)
 
             client.spin_until(at_rest, timeout_s, "the robot to come to rest")
             progress("the robot is at rest (vibration units idle, platform still)")

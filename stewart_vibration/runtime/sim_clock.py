@@ -1,7 +1,8 @@
 """Sim-clock helpers (pure). ClockRate: how fast the simulation clock runs against the wall clock --
 faster than real time (``real_time_factor`` > 1 or 0 = as fast as possible) a margin meant in wall time,
 e.g. the time a command needs to reach the emulator, is that many more sim seconds. HeldFor: a
-condition that must hold without a break for a stretch of sim time (a pose settled, estimates current)."""
+condition that must hold without a break for a stretch of sim time (a pose settled, estimates current).
+StillFor: a pose that stays inside a small band for a stretch of sim time (a robot at rest)."""
 
 from __future__ import annotations
 
@@ -74,3 +75,27 @@ class HeldFor:
         if self.since is None:
             self.since = now
         return now - self.since >= self.duration_s
+
+
+# a robot at rest on real hardware still moves by its sensors' noise through its servo loops (a fraction of a
+# micrometre); "still" is a band around where it came to rest, not an unchanged reading
+STILL_BAND_M = 1e-6
+STILL_BAND_RAD = 1e-5
+
+
+class StillFor:
+    """True once a pose [x, y, z, roll, pitch, yaw] (m, rad) has stayed within ``band_m`` / ``band_rad`` of
+    where it came to rest for ``duration_s`` of sim time; a pose outside the band restarts it from there."""
+
+    def __init__(self, duration_s: float, band_m: float = STILL_BAND_M, band_rad: float = STILL_BAND_RAD):
+        self.held = HeldFor(duration_s)
+        self.band = np.array([band_m] * 3 + [band_rad] * 3)
+        self.anchor: np.ndarray | None = None  # the pose it is holding at
+
+    def update(self, pose, now: float) -> bool:
+        """Whether ``pose`` (6,) at sim time ``now`` (s) completes duration_s within the band."""
+        pose = np.asarray(pose, dtype=float)
+        if self.anchor is None or np.any(np.abs(pose - self.anchor) > self.band):
+            self.anchor = pose
+            self.held.update(False, now)
+        return self.held.update(True, now)

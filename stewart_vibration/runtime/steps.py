@@ -16,7 +16,7 @@ import numpy as np
 from ..errors import MalformedMessageError
 from ..messages.status_values import GuardStatus, ran_settings
 from .scenario import MoveStep, Scenario, VibrateStep
-from .sim_clock import HeldFor
+from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
 
 SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
@@ -178,21 +178,14 @@ class ScenarioSteps:
         if not tripped():
             raise StepFailed(f"the force guard did not stop the move to {np.round(step.pose, 5).tolist()}: the "
                              "platform reached the target")
-        last: list[np.ndarray | None]
-        still: list[float | None]
-        last, still = [None], [None]
+        still = StillFor(SETTLE_HOLD_S)
 
         def at_rest():
             pose = client.ground_truth()
-            if pose is None:
-                return False
-            if last[0] is None or np.abs(pose[:3] - last[0][:3]).max() > 1e-6:
-                last[0], still[0] = pose, client.clock
-                return False
-            return client.clock - still[0] >= SETTLE_HOLD_S
+            return pose is not None and still.update(pose, cast(float, client.clock))
 
         client.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
-        held = cast(np.ndarray, last[0])  # at rest: at_rest kept a pose
+        held = cast(np.ndarray, still.anchor)  # at rest: where it came to rest
         guard = cast(GuardStatus, client.guard_status())  # tripped (above)
         message = guard.message
         record = {"target": step.pose.tolist(), "time": client.clock, "guard": dict(guard.values),
