@@ -4,7 +4,8 @@ realistic plant for N seeds, today's controller unchanged.
 Per run (one `stewart-vibration run`, its summary.json): the worst pose error after a move (ground truth) and
 the controller's estimate of it, the vibration's direction and amplitude error and off-axis ratio (ground
 truth, and in the controller's view), the worst leg's amplitude and phase error, the worst leg's force
-estimate error (RMS over the force amplitude, against the true forces), and the exit code (every bound).
+estimate error (RMS over the force amplitude, against the true forces), the peak true unit displacement, whether
+the vibration ran or the units' travel protection stopped it, and the exit code (every bound).
 A failed run is a row too: the gap is the point, and the run's own verdict is in its column.
 
 Run: .venv/bin/python benchmarks/plant_gap.py [--seeds 10] [--json]
@@ -42,7 +43,12 @@ def one_run(out: Path, plant: str, seed: int | None, timeout_s: float = 900.0) -
     def worst(values):
         return max(abs(v) for v in values) if values else None
 
-    return {
+    unit_travel = next((lim for lim in summary.get("limits") or [] if lim["name"] == "vibration unit displacement"),
+                       None)
+    failure = vib.get("failure")
+    stopped = "ran" if not failure else ("unit over-travel" if "over-travel" in failure else "failed")
+
+    row = {
         "plant": plant, "seed": seed, "exit_code": result.returncode, "wall_s": wall, "summarised": bool(summary),
         "pose_error_um": worst([m["pose_error_m"] * 1e6 for m in moves]),
         "estimate_error_um": worst([m.get("estimate_error_m", float("nan")) * 1e6 for m in moves]),
@@ -55,15 +61,23 @@ def one_run(out: Path, plant: str, seed: int | None, timeout_s: float = 900.0) -
         "force_error_pct": None if force.get("worst_leg_relative") is None else force["worst_leg_relative"] * 100,
         "view_direction_error_deg": view.get("direction_error_deg"),
         "view_amplitude_error_pct": None if view.get("amplitude_error") is None else view["amplitude_error"] * 100,
+        "unit_peak_um": None if unit_travel is None else unit_travel["worst"] * 1e6,
+        "vibration": stopped if vib else None, "vibration_failure": failure,
     }
+    if failure:  # a stopped vibration's figures describe its ramp-out, not the vibration: no such figures
+        row.update({key: None for key in VIBRATION_FIGURES})
+    return row
 
 
+VIBRATION_FIGURES = ("direction_error_deg", "amplitude_error_pct", "off_axis_ratio", "leg_amplitude_error_pct",
+                     "leg_phase_error_deg", "force_error_pct", "view_direction_error_deg", "view_amplitude_error_pct")
 COLUMNS = [("plant", "plant", "{}"), ("seed", "seed", "{}"), ("pose_error_um", "pose err um", "{:.2f}"),
            ("estimate_error_um", "estimate err um", "{:.3f}"), ("direction_error_deg", "dir err deg", "{:.3f}"),
            ("amplitude_error_pct", "amp err %", "{:.2f}"), ("off_axis_ratio", "off-axis", "{:.2e}"),
            ("leg_amplitude_error_pct", "leg amp err %", "{:.2f}"), ("leg_phase_error_deg", "leg phase deg", "{:.2f}"),
            ("force_error_pct", "force err %", "{:.2f}"), ("view_direction_error_deg", "view dir deg", "{:.3f}"),
-           ("view_amplitude_error_pct", "view amp %", "{:.2f}"), ("exit_code", "exit", "{}")]
+           ("view_amplitude_error_pct", "view amp %", "{:.2f}"), ("unit_peak_um", "unit peak um", "{:.1f}"),
+           ("vibration", "vibration", "{}"), ("exit_code", "exit", "{}")]
 
 
 def table_row(row: dict) -> str:
@@ -75,9 +89,10 @@ def table_row(row: dict) -> str:
 def spread_row(rows: list[dict], name: str, pick) -> dict:
     """A row of ``pick`` (median, max) over ``rows`` of each figure's magnitude, named ``name``."""
     out: dict = {"plant": f"realistic {name}", "seed": f"{len(rows)} seeds"}
-    for key, _, _ in COLUMNS[2:-1]:
+    for key, _, _ in COLUMNS[2:-2]:
         values = [abs(r[key]) for r in rows if r.get(key) is not None]
         out[key] = float(pick(values)) if values else None
+    out["vibration"] = f"{sum(r.get('vibration') == 'ran' for r in rows)} ran"
     out["exit_code"] = "-"
     return out
 
