@@ -45,7 +45,7 @@ def one_run(out: Path, plant: str, seed: int | None, timeout_s: float = 900.0) -
 
     unit_travel = next((lim for lim in summary.get("limits") or [] if lim["name"] == "vibration unit displacement"),
                        None)
-    failure = vib.get("failure")
+    failure = vib.get("failure") or summary.get("failure")  # a vibration stopped at once may have no record
     stopped = "ran" if not failure else ("unit over-travel" if "over-travel" in failure else "failed")
 
     row = {
@@ -62,7 +62,7 @@ def one_run(out: Path, plant: str, seed: int | None, timeout_s: float = 900.0) -
         "view_direction_error_deg": view.get("direction_error_deg"),
         "view_amplitude_error_pct": None if view.get("amplitude_error") is None else view["amplitude_error"] * 100,
         "unit_peak_um": None if unit_travel is None else unit_travel["worst"] * 1e6,
-        "vibration": stopped if vib else None, "vibration_failure": failure,
+        "vibration": stopped if vib or failure else None, "vibration_failure": failure,
     }
     if failure:  # a stopped vibration's figures describe its ramp-out, not the vibration: no such figures
         row.update({key: None for key in VIBRATION_FIGURES})
