@@ -316,17 +316,15 @@ def rotation_from_quaternion(quat) -> np.ndarray:
         R [..., 3, 3].
     """
     q = np.asarray(quat, dtype=float)
-    if q.shape == (4,):  # one quaternion (a sensor's sample): scalars, not 0-d arrays stacked nine times
-        a, b, c, d = (float(v) for v in q)
-        return np.array([[1 - 2 * (b * b + c * c), 2 * (a * b - c * d), 2 * (a * c + b * d)],
-                         [2 * (a * b + c * d), 1 - 2 * (a * a + c * c), 2 * (b * c - a * d)],
-                         [2 * (a * c - b * d), 2 * (b * c + a * d), 1 - 2 * (a * a + b * b)]])
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    one = q.shape == (4,)  # one quaternion (a sensor's sample): Python floats, one array, no stacking
+    x, y, z, w = (float(v) for v in q) if one else (q[..., 0], q[..., 1], q[..., 2], q[..., 3])
     rows = [
         [1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
         [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
         [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)],
     ]
+    if one:
+        return np.array(rows)
     return np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
 
 
