@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "robot.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config" / "robot.yaml"
 
 
 def rot_x(a):

@@ -27,7 +27,7 @@ from stewart_vibration.runtime.processes import ros_environment
 REPLAY = "stewart_vibration.nodes.mcap_replay_node"
 
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 DEADLINE_S = 10.0  # every refusal, as the issue asks: a config or option never takes longer to refuse
 
 

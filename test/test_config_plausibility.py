@@ -34,7 +34,7 @@ from stewart_vibration.runtime.scenario import load_scenario
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration.settings import default_settings, plan_vibration, settings_reason
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 STATE_RATE_HZ = yaml.safe_load((CONFIG / "suite_params.yaml").read_text())["/**/hardware_emulator"][
     "ros__parameters"]["state_rate_hz"]
 

@@ -28,7 +28,7 @@ from stewart_vibration.runtime.processes import (
 )
 
 pytestmark = pytest.mark.integration
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[1] / "stewart_vibration"  # the ament_python package directory
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
 EMULATOR = "stewart_vibration.nodes.hardware_emulator_node"
 KINEMATICS = "stewart_vibration.nodes.kinematics_node"

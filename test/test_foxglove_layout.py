@@ -11,7 +11,7 @@ from pathlib import Path
 from stewart_vibration.nodes.mcap_recorder_node import SUITE_TOPICS
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
-LAYOUT = Path(__file__).resolve().parents[1] / "config" / "foxglove_layout.json"
+LAYOUT = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config" / "foxglove_layout.json"
 NS = "/stewart"
 TOPICS = {t if t.startswith("/") else f"{NS}/{t}" for t in SUITE_TOPICS} | {f"{NS}/scene/entities",
                                                                            f"{NS}/scene/transforms"}

@@ -10,7 +10,7 @@ import yaml
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.runtime.suite import SUITE_NODES, SUITE_PARAMS_FILE
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[1] / "stewart_vibration"  # the ament_python package directory
 
 
 def console_scripts() -> set[str]:

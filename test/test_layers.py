@@ -7,7 +7,7 @@ from __future__ import annotations
 import ast
 from pathlib import Path
 
-PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration"
+PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_vibration"
 
 # top-level modules first, then the folders in the order they may import one another
 TOP = {"errors", "install", "input_checks", "safe_yaml", "config_values", "robot", "paper", "parallel", "splines",

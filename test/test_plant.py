@@ -14,7 +14,7 @@ import yaml
 from stewart_vibration.emulation.plant import load_plant, plant_from_dict
 from stewart_vibration.errors import ConfigError
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 REALISTIC = CONFIG / "plant_realistic.yaml"
 
 

@@ -22,7 +22,7 @@ from stewart_vibration.robot import LEG_NAMES
 from stewart_vibration.safe_yaml import load_yaml
 from stewart_vibration.sim.mjcf import load_simulation_settings
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 
 
 def emulator(robot, plant=None) -> HardwareEmulator:

@@ -22,7 +22,7 @@ from stewart_vibration.errors import StrokeLimitError
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.runtime.suite import SUITE_NODES
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 SHORT_STROKE_M = 0.200
 GOAL_OFFSET = np.array([0.0, 0.0, 0.030, 0.0, 0.0, 0.0])  # legs 0.2023 m: inside 0.25, outside 0.20
 

@@ -16,7 +16,7 @@ import yaml
 from stewart_vibration.errors import ConfigError
 from stewart_vibration.safe_yaml import MAX_BYTES, MAX_DEPTH, MAX_NODES, load_yaml, special_file_reason
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 BOMB = "".join(f"l{i}: &l{i} [{', '.join([f'*l{i - 1}' if i else 'lol'] * 9)}]\n" for i in range(9)) + "top: *l8\n"
 
 

@@ -21,7 +21,7 @@ def test_tissue_scenario_runs_within_its_bounds(tmp_path, ros_domain):
     from test_main_job import passing_summary
 
     out = tmp_path / "run"
-    scenario = Path(__file__).resolve().parents[1] / "config" / "scenario_tissue.yaml"
+    scenario = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config" / "scenario_tissue.yaml"
     summary, stdout = passing_summary(out, ros_domain, "--scenario", str(scenario), "--duration", "1.2")
     tissue = summary["tissue"]
     assert tissue["moves_holds"]["relative_force"] <= 0.02 and tissue["vibration"]["rms_force_error_n"] <= 1.0

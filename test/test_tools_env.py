@@ -33,3 +33,37 @@ def test_sourcing_env_keeps_the_shell_options_and_sets_up_the_tools():
     assert before == after, line
     assert "/lib/stewart_vibration/stewart-vibration" in out and "hardware_emulator_node" in out
     assert ".venv" in next(x for x in out.splitlines() if x.startswith("AMENT_PREFIX_PATH="))
+
+
+def test_the_interfaces_build_says_what_it_needs_when_the_machine_has_no_compiler(tmp_path):
+    """Without cmake or a compiler the set-up stops with one line naming the fix, before colcon runs."""
+    script = f"""
+    source "{REPO}/tools/env.sh" >/dev/null 2>&1 || exit 3
+    PATH="{tmp_path}" _stewart_interfaces "{REPO}" "{tmp_path / 'venv'}"
+    echo "status=$?"
+    """
+    proc = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600)
+    assert "status=1" in proc.stdout, proc.stdout + proc.stderr
+    assert "needs cmake and a C and C++ compiler" in proc.stderr and "apt-get install -y g++ cmake" in proc.stderr
+    assert not (tmp_path / "venv" / ".interfaces.sha").exists()
+
+
+def test_the_venv_has_the_interfaces_package_and_colcon_finds_the_venv():
+    """After `source tools/env.sh`: the suite's actions import, ament knows the package (what `ros2 interface`
+    reads), and CMAKE_PREFIX_PATH holds the venv (an ament_cmake build finds the ROS packages there)."""
+    script = f"""
+    source "{REPO}/tools/env.sh" >/dev/null 2>&1 || exit 3
+    echo "CMAKE_PREFIX_PATH=$CMAKE_PREFIX_PATH"
+    python -c "
+from ament_index_python.packages import get_package_share_directory
+from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+print('share', get_package_share_directory('stewart_vibration_interfaces'))
+print('goal', Vibrate.Goal().frame == '', MoveToPose.Result().outcome.code == MoveToPose.Result().outcome.UNDEFINED)
+"
+    """
+    out = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    assert ".venv" in next(x for x in out.stdout.splitlines() if x.startswith("CMAKE_PREFIX_PATH="))
+    share = next(x for x in out.stdout.splitlines() if x.startswith("share "))
+    assert (Path(share.split(" ", 1)[1]) / "action" / "Vibrate.action").is_file()
+    assert "goal True True" in out.stdout

@@ -16,7 +16,7 @@ from stewart_vibration.emulation.unit_travel import UNIT_OVER_TRAVEL, UnitTravel
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.sim.mjcf import load_simulation_settings
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 TRAVEL = 100e-6
 
 

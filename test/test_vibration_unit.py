@@ -14,7 +14,7 @@ from stewart_vibration.dynamics import leg_forces
 from stewart_vibration.emulation.plant import load_plant
 from stewart_vibration.emulation.vibration_unit import UnitLoop, fixed_base_response, unit_hardware
 
-CONFIG = Path(__file__).resolve().parents[1] / "config"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 DT = 0.0005  # the emulator's physics period (2 kHz)
 
 

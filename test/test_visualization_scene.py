@@ -23,7 +23,7 @@ from stewart_vibration.visualization.scene import (
     vibration_direction_from_window,
 )
 
-CONFIG = Path(__file__).resolve().parents[1] / "config" / "robot.yaml"
+CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config" / "robot.yaml"
 
 
 def yaml_hinges(which: str) -> np.ndarray:

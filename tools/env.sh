@@ -1,15 +1,49 @@
 # Set up this shell for stewart_vibration in the pip world: create or reuse ./.venv with the pinned
-# requirements and this package (editable), then export what rclpy needs (AMENT_PREFIX_PATH = the venv
-# prefix) and put the executables (stewart-vibration, the nodes) on PATH. Safe to `source` from an
-# interactive shell: it changes no shell options and returns (does not exit) on an error.
+# requirements, the interfaces package (built with colcon) and this package (editable), then export what
+# rclpy needs (AMENT_PREFIX_PATH = the venv prefix; CMAKE_PREFIX_PATH too, for colcon builds) and put the
+# executables (stewart-vibration, the nodes) on PATH. Safe to `source` from an interactive shell: it
+# changes no shell options and returns (does not exit) on an error.
 #   source tools/env.sh
+# The suite's messages, services and actions (stewart_vibration_interfaces, an ament_cmake package): built
+# with colcon into the venv itself (merged install: its Python modules land in site-packages and its ament
+# index entry in share/), again whenever a file of the package changes.
+_stewart_interfaces() {
+  local repo="$1" venv="$2" src stamp want build tool
+  src="$repo/stewart_vibration_interfaces"
+  stamp="$venv/.interfaces.sha"
+  want="$(cd "$src" && find . -type f -not -name '*~' | LC_ALL=C sort | xargs cat | sha256sum | cut -d' ' -f1)"
+  [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && return 0
+  if [ "${STEWART_VENV_NO_INSTALL:-0}" = 1 ]; then
+    echo "[venv] $venv needs stewart_vibration_interfaces (re)built for $repo, but STEWART_VENV_NO_INSTALL=1" >&2
+    return 1
+  fi
+  for tool in cmake cc c++; do
+    if ! command -v "$tool" >/dev/null 2>&1; then
+      echo "[venv] building stewart_vibration_interfaces needs cmake and a C and C++ compiler ('$tool' not found):" \
+        "on Debian, apt-get install -y g++ cmake" >&2
+      return 1
+    fi
+  done
+  echo "[venv] building stewart_vibration_interfaces with colcon (about 15 s)" >&2
+  build="$venv/.interfaces_build"
+  rm -rf "$build"
+  if ! PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" "$venv/bin/colcon" --log-base "$build/log" build \
+      --merge-install --base-paths "$src" --build-base "$build/build" --install-base "$venv" \
+      --event-handlers console_cohesion- summary- status- > "$build.log" 2>&1; then
+    tail -n 30 "$build.log" >&2
+    echo "[venv] building stewart_vibration_interfaces failed; the whole log: $build.log" >&2
+    return 1
+  fi
+  echo "$want" > "$stamp"
+}
 _stewart_env() {
   local repo venv py stamp want
   repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)" || return 1
   venv="${STEWART_VENV:-$repo/.venv}"
   py="${PYTHON:-python3}"
   stamp="$venv/.requirements.sha"
-  want="$(cat "$repo/requirements.txt" "$repo/requirements-dev.txt" "$repo/setup.py" | sha256sum | cut -d' ' -f1)"
+  want="$(cat "$repo/requirements.txt" "$repo/requirements-dev.txt" "$repo/requirements-interfaces.txt" \
+    "$repo/stewart_vibration/setup.py" | sha256sum | cut -d' ' -f1)"
   if [ ! -x "$venv/bin/python" ]; then
     echo "[venv] creating $venv" >&2
     "$py" -m venv "$venv" || return 1
@@ -25,14 +59,17 @@ _stewart_env() {
     fi
     echo "[venv] installing requirements (first run takes about a minute)" >&2
     "$venv/bin/python" -m pip install -q --disable-pip-version-check -r "$repo/requirements-dev.txt" >&2 || return 1
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$repo" >&2 \
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-build-isolation -e "$repo/stewart_vibration" >&2 \
       || return 1
     echo "$want" > "$stamp"
   fi
+  _stewart_interfaces "$repo" "$venv" || return 1
   REPO="$repo"
   # setup.cfg puts executables in lib/stewart_vibration (the ros2 run layout).
   export PATH="$venv/lib/stewart_vibration:$venv/bin:$PATH"
   export AMENT_PREFIX_PATH="$venv${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"
+  # as a ROS install's setup script does: ament_cmake packages (colcon build) find the venv's ROS packages
+  export CMAKE_PREFIX_PATH="$venv${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
   export PYTHONUNBUFFERED=1
 }
 _stewart_env

@@ -40,6 +40,7 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = "stewart_vibration"
+PACKAGE_DIR = ROOT / PACKAGE  # the ament_python package: setup.py, config/ and the module
 
 # core modules (glob relative to the package; the first pattern that matches a file wins) -> the fast unit
 # tests that cover them, most telling first (files that do not exist are left out)
@@ -178,7 +179,7 @@ def run_tests(copy_root: Path, tests: list[str], timeout: float) -> tuple[str, f
     """'passed', 'failed' or 'timeout' of the tests against the copy; wall seconds."""
     env = dict(os.environ, PYTHONPATH=str(copy_root), PYTHONSAFEPATH="1", PYTHONDONTWRITEBYTECODE="1",
                STEWART_VIBRATION_THREADS="1", OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1",
-               STEWART_VIBRATION_CONFIG_DIR=str(ROOT / "config"))
+               STEWART_VIBRATION_CONFIG_DIR=str(PACKAGE_DIR / "config"))
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-m", "not integration", "-p", "no:cacheprovider",
            "--rootdir", str(ROOT), *[str(ROOT / "test" / t) for t in tests]]
     start = time.monotonic()
@@ -199,7 +200,7 @@ def main() -> int:
     ap.add_argument("--list", action="store_true", help="only count the mutation sites per module (and their tests)")
     args = ap.parse_args()
 
-    src_pkg = ROOT / PACKAGE
+    src_pkg = PACKAGE_DIR / PACKAGE
     modules = module_files(src_pkg, args.module)
     sources = {m: (src_pkg / m).read_text() for m in modules}  # the snapshot every mutant is made from
     sites = {m: mutation_sites(m, sources[m]) for m in modules}
@@ -214,7 +215,7 @@ def main() -> int:
         shutil.copytree(src_pkg, copy_root / PACKAGE, ignore=shutil.ignore_patterns("__pycache__"))
         for module, text in sources.items():  # the tree may change under us (shared checkout)
             (copy_root / PACKAGE / module).write_text(text)
-        (copy_root / "config").symlink_to(ROOT / "config")
+        (copy_root / "config").symlink_to(PACKAGE_DIR / "config")
         baseline = {}
         for module in sorted({m.module for m in chosen}):
             status, seconds = run_tests(copy_root, modules[module], timeout=600)
