@@ -49,7 +49,7 @@ KINDS = [  # (kind, pattern on the line without its comment)
     ("main", r"\./tools/main( |$)"),
     ("ros_install", r"ros2 (launch|bag) "),
     ("ros2_run", r"ros2 run "),
-    ("ros2", r"ros2 (topic|service|param) "),
+    ("ros2", r"ros2 (topic|service|param|action) "),
     ("colcon", r"colcon build "),
     ("pip", r"pip install "),
     ("cli", r"stewart-vibration "),
@@ -226,7 +226,8 @@ def test_main_job_as_written(workspace, main_job_run):
 
 
 def test_main_job_options_as_written(workspace, main_job_run):
-    (workspace.path / "my_scenario.yaml").write_text((ROOT / "config" / "scenario_paper.yaml").read_text())
+    paper = ROOT / "stewart_vibration" / "config" / "scenario_paper.yaml"
+    (workspace.path / "my_scenario.yaml").write_text(paper.read_text())
     others = [c for c in commands_of("main") if c != main_job_run[0]]
     assert others
     for command in others:
@@ -276,6 +277,9 @@ def run_ui_command(workspace: Workspace, command: str) -> None:
         assert "Set parameter successful" in result.stdout
     if "service call" in command:
         assert "response:" in result.stdout
+    if "action send_goal" in command:  # the vibration ran: its typed result and the goal's final status
+        assert "Goal finished with status: SUCCEEDED" in result.stdout and "Feedback:" in result.stdout, \
+            result.stdout[-3000:]
     if "emergency_stop" in command:  # the reset that follows in the README needs time to move home
         time.sleep(1.0)
 
