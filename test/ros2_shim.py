@@ -7,10 +7,13 @@ It implements the verbs the README uses, with ros2cli's arguments and output sha
   ros2 topic echo [--once] TOPIC [TYPE]     prints each message, then ``---`` (until Ctrl-C)
   ros2 service call SERVICE TYPE [YAML]     waits for the service, prints ``response:`` and the answer
   ros2 param set NODE NAME VALUE            VALUE parsed as YAML, as ros2cli does ("0.3" double, "[..]" array)
+  ros2 action send_goal [-f] ACTION TYPE YAML  sends the goal, prints the feedback (-f / --feedback), the
+                                            result and ``Goal finished with status: ...``; Ctrl-C cancels it
   ros2 run PACKAGE EXECUTABLE [ARGS...]     executes <prefix>/lib/PACKAGE/EXECUTABLE from AMENT_PREFIX_PATH
 
-Stricter than ros2cli in one way: a refused ``param set`` or an unsuccessful Trigger exits 1, so a test sees
-it. Sturdier in one: a query (``param set``, ``get_state``, ...) whose answer Fast DDS lost is asked again
+Stricter than ros2cli in one way: a refused ``param set``, an unsuccessful Trigger or a goal that did not
+succeed exits 1, so a test sees it. Sturdier in one: a query (``param set``, ``get_state``, ...) whose answer
+Fast DDS lost is asked again
 (nodes.service_calls). ``ros2 launch`` and ``ros2 bag`` need a ROS install; they exit 2 saying so.
 """
 
@@ -46,6 +49,8 @@ def fill(msg, values: dict | None):
             fill(current, value)
         elif isinstance(current, float) and isinstance(value, int):
             setattr(msg, key, float(value))
+        elif isinstance(value, list) and len(current) and isinstance(current[0], float):  # float64[N]
+            setattr(msg, key, [float(v) for v in value])
         else:
             setattr(msg, key, value)
     return msg
@@ -163,6 +168,45 @@ def param_set(node, args: list[str]) -> int:
     return 1
 
 
+def action_send_goal(node, args: list[str]) -> int:
+    from rclpy.action import ActionClient
+
+    feedback = any(a in ("-f", "--feedback") for a in args)
+    args = [a for a in args if a not in ("-f", "--feedback")]
+    name, type_name = args[0], args[1]
+    action = message_type(type_name)
+    goal = fill(action.Goal(), parse_yaml(args[2] if len(args) > 2 else None))
+    client = ActionClient(node, action, name)
+    print("Waiting for an action server to become available...")
+    if not client.wait_for_server(timeout_sec=WAIT_S):
+        raise SystemExit(f"action {name} not available after {WAIT_S:g} s")
+    wait = spinner(node)
+    wait(lambda: False, 0.5)  # discovery finishes (a goal's answer sent before it is lost; it cannot be resent)
+    print(f"Sending goal:\n     {goal!r}\n")
+    sent = client.send_goal_async(goal, feedback_callback=(lambda m: print(f"Feedback:\n    {m.feedback!r}\n"))
+                                  if feedback else None)
+    if not wait(sent.done, WAIT_S) or not sent.result().accepted:
+        print("Goal was rejected.")
+        return 1
+    handle = sent.result()
+    print(f"Goal accepted with ID: {bytes(handle.goal_id.uuid).hex()}\n")
+    result = handle.get_result_async()
+    try:
+        while not wait(result.done, 1.0):
+            pass
+    except KeyboardInterrupt:
+        cancel = handle.cancel_goal_async()
+        wait(cancel.done, WAIT_S)
+        print("Goal canceled.")
+        wait(result.done, WAIT_S)
+    if not result.done():
+        return 1
+    answer = result.result()
+    status = {4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}.get(answer.status, str(answer.status))
+    print(f"Result:\n    {answer.result!r}\n\nGoal finished with status: {status}")
+    return 0 if status == "SUCCEEDED" else 1
+
+
 def run(args: list[str]) -> int:
     package, executable, rest = args[0], args[1], args[2:]
     for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
@@ -173,7 +217,7 @@ def run(args: list[str]) -> int:
 
 
 VERBS = {("topic", "pub"): topic_pub, ("topic", "echo"): topic_echo, ("service", "call"): service_call,
-         ("param", "set"): param_set}
+         ("param", "set"): param_set, ("action", "send_goal"): action_send_goal}
 
 
 def main(argv: list[str]) -> int:

@@ -3,9 +3,10 @@
 The hardware emulator (real time), kinematics, vibration planner and leg force estimator run as separate
 processes. A client sends a few hundred malformed and boundary messages as a user could -- PoseStamped
 targets, leg and vibration JointTrajectory messages (also raw garbage bytes), bad parameters, GetPlan
-requests, start / stop / e-stop / reset in odd orders -- then checks that every node is still alive, that
-every bad parameter was refused with a reason and changed nothing, that every waypoint GetPlan returned is
-reachable, that no joint state published during the barrage broke a limit (and the force estimator's
+requests, vibrate goals (hostile ones among them) / cancels / e-stop / reset in odd orders -- then checks that
+every node is still alive, that every bad parameter was refused with a reason and changed nothing, that every
+vibrate goal ended with a code of the outcome table (a bad one with a typed refusal), that every waypoint
+GetPlan returned is reachable, that no joint state published during the barrage broke a limit (and the force estimator's
 model stayed within the strut force limit: it mirrors the commands, and must refuse what the emulator
 refuses), and that the robot still reaches a valid target (the paper's pose) to 10 um and 0.01 deg.
 """
@@ -18,6 +19,7 @@ import time
 
 import numpy as np
 import pytest
+from action_msgs.srv import CancelGoal
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import PoseStamped
 from malformed_messages import mangled as garbage
@@ -209,12 +211,11 @@ def param(name: str, value) -> ParameterMsg:
 
 BAD_PARAMETERS = {
     "vibration_planner": [
-        ("frequency_hz", NAN), ("frequency_hz", 1e6), ("frequency_hz", -35.0), ("frequency_hz", "35"),
-        ("amplitude_m", INF), ("amplitude_m", -1e-5), ("acceleration_g", 11.0), ("direction", [0.0, 0.0, 0.0]),
-        ("direction", [NAN, 0.0, 1.0]), ("direction", [1.0, 0.0]), ("direction", "up"), ("frame", "world"),
-        ("frame", 3), ("ramp_s", 0.0), ("duration_s", 0.05), ("lookahead_s", 0.2), ("sample_period_s", 0.0),
-        ("sample_period_s", 0.04), ("start_lead_s", 0.0), ("max_lookahead_s", 1e9), ("robot_config", "/etc/passwd"),
-        ("no_such_parameter", 1.0), ("use_sim_time", "yes"),
+        ("lookahead_s", 0.2), ("lookahead_s", NAN), ("lookahead_s", "2"), ("sample_period_s", 0.0),
+        ("sample_period_s", 0.04), ("start_lead_s", 0.0), ("max_lookahead_s", 1e9), ("lead_s", -INF),
+        ("pose_timeout_s", -1.0), ("window_period_s", [1.0]), ("robot_config", "/etc/passwd"),
+        ("no_such_parameter", 1.0), ("frequency_hz", 35.0),  # the vibration is a goal's, no parameter
+        ("use_sim_time", "yes"),
     ],
     "hardware_emulator": [
         ("real_time_factor", -1.0), ("real_time_factor", NAN), ("real_time_factor", "fast"), ("real_time_factor", 1e9),
@@ -252,12 +253,20 @@ def hostile_plan_requests(robot, rng) -> list[GetPlan.Request]:
     return out
 
 
-TRIGGER_ORDER = ["vibration_planner/start", "vibration_planner/start", "hardware_emulator/reset",
-                 "vibration_planner/stop", "hardware_emulator/emergency_stop", "vibration_planner/start",
-                 "hardware_emulator/emergency_stop", "vibration_planner/stop", "hardware_emulator/reset",
-                 "hardware_emulator/reset", "vibration_planner/start", "hardware_emulator/emergency_stop",
-                 "hardware_emulator/reset", "vibration_planner/start", "vibration_planner/stop",
-                 "vibration_planner/stop", "hardware_emulator/reset"]
+# "vibrate": the next of HOSTILE_GOALS (a legal one among them); "cancel": cancel every vibrate goal
+TRIGGER_ORDER = ["vibrate", "vibrate", "hardware_emulator/reset", "cancel", "hardware_emulator/emergency_stop",
+                 "vibrate", "hardware_emulator/emergency_stop", "cancel", "hardware_emulator/reset",
+                 "hardware_emulator/reset", "vibrate", "hardware_emulator/emergency_stop", "hardware_emulator/reset",
+                 "vibrate", "cancel", "cancel", "hardware_emulator/reset", "vibrate", "vibrate", "vibrate",
+                 "vibrate", "vibrate", "vibrate", "vibrate", "vibrate"]
+HOSTILE_GOALS = [  # vibrate goal fields over a legal 1 s vibration; each ends with a typed outcome, never a crash
+    {}, {"duration_s": 0.0}, {"frequency_hz": NAN}, {"frequency_hz": 1e6}, {"frequency_hz": -35.0},
+    {"amplitude_m": INF}, {"amplitude_m": -1e-5}, {"amplitude_m": 150e-6}, {"acceleration_g": 11.0},
+    {"direction": [0.0, 0.0, 0.0]}, {"direction": [NAN, 0.0, 1.0]}, {"frame": "world"}, {"frame": "\x00" * 300},
+    {"ramp_s": 0.0}, {"ramp_s": INF}, {"duration_s": 0.05}, {"duration_s": -1.0}, {"phase_rad": 1e300},
+]
+TYPED_REFUSALS = {"INVALID_ARGUMENT", "LIMIT_EXCEEDED", "UNREACHABLE_POSE", "BUSY", "ESTOP_LATCHED",
+                  "UNITS_NOT_AT_REST", "NOT_READY"}
 
 
 class Hostile:
@@ -276,10 +285,11 @@ class Hostile:
         self.answers = []  # (what, success or None, message) of every service call
         ready = c.spin_until(lambda: self.clock and len(self.estimates) > 10 and len(self.states) > 100, 60)
         assert ready, self.logs()
-        for srv_type, name in ((Trigger, "vibration_planner/start"), (Trigger, "hardware_emulator/reset"),
-                               (GetPlan, "kinematics/plan_path"), (SetParameters, "vibration_planner/set_parameters"),
+        for srv_type, name in ((Trigger, "hardware_emulator/reset"), (GetPlan, "kinematics/plan_path"),
+                               (SetParameters, "vibration_planner/set_parameters"),
                                (SetParameters, "hardware_emulator/set_parameters")):
             assert c.node.create_client(srv_type, name).wait_for_service(timeout_sec=30), (name, self.logs())
+        assert c.vibrate_server_ready(30), self.logs()
 
     def now(self) -> float:
         c = self.clock[-1].clock
@@ -330,6 +340,14 @@ def pose_error(msg, target) -> tuple[float, float]:
     return float(np.linalg.norm(np.array([p.x, p.y, p.z]) - target[:3])), angle
 
 
+def snapshot(hostile, node: str, params) -> dict:
+    """The node's values of the declared parameters among ``params`` (undeclared names are left out)."""
+    names = sorted({n for n, _ in params if n not in ("no_such_parameter", "frequency_hz")})
+    values = hostile.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=names)).values
+    return {n: (v.type, v.double_value, v.string_value, v.bool_value, v.integer_value)
+            for n, v in zip(names, values, strict=True)}
+
+
 @pytest.fixture
 def hostile(ros_domain, tmp_path):
     suite = Hostile(ros_domain, tmp_path)
@@ -371,6 +389,9 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
     raw_legs, raw_vib = garbage(rng, valid_legs, 30), garbage(rng, valid_vib, 30)
     plans = hostile_plan_requests(robot, rng)
     triggers = iter(TRIGGER_ORDER)
+    goals_to_send = iter(HOSTILE_GOALS * 2)
+    goals = []  # (fields, VibrationGoal) of every vibrate goal sent
+    before = {node: snapshot(hostile, node, params) for node, params in BAD_PARAMETERS.items()}
     bad_params = [(node, p) for node, params in BAD_PARAMETERS.items() for p in params]
     refusals = []  # (node, parameter, value, successful, reason)
     paths = []  # the poses of every GetPlan answer
@@ -390,7 +411,14 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
             sent += 1
         if i % 5 == 0:
             name = next(triggers, None)
-            if name is not None:
+            if name == "vibrate":
+                fields = next(goals_to_send, {})
+                goals.append((fields, c.vibrate(**fields)))
+                sent += 1
+            elif name == "cancel":
+                hostile.call(CancelGoal, "vibration_planner/vibrate/_action/cancel_goal", CancelGoal.Request())
+                sent += 1
+            elif name is not None:
                 hostile.call(Trigger, name, Trigger.Request())
                 sent += 1
     assert sent >= 300
@@ -400,14 +428,14 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
     assert not taken and len(refusals) == sum(map(len, BAD_PARAMETERS.values())), \
         f"bad parameters taken or refused without a reason: {taken}"
     for node, params in BAD_PARAMETERS.items():  # every bad value was refused: the values are unchanged
-        names = sorted({n for n, _ in params if n != "no_such_parameter"})
-        values = hostile.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=names)).values
-        got = dict(zip(names, values, strict=True))
-        if node == "hardware_emulator":
-            assert got["real_time_factor"].double_value == 1.0 and got["watchdog_s"].double_value == 0.5
-        else:
-            assert got["frequency_hz"].double_value == 35.0 and list(got["direction"].double_array_value) == [
-                0.0, 0.0, 1.0] and got["frame"].string_value == "platform"
+        assert snapshot(hostile, node, params) == before[node], node
+    for fields, goal in goals:  # every goal ended, with a code of the table: run, cancelled or a typed refusal
+        name, message = goal.outcome(30)
+        # a legal one may also end by what the barrage does beside it (hostile windows, e-stops, cancels)
+        ends = {"SUCCEEDED", "CANCELED", "EMERGENCY_STOPPED", "STOPPED_EARLY", "ROBOT_REFUSED", "HELD_UP"}
+        assert name in TYPED_REFUSALS | ends and message, (fields, name, message)
+        if fields and fields != {"duration_s": 0.0} and name not in ("BUSY", "ESTOP_LATCHED", "UNITS_NOT_AT_REST"):
+            assert name in TYPED_REFUSALS, (fields, name, message)  # a bad goal never runs
     assert_joint_states_within_limits(robot, hostile.states[first_state:])
     planned = [path for path in paths if path]
     assert planned and len(planned) < len(paths), "the legal GetPlan requests get a path, the bad ones none"
@@ -419,7 +447,7 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
     assert modelled <= robot.limits.strut_force_max, f"modelled leg force {modelled} N"
 
     # the robot still works: stop any vibration, clear an e-stop, go to the paper's pose
-    hostile.call(Trigger, "vibration_planner/stop", Trigger.Request())
+    hostile.call(CancelGoal, "vibration_planner/vibrate/_action/cancel_goal", CancelGoal.Request())
     hostile.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request())  # latched now, whatever it was
     resets = []
 

@@ -53,3 +53,32 @@ def test_every_interface_file_is_named_in_the_docs():
     assert len(files) >= 8
     missing = [f"{p.parent.name}/{p.stem}" for p in files if f"{p.parent.name}/{p.stem}" not in text]
     assert not missing, f"docs/interfaces.md does not name {missing}"
+
+
+def outcome_names_in_the_package() -> set[str]:
+    """Every outcome name the package gives: ``outcome = "NAME"`` of an error class, the first argument of
+    RefusedError(...) and outcome(...), and an all-caps argument of abort(...) / _finish(...)."""
+    import ast
+
+    names = set()
+    for path in (ROOT / "stewart_vibration" / "stewart_vibration").rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.Assign) and any(getattr(t, "id", "") == "outcome" for t in node.targets) and \
+                    isinstance(node.value, ast.Constant) and isinstance(node.value.value, str):
+                names.add(node.value.value)
+            elif isinstance(node, ast.Call):
+                func = getattr(node.func, "id", None) or getattr(node.func, "attr", None)
+                args = [c.value for a in node.args for c in ([a.body, a.orelse] if isinstance(a, ast.IfExp) else [a])
+                        if isinstance(c, ast.Constant) and isinstance(c.value, str)]
+                if func in ("RefusedError", "outcome") and node.args and isinstance(node.args[0], ast.Constant):
+                    names.add(node.args[0].value)
+                elif func in ("abort", "_finish"):
+                    names |= {a for a in args if re.fullmatch(r"[A-Z][A-Z_]+", a)}
+    return names
+
+
+def test_every_outcome_the_package_gives_is_in_the_table():
+    names = outcome_names_in_the_package()
+    assert {"INTERNAL_ERROR", "BUSY", "NOT_READY", "LIMIT_EXCEEDED", "CANCELED", "SUCCEEDED"} <= names  # it looks
+    unknown = names - set(msg_constants(INTERFACES / "msg" / "Outcome.msg"))
+    assert not unknown, f"outcome names not in Outcome.msg: {sorted(unknown)}"

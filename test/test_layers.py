@@ -15,7 +15,8 @@ TOP = {"errors", "install", "input_checks", "safe_yaml", "config_values", "robot
 LAYERS = ["<top>", "kinematics", "vibration", "sim", "dynamics", "motion", "emulation", "estimation", "messages",
           "mcap_log", "analysis", "runtime", "visualization", "ui"]
 APPLICATIONS = {"nodes", "cli", "__init__", "__main__"}  # may use every layer
-ROS = ("rclpy", "launch", "launch_ros", "rcl_interfaces", "std_srvs", "geometry_msgs", "sensor_msgs")
+ROS = ("rclpy", "launch", "launch_ros", "rcl_interfaces", "std_srvs", "geometry_msgs", "sensor_msgs",
+       "stewart_vibration_interfaces", "action_msgs", "builtin_interfaces")
 
 
 def layer_of(parts: tuple[str, ...]) -> str:

@@ -74,7 +74,7 @@ def test_a_full_disk_stops_the_scenario_safely_and_fails_the_run(tmp_path, ros_d
         assert proc.returncode == 2, stdout[-4000:]
         assert "FAILED: the recorder stopped recording" in stdout and "ENOSPC" in stdout, stdout[-4000:]
         assert "stopping the scenario safely" in stdout and "the robot is at rest" in stdout, stdout[-4000:]
-        assert "the vibration is stopped (vibration_planner/stop" in stdout  # ramped out, not run to its end
+        assert "the vibration is cancelled: the units ramp out" in stdout  # ramped out, not run to its end
         assert "vibration done" not in stdout
         summary = json.loads((out / "summary.json").read_text())
         assert "ENOSPC" in summary["failure"]

@@ -3,7 +3,7 @@
 The suite's nodes run as the bring-up starts them (SuiteRunner with the "ui" extra node); Chromium
 (Debian package) opens the URL the planning_ui node logged. The test checks, on its own DDS client
 and not through the page: the ground truth reaches the paper's pose within 10 um after Move; the page's
-leg amplitudes match the planner's start answer (from the planner's own log); vib_1..6 ramp to zero on
+leg amplitudes match the plan the planner runs (its vibrate goal's feedback); vib_1..6 ramp to zero on
 legs/joint_states after the page's Emergency stop; refused requests (unreachable target, infeasible
 vibration, no token) move nothing.
 
@@ -34,6 +34,7 @@ from stewart_vibration.nodes.common import pose_from_msg
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.suite import DEFAULT_NAMESPACE, SUITE_PARAMS_FILE
+from stewart_vibration_interfaces.action import Vibrate
 
 # CI installs chromium and sets STEWART_REQUIRE_BROWSER=1: there a missing browser fails instead of skipping
 pytestmark = [pytest.mark.integration, pytest.mark.slow,
@@ -73,6 +74,9 @@ class Watch:
         self.commands = {topic: self.client.subscribe(f"{DEFAULT_NAMESPACE}/{topic}", kind, depth=50) for topic, kind in
                          (("platform/target_pose", PoseStamped), ("legs/joint_trajectory", JointTrajectory),
                           ("vibration/joint_trajectory", JointTrajectory))}
+        # every vibrate goal's feedback (whoever sent it): the plan the planner runs
+        self.feedback = self.client.subscribe(f"{DEFAULT_NAMESPACE}/vibration_planner/vibrate/_action/feedback",
+                                              Vibrate.Impl.FeedbackMessage, depth=50)
 
     def command_counts(self) -> dict:
         """Messages seen so far on the command topics (targets, leg and vibration trajectories)."""
@@ -215,10 +219,10 @@ def test_planning_ui_in_a_browser(tmp_path, ros_domain):
                                 10, "the start refusal")
         assert "VibrationLimitError" in text and "amplitude_max" in text, text
         browser.fill({"acceleration_g": 0.3, "frequency_hz": 150})
-        browser.click("#btn-start")
-        text = browser.wait_for("(t => /vibration_planner/.test(t) && t)(document.getElementById('start-result')"
-                                ".textContent)", 10, "the planner's refusal")
-        assert "refused by vibration_planner" in text and "frequency_hz" in text, text
+        browser.click("#btn-start")  # outside the unit's band: the page's core checks (the planner's own) refuse it
+        text = browser.wait_for("(t => /frequency_hz/.test(t) && t)(document.getElementById('start-result')"
+                                ".textContent)", 10, "the refusal of an out-of-band frequency")
+        assert "refused by" in text and "outside the vibration unit's band" in text, text
         watch.spin(1.0)
         _, vib = watch.vib(count)
         assert np.abs(vib).max() < 1e-9, "a refused vibration moved the vibration units"
@@ -235,13 +239,14 @@ def test_planning_ui_in_a_browser(tmp_path, ros_domain):
         np.testing.assert_allclose(shown, preview, atol=1e-3)
         browser.click("#btn-start")
         browser.wait_for("/started/.test(document.getElementById('start-result').textContent)", 15, "started")
-        planner_log = runner.log_lines("vibration_planner", "started:")
-        answer = json.loads(re.search(r"leg amplitudes um = (\[[^\]]*\])", planner_log[-1]).group(1))
-        np.testing.assert_allclose(preview, answer, atol=0.01)  # answer rounded to 1 nm; same pose to ~nm
+        assert watch.client.spin_until(lambda: watch.feedback, 10), "no feedback of the page's vibrate goal"
+        answer = np.asarray(watch.feedback[-1].feedback.plan.leg_amplitudes_m) * 1e6  # the plan the planner runs
+        np.testing.assert_allclose(preview, answer, atol=0.01)  # the same pose to ~nm
         planner_column = browser.evaluate("[...document.querySelectorAll('#vib-table td.planner')]"
                                           ".map(td => Number(td.textContent))")
         np.testing.assert_allclose(planner_column, answer, atol=1e-3)
-        print(f"leg amplitudes: page preview {np.round(preview, 3).tolist()} um, planner {answer} um, "
+        print(f"leg amplitudes: page preview {np.round(preview, 3).tolist()} um, planner "
+              f"{np.round(answer, 3).tolist()} um, "
               f"max difference {np.abs(preview - answer).max():.4f} um")
         browser.wait_for("document.getElementById('vib-state').textContent === 'running'", 15, "status running")
         samples, draws = browser.evaluate("[ui.stats.vibSamples, ui.stats.plotDraws]")

@@ -3,7 +3,6 @@ does over DDS (test_main_job) is the same code with nodes/suite_client.py as the
 
 from __future__ import annotations
 
-import json
 from types import SimpleNamespace
 
 import numpy as np
@@ -11,18 +10,26 @@ import pytest
 
 from stewart_vibration.messages.status_values import StatusMessage, guard_status
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
-from stewart_vibration.runtime.steps import RunOptions, RunRecord, ScenarioSteps, StepFailed
+from stewart_vibration.runtime.steps import (
+    RunOptions,
+    RunRecord,
+    ScenarioSteps,
+    StepFailed,
+    VibrationEnd,
+    VibrationStart,
+)
 
 
 class ScriptedSuite:
     """A suite that answers at once: moves reach their target after 0.2 s of sim time (or stop 1 mm short when
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
-    def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None):
+    def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None,
+                 outcome="SUCCEEDED"):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
         # the robot as built: the truth is off the controller's estimate by this much (6,)
         self.truth_offset = np.zeros(6) if truth_offset is None else np.asarray(truth_offset, float)
-        self.vibration_status, self.planner_message = None, None
+        self.vibration_status, self.outcome, self.result = None, outcome, None
         self.status_history = []
         self.report_period_s, self._reported = report_period_s, float("-inf")
         self.active_s, self.refuse, self.guard_trips = active_s, refuse, guard_trips
@@ -56,6 +63,10 @@ class ScriptedSuite:
                 self.status_history.append((state, since, ""))
             self.vibration_status = SimpleNamespace(state=state, since=since, time=self.clock, message=state,
                                                     event="accepted", event_stamp=self.t0, reason="")
+            if state == "idle" and self.result is None:  # the planner's result once the units are at rest
+                self.result = VibrationEnd(self.outcome, "the vibration ran as planned" if self.outcome ==
+                                           "SUCCEEDED" else "the vibration units stopped", self.active_s,
+                                           35.0 * (self.active_s - 0.2))
 
     def send_target(self, pose):
         self.target, self.sent_at = np.asarray(pose, float), self.clock
@@ -75,17 +86,22 @@ class ScriptedSuite:
             {"state": "armed"}
         return guard_status(StatusMessage(0, "kinematics: force guard", "tripped: force", values=values))
 
-    def set_planner_parameters(self, parameters):
-        self.sent_parameters = dict(parameters)
-        return []
-
-    def start_vibration(self):
+    def start_vibration(self, vibration):
+        self.sent_parameters = dict(vibration)
         if self.refuse:
-            return False, self.refuse
-        self.t0, self.duration = self.clock + 1.0, float(self.sent_parameters["duration_s"])
+            return VibrationStart(False, *self.refuse, None)
+        self.t0, self.duration = self.clock + 1.0, float(vibration["duration_s"])
         self.active_s = self.duration if self.active_s is None else self.active_s
-        ran = dict(self.sent_parameters, ramp_s=0.2, frequency_hz=35.0, t0_s=self.t0)
-        return True, f"started: ...; settings: {json.dumps(ran)}"
+        plan = {"t0_s": self.t0, "pose": [0.0] * 6, "ramp_s": 0.2, "duration_s": self.duration, "frequency_hz": 35.0,
+                "amplitude_m": 6e-5, "acceleration_g": 0.3, "direction_base": [0.0, 0.0, 1.0], "gains": [0.5] * 6,
+                "leg_amplitudes_m": [3e-5] * 6}
+        return VibrationStart(True, "SUCCEEDED", "started", plan)
+
+    def vibration_result(self):
+        return self.result
+
+    def stop_vibration(self):
+        return False
 
 
 def run(client, steps):
@@ -99,8 +115,9 @@ def test_moves_settle_and_vibrations_are_recorded_with_the_settings_that_ran():
     record = run(client, [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0]), VibrateStep({"duration_s": 2.0})])
     assert record.moves[0]["pose_error_m"] == 0.0 and client.following == [True, False]
     vib = record.vibrations[0]
-    assert vib["parameters"]["ramp_s"] == 0.2 and vib["parameters"]["duration_s"] == 2.0  # from the answer
+    assert vib["parameters"]["plan"]["ramp_s"] == 0.2 and vib["parameters"]["duration_s"] == 2.0  # the plan's
     assert vib["t0"] == pytest.approx(vib["start_time"] + 1.0) and vib["status_active_s"] == pytest.approx(2.0)
+    assert vib["outcome"] == "SUCCEEDED" and vib["cycles_delivered"] == pytest.approx(35.0 * 1.8)
     assert "failure" not in vib
 
 
@@ -118,8 +135,11 @@ def test_a_short_vibration_or_a_refused_start_fails_the_step():
     client = ScriptedSuite(active_s=1.0)
     with pytest.raises(StepFailed, match="ended 1.000 s early"):
         run(client, [VibrateStep({"duration_s": 2.0})])
-    with pytest.raises(StepFailed, match="vibration start refused: infeasible"):
-        run(ScriptedSuite(refuse="infeasible vibration (VibrationLimitError): ..."), [VibrateStep({"duration_s": 2.0})])
+    with pytest.raises(StepFailed, match=r"vibration start refused \(LIMIT_EXCEEDED\): infeasible"):
+        run(ScriptedSuite(refuse=("LIMIT_EXCEEDED", "infeasible vibration (VibrationLimitError): ...")),
+            [VibrateStep({"duration_s": 2.0})])
+    with pytest.raises(StepFailed, match=r"the planner ended the vibration \(STOPPED_EARLY\)"):
+        run(ScriptedSuite(outcome="STOPPED_EARLY"), [VibrateStep({"duration_s": 2.0})])
 
 
 def test_a_guarded_move_must_be_stopped_by_the_force_guard():

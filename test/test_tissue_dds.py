@@ -12,8 +12,6 @@ config/tissue.yaml, kinematics (tissue-aware checks, force guard), leg_force_est
 
 from __future__ import annotations
 
-import json
-
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
@@ -176,11 +174,11 @@ def test_estimate_matches_the_applied_tissue_wrench(robot, suite):
     # tibia axis, hold, return home
     move_to(client, rec, paper_pose(robot))
     client.spin_for(0.5)
-    set_params(client, "vibration_planner", direction=[0.0, 0.0, 1.0], frame="platform", acceleration_g=0.3,
-               frequency_hz=35.0, duration_s=2.0, ramp_s=0.2)
-    res = client.call(Trigger, "vibration_planner/start", Trigger.Request())
-    assert res.success, res.message
-    t0 = float(json.loads(res.message.rsplit("settings: ", 1)[1])["t0_s"])
+    goal = client.vibrate(direction=[0.0, 0.0, 1.0], frame="platform", acceleration_g=0.3, frequency_hz=35.0,
+                          duration_s=2.0, ramp_s=0.2)
+    plan = goal.plan()
+    assert plan is not None, goal.outcome()
+    t0 = plan.t0.sec + plan.t0.nanosec * 1e-9
     assert client.spin_until(lambda: sim_now(rec) > t0 + 2.5, 60), logs(procs)
     move_to(client, rec, robot.home_pose)
     end = sim_now(rec) - 0.1

@@ -1,4 +1,5 @@
-"""vibration planner node in its own process over real DDS (issue 5)."""
+"""vibration planner node in its own process over real DDS: the vibrate action (goal, feedback, result with
+its outcome code, cancel = ramp-out), its windows, and its refusals."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.srv import SetParameters
 from rclpy.parameter import Parameter
 from ros_client import PLANNER_NOT_READY, node_under_test
-from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import pose_to_position_quaternion, rotation_from_rpy
@@ -48,15 +48,12 @@ def set_params(client, **values):
     return client.call(SetParameters, "vibration_planner/set_parameters", request).results
 
 
-def trigger(client, name):
-    return client.call(Trigger, f"vibration_planner/{name}", Trigger.Request())
-
-
-def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=None, waiting_for=PLANNER_NOT_READY):
-    """Publish a pose estimate (a pose vector or a PoseStamped) and call start; while the planner has no pose
-    (or, with ``publish_also``, no /clock) yet -- a first sample sent as DDS was still matching waits for a
-    heartbeat: CI -- publish again (``publish_also()`` too) and retry for up to ``timeout_s``. Any answer other
-    than the refusals in ``waiting_for`` is returned at once."""
+def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=None, waiting_for=PLANNER_NOT_READY,
+                    **vibration):
+    """Publish a pose estimate (a pose vector or a PoseStamped) and send a vibrate goal; while the planner has
+    no pose (or, with ``publish_also``, no /clock) yet -- a first sample sent as DDS was still matching waits for
+    a heartbeat: CI -- publish again (``publish_also()`` too) and send again for up to ``timeout_s``. A goal that
+    started (its plan came) or ended with another outcome than those in ``waiting_for`` is returned at once."""
     msg = pose if isinstance(pose, PoseStamped) else pose_msg(pose)
     deadline = time.monotonic() + timeout_s
     while True:
@@ -64,9 +61,13 @@ def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=N
             publish_also()
         poses.publish(msg)
         client.spin_for(0.2)
-        response = trigger(client, "start")
-        if response.success or not any(r in response.message for r in waiting_for) or time.monotonic() > deadline:
-            return response
+        goal = client.vibrate(**vibration)
+        if goal.plan() is not None or goal.outcome()[0] not in waiting_for or time.monotonic() > deadline:
+            return goal
+
+
+def plan_t0(plan) -> float:
+    return plan.t0.sec + plan.t0.nanosec * 1e-9
 
 
 def independent_gains(robot, pose):
@@ -114,57 +115,62 @@ def planner_messages(diagnostics):
     return [s.message for a in diagnostics for s in a.status if s.name.startswith("vibration_planner")]
 
 
-def test_parameter_validation_and_bad_starts(planner):
+def test_parameter_validation_and_refused_goals(planner):
     proc, client = planner
     diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
-    bad = [
-        {"frequency_hz": 500.0},
-        {"direction": [0.0, 0.0, 0.0]},
-        {"frame": "world"},
-        {"duration_s": 0.1},  # shorter than the two 0.2 s ramps
-        {"lookahead_s": 0.4},  # not longer than window_period_s (0.5)
-        {"ramp_s": -1.0},
-        {"start_lead_s": 0.1},  # the first window would begin after t0 (lead_s 0.3)
-        {"max_lookahead_s": 1.0},  # below lookahead_s
-    ]
-    for values in bad:
+    for values in ({"lookahead_s": 0.4},  # not longer than window_period_s (0.5)
+                   {"start_lead_s": 0.1},  # the first window would begin after t0 (lead_s 0.3)
+                   {"max_lookahead_s": 1.0}):  # below lookahead_s
         (result,) = set_params(client, **values)
         assert not result.successful and result.reason, values
-    (ok,) = set_params(client, frequency_hz=40.0)
-    assert ok.successful
-    (typed,) = set_params(client, frequency_hz=35)  # at run time rclpy refuses an integer, with the reason
+    (typed,) = set_params(client, lead_s=1)  # at run time rclpy refuses an integer, with the reason
     assert not typed.successful and "DOUBLE" in typed.reason
+    (gone,) = set_params(client, frequency_hz=40.0)  # the vibration is the goal's: no parameter for it
+    assert not gone.successful
 
-    response = trigger(client, "start")
-    assert not response.success and "no platform/pose_estimate" in response.message
+    assert client.vibrate().outcome() == ("NOT_READY", "no platform/pose_estimate received yet")
     nan = pose_msg(np.zeros(6))
     nan.pose.position.x = float("nan")
     nan_poses = client.publisher("platform/pose_estimate", PoseStamped)
     assert client.wait_for_subscribers("platform/pose_estimate")
-    response = start_with_pose(client, nan_poses, nan)  # the NaN estimate is refused when a start needs it
-    assert not response.success and "pose estimate unusable" in response.message and "non-finite" in response.message
-    assert trigger(client, "stop").message == "already idle"
+    goal = start_with_pose(client, nan_poses, nan)  # the NaN estimate is refused when a goal needs it
+    name, message = goal.outcome()
+    assert name == "NOT_READY" and "pose estimate unusable" in message and "non-finite" in message
+    assert goal.status() == 6  # aborted
     assert client.spin_until(lambda: any("rejected start: pose estimate unusable" in m
                                          for m in planner_messages(diagnostics)), 5)
+
+    poses = nan_poses
+    for bad in ({"frequency_hz": 500.0}, {"direction": [0.0, 0.0, 0.0]}, {"frame": "world"}, {"frame": ""},
+                {"duration_s": 0.1},  # shorter than the two 0.2 s ramps
+                {"ramp_s": -1.0}, {"ramp_s": 0.0}, {"acceleration_g": 0.0}, {"phase_rad": float("nan")}):
+        goal = start_with_pose(client, poses, np.array([0, 0, 0.165, 0, 0, 0]), **bad)
+        name, message = goal.outcome()
+        assert name == "INVALID_ARGUMENT" and message, (bad, name, message)
+        assert goal.plan() is None
     assert proc.alive()
 
 
-def test_start_stream_stop_and_infeasible(robot, planner):
+def test_a_goal_streams_reports_feedback_and_its_cancel_ramps_out(robot, planner):
     proc, client = planner
     windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
     poses = client.publisher("platform/pose_estimate", PoseStamped)
     pose = paper_pose(robot)
     assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-    response = start_with_pose(client, poses, pose)
-    assert response.success, response.message
-    assert all(k in response.message for k in ("gains k", "leg amplitudes um", "settings: {"))
-    again = trigger(client, "start")
-    assert not again.success and "already running" in again.message
+    goal = start_with_pose(client, poses, pose, duration_s=0.0)  # until cancelled
+    plan = goal.plan()
+    assert plan is not None, goal.outcome()
+    amp = G_ACC * 9.80665 / (2 * np.pi * F) ** 2
+    gains = independent_gains(robot, pose)
+    np.testing.assert_allclose(plan.gains, gains, atol=1e-9)
+    np.testing.assert_allclose(plan.leg_amplitudes_m, np.abs(gains) * amp, rtol=1e-9)
+    assert abs(plan.amplitude_m - amp) < 1e-12 and plan.frequency_hz == F and plan.duration_s == 0.0
+    assert client.vibrate().outcome()[0] == "BUSY"  # one vibration at a time
     assert client.spin_until(lambda: len(windows) >= 4, 10), proc.log_text()
     running = list(windows)
 
-    # common stamp and names; each window safe on its own: from rest (the first) and back to rest at its end
-    assert len({(w.header.stamp.sec, w.header.stamp.nanosec) for w in running}) == 1
+    # common stamp (= the plan's t0) and names; each window safe on its own: from rest and back to rest at its end
+    assert {(w.header.stamp.sec, w.header.stamp.nanosec) for w in running} == {(plan.t0.sec, plan.t0.nanosec)}
     assert all(list(w.joint_names) == VIB for w in running)
     parts = [samples_of(w) for w in running]
     assert parts[0][0][0] == 0.0 and np.abs(parts[0][1][0]).max() == 0.0
@@ -183,8 +189,6 @@ def test_start_stream_stop_and_infeasible(robot, planner):
 
     # steady state: vib_i = k_i A sin(w t) (+ second order), amplitude |k_i| A, phase 0 or pi
     t, pos = parts[0][0], parts[0][1]
-    amp = G_ACC * 9.80665 / (2 * np.pi * F) ** 2
-    gains = independent_gains(robot, pose)
     steady = (t >= RAMP + 0.01) & (t < RAMP + 0.01 + 10 / F)
     w = 2 * np.pi * F
     basis = np.column_stack([np.sin(w * t[steady]), np.cos(w * t[steady]), np.ones(steady.sum())])
@@ -192,20 +196,28 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     np.testing.assert_allclose(coef[0], gains * amp, atol=1e-3 * amp)  # signed: phase 0 (k>0) or pi (k<0)
     assert np.abs(coef[1]).max() < 1e-3 * amp
 
-    # stop: one last window ramping out from a sample the previous windows carried at full amplitude
-    # found by content, not by count: windows published before the stop may still be queued here (beside a CPU
-    # hog 3 of them arrived after it); the ramp-out spans the ramp only, a streamed window 1.5 s and more
+    # feedback at 10 Hz (wall), each with the plan
+    count = len(goal.feedback)
+    client.spin_for(1.0)
+    assert len(goal.feedback) - count >= 8, len(goal.feedback) - count
+    assert all(plan_t0(f.feedback.plan) == plan_t0(plan) for f in goal.feedback)
+
+    # cancel: one last window ramping out from a sample the previous windows carried at full amplitude
+    # found by content, not by count: windows published before the cancel may still be queued here (beside a
+    # CPU hog 3 of them arrived after it); the ramp-out spans the ramp only, a streamed window 1.5 s and more
     def is_ramp_out(window) -> bool:
         t = samples_of(window)[0]
         return abs(t[-1] - t[0] - RAMP) < 2 * DT
 
     before = len(windows)
-    response = trigger(client, "stop")
-    assert response.success and "ramp-out" in response.message, response.message
+    goal.cancel()
     assert client.spin_until(lambda: any(is_ramp_out(w) for w in windows[before:]), 5)
-    client.spin_for(1.0)
+    name, message = goal.outcome(10)
+    assert name == "CANCELED" and goal.status() == 5, (name, message)
+    result = goal.result()
+    assert result.active_s > 1.0 and result.cycles_delivered > F * (result.active_s - 2 * RAMP) - 1e-6
     ramp_outs = [k for k in range(before, len(windows)) if is_ramp_out(windows[k])]
-    assert ramp_outs == [len(windows) - 1], "windows after the stop: one ramp-out, and nothing after it"
+    assert ramp_outs == [len(windows) - 1], "windows after the cancel: one ramp-out, and nothing after it"
     stop_index = ramp_outs[0]
     ts, ps, *_ = samples_of(windows[stop_index])
     t_prev, p_prev, *_ = samples_of(windows[stop_index - 1])
@@ -215,86 +227,83 @@ def test_start_stream_stop_and_infeasible(robot, planner):
     assert np.abs(np.diff(ps, axis=0)).max() <= 1.05 * w * amp * DT  # no step
 
     # infeasible: 150 um is above the unit's 100 um
-    assert client.spin_until(lambda: trigger(client, "stop").message == "already idle", 5)
-    (result,) = set_params(client, amplitude_m=150e-6)
-    assert result.successful
-    poses.publish(pose_msg(pose))
-    client.spin_for(0.2)
-    response = trigger(client, "start")
-    assert not response.success and "amplitude_max" in response.message, response.message
-    # a pose the robot cannot reach: the typed error text comes back
-    poses.publish(pose_msg(pose + np.array([0, 0, 0.2, 0, 0, 0])))
-    client.spin_for(0.2)
-    (result,) = set_params(client, amplitude_m=0.0)
-    response = trigger(client, "start")
-    assert not response.success and "StrokeLimitError" in response.message, response.message
+    goal = start_with_pose(client, poses, pose, amplitude_m=150e-6)
+    name, message = goal.outcome()
+    assert name == "LIMIT_EXCEEDED" and "amplitude_max" in message, (name, message)
+    # a pose the robot cannot reach: the typed error's outcome and text come back
+    goal = start_with_pose(client, poses, pose + np.array([0, 0, 0.2, 0, 0, 0]))
+    name, message = goal.outcome()
+    assert name == "UNREACHABLE_POSE" and "StrokeLimitError" in message, (name, message)
     assert proc.alive()
 
 
-def test_planner_follows_the_emulators_status(robot, planner):
-    """Refusal of its window, e-stop, units not at rest: the planner aborts with the reason, stops streaming,
-    and its next start works or says why not."""
+def test_the_goal_follows_the_emulators_status(robot, planner):
+    """Refusal of its window, e-stop, units not at rest: the goal ends with the outcome, streaming stops, and
+    the next goal works or ends with why not."""
     proc, client = planner
     windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
     diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     status = status_publisher(client)
     poses = client.publisher("platform/pose_estimate", PoseStamped)
     assert client.wait_for_subscribers("platform/pose_estimate") and client.wait_for_subscribers("vibration/status")
-    status.publish(emulator_status("idle", 0.0))
+    status.publish(emulator_status("idle", time.time()))  # the planner runs on the wall clock here
 
-    def start():
-        return start_with_pose(client, poses, paper_pose(robot))
+    def start(**vibration):
+        return start_with_pose(client, poses, paper_pose(robot), **vibration)
 
-    def t0_of(response):
-        return float(response.message.split("t0 = ")[1].split(" s")[0])
-
-    response = start()
-    assert response.success, response.message
-    t0 = t0_of(response)
+    goal = start(duration_s=0.0)
+    t0 = plan_t0(goal.plan())
     assert client.spin_until(lambda: len(windows) >= 2, 5)
     status.publish(emulator_status("pending", t0 - 1, event_seq=1, level=1,
                                    event="refused: vib_3: discontinuous splice at t = 12.0 s", event_stamp=t0))
-    assert client.spin_until(lambda: any("aborted: the hardware emulator refused" in m
-                                         for m in planner_messages(diagnostics)), 5), planner_messages(diagnostics)
+    name, message = goal.outcome(5)
+    assert name == "ROBOT_REFUSED" and "discontinuous splice" in message and goal.status() == 6
     count = len(windows)
     client.spin_for(1.2)  # more than two window periods: nothing more is sent
     assert len(windows) == count
 
     status.publish(emulator_status("idle", t0 + 1))
-    response = start()  # after an abort a new start works (no stop, no reset needed)
-    assert response.success, response.message
-    t0 = t0_of(response)
+    goal = start(duration_s=0.0)  # after an abort a new goal works (no reset needed)
+    t0 = plan_t0(goal.plan())
     status.publish(emulator_status("estopped", t0 + 0.1, event_seq=2, level=2, reason="emergency stop latched"))
-    assert client.spin_until(lambda: any("aborted: emergency stop" in m for m in planner_messages(diagnostics)), 5)
+    assert goal.outcome(5)[0] == "EMERGENCY_STOPPED"
     levels = [s.level for a in diagnostics for s in a.status if "aborted: emergency stop" in s.message]
-    assert levels and all(level == b"\x02" for level in levels)  # ERROR
-    response = start()
-    assert not response.success and "hardware_emulator/reset" in response.message
+    assert client.spin_until(lambda: levels or [s.level for a in diagnostics for s in a.status
+                                                if "aborted: emergency stop" in s.message], 5)
+    assert all(s.level == b"\x02" for a in diagnostics for s in a.status if "aborted: emergency stop" in s.message)
+    assert start().outcome()[0] == "ESTOP_LATCHED"
     status.publish(emulator_status("ramping_out", t0 + 2))
-    response = start()
-    assert not response.success and "not at rest" in response.message
+    assert start().outcome()[0] == "UNITS_NOT_AT_REST"
     status.publish(emulator_status("stopped", t0 + 3, reason="emergency stop"))
-    assert start().success
+    goal = start()
+    assert goal.plan() is not None, goal.outcome()
+    goal.cancel()
+    assert goal.outcome(10)[0] == "CANCELED"
+    # a robot on another clock (its status says 100 s: a sim clock) and a planner on the wall clock
+    status.publish(emulator_status("idle", 100.0))
+    name, message = start().outcome()
+    assert name == "CLOCK_MISMATCH" and "use_sim_time:=true" in message, (name, message)
     assert proc.alive()
 
 
-def test_streams_on_sim_time(robot, ros_domain, tmp_path):
+def test_a_goal_on_sim_time(robot, ros_domain, tmp_path):
     from rosgraph_msgs.msg import Clock
 
-    args = ["--ros-args", "-p", "use_sim_time:=true", "-p", "duration_s:=1.0", "-p", "ramp_s:=0.1"]
+    args = ["--ros-args", "-p", "use_sim_time:=true"]
     with node_under_test("planner_sim", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
                          args) as (proc, client):
         windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
         clock = client.publisher("/clock", Clock)
         poses = client.publisher("platform/pose_estimate", PoseStamped)
         assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-        response = start_with_pose(client, poses, paper_pose(robot), waiting_for=("no platform/pose_estimate",))
-        assert not response.success and "clock not running" in response.message, response.message
+        goal = start_with_pose(client, poses, paper_pose(robot), waiting_for=("NOT_READY",), duration_s=1.0,
+                               ramp_s=0.1)
+        assert goal.outcome()[0] == "CLOCK_NOT_RUNNING", goal.outcome()
 
         sim = 100.0
-        response = start_with_pose(client, poses, paper_pose(robot),
-                                   publish_also=lambda: clock.publish(Clock(clock=Time(sec=100))))
-        assert response.success, response.message
+        goal = start_with_pose(client, poses, paper_pose(robot), duration_s=1.0, ramp_s=0.1,
+                               publish_also=lambda: clock.publish(Clock(clock=Time(sec=100))))
+        assert goal.plan() is not None, goal.outcome()
         while sim < 102.5:  # 2.5 s of sim time at ~4x wall speed
             sim += 0.01
             ns = round(sim * 1e9)
@@ -307,4 +316,8 @@ def test_streams_on_sim_time(robot, ros_domain, tmp_path):
         t, pos, vel, _ = samples_of(windows[0])
         assert t[0] == 0.0 and abs(t[-1] - 1.0) < 1e-9 and len(t) == 1001
         assert np.abs(pos[[0, -1]]).max() < 1e-15 and np.abs(vel[[0, -1]]).max() < 1e-12  # rest to rest
-        assert trigger(client, "stop").message == "already idle"
+        name, _ = goal.outcome(10)
+        assert name == "SUCCEEDED" and goal.status() == 4
+        result = goal.result()
+        # the whole vibration ran: 1 s with 0.1 s quintic ramps (each half its length at full amplitude)
+        assert abs(result.active_s - 1.0) < 0.02 and abs(result.cycles_delivered - F * 0.9) < 0.02 * F

@@ -2,7 +2,8 @@
 
 Every error says what is wrong and, where it applies, which leg (1..6) and
 which batch sample. Input errors are also ``ValueError`` so generic callers
-can catch them.
+can catch them. Each class names its ``outcome``: the name of its code in the suite's one outcome table
+(stewart_vibration_interfaces/msg/Outcome, docs/interfaces.md), which nodes put in their typed answers.
 """
 
 from __future__ import annotations
@@ -11,13 +12,27 @@ from __future__ import annotations
 class StewartError(Exception):
     """Base class of every error raised by the core library."""
 
+    outcome = "INTERNAL_ERROR"
+
+
+class RefusedError(StewartError):
+    """A request refused with a given ``outcome`` (a name of the outcome table, e.g. "BUSY", "NOT_READY")."""
+
+    def __init__(self, outcome: str, message: str):
+        super().__init__(message)
+        self.outcome = outcome
+
 
 class ConfigError(StewartError, ValueError):
     """The robot configuration file is missing a field or has a bad value."""
 
+    outcome = "INVALID_ARGUMENT"
+
 
 class InvalidInputError(StewartError, ValueError):
     """An argument has the wrong shape, is not finite, or is out of its domain."""
+
+    outcome = "INVALID_ARGUMENT"
 
 
 class UnreachablePoseError(StewartError, ValueError):
@@ -28,6 +43,8 @@ class UnreachablePoseError(StewartError, ValueError):
     limit's unit); along a path also ``limit_name`` (e.g. "universal_joint_max") and ``time`` (s, when
     the path reaches the violation).
     """
+
+    outcome = "UNREACHABLE_POSE"
 
     def __init__(self, message: str, *, leg=None, sample=None, value=None, limit=None, limit_name=None,
                  time=None):
@@ -56,6 +73,8 @@ class SingularPoseError(UnreachablePoseError):
 class ForwardKinematicsError(StewartError):
     """Newton forward kinematics did not converge or found another assembly mode."""
 
+    outcome = "NOT_READY"  # no usable pose from the measured lengths
+
 
 class LimitExceededError(StewartError, ValueError):
     """A command exceeds a hardware limit.
@@ -63,6 +82,8 @@ class LimitExceededError(StewartError, ValueError):
     Attributes: ``leg`` (1..6 or None), ``limit_name``, ``value``, ``limit``, ``time`` (s, when a command
     reaches the limit, or None).
     """
+
+    outcome = "LIMIT_EXCEEDED"
 
     def __init__(self, message: str, *, leg=None, limit_name=None, value=None, limit=None, time=None):
         super().__init__(message)
@@ -105,6 +126,8 @@ class MalformedMessageError(InvalidInputError):
 class PhysicsFaultError(StewartError):
     """The emulated robot's physics diverged: the fault is latched and the robot held (see
     ``emulation.physics_guard``). Attributes: ``time`` (s, sim time of the fault) and ``reason``."""
+
+    outcome = "PHYSICS_FAULT"
 
     def __init__(self, message: str, *, time=None, reason=""):
         super().__init__(message)

@@ -422,7 +422,7 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
         robot: the robot.
         signals: from ``load_signals`` (or the planning UI's live buffers in the same form).
         nominal_pose: the platform pose [6] the vibration was planned at (m, rad).
-        settings: the settings the planner reports it ran (its start answer: every key of
+        settings: the settings of the vibration that ran (the vibrate goal's: every key of
             ``vibration.settings.VIBRATION_KEYS``; no defaults are filled in here).
         start_time: a lower bound of the vibration's t0 (sim s; every window is stamped with t0).
 

@@ -345,9 +345,10 @@ Nodes are running (Ctrl-C stops them and finishes the MCAP). In another shell:
   export ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
   ros2 topic pub --once {ns}/platform/target_pose geometry_msgs/msg/PoseStamped \\
     "{{header: {{frame_id: base}}, pose: {{position: {{z: 0.165}}, orientation: {{w: 1.0}}}}}}"
-  ros2 param set {ns}/vibration_planner acceleration_g 0.3
-  ros2 service call {ns}/vibration_planner/start std_srvs/srv/Trigger
-  ros2 service call {ns}/vibration_planner/stop std_srvs/srv/Trigger
+  ros2 action send_goal --feedback {ns}/vibration_planner/vibrate stewart_vibration_interfaces/action/Vibrate \\
+    "{{direction: [0.0, 0.0, 1.0], frame: platform, acceleration_g: 0.3, frequency_hz: 35.0, \\
+      duration_s: 2.0, ramp_s: 0.2}}"
+  ros2 service call {ns}/vibration_planner/vibrate/_action/cancel_goal action_msgs/srv/CancelGoal
   ros2 service call {ns}/hardware_emulator/emergency_stop std_srvs/srv/Trigger
 """, flush=True)
 

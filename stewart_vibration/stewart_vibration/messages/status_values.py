@@ -4,8 +4,8 @@ kinematics/guard_status and /diagnostics, and the planner's start answer.
 The one place where a status's text becomes typed values: a reader gets a ``StatusMessage`` (checked
 as a whole: level 0..3, every string clean, keys unique, bounded sizes) and asks it for what it needs
 through typed accessors (``number``, ``integer``, ``choice``, ``numbers``) or one of the typed readers
-(``vibration_report``, ``guard_status``, ``planner_status``, ``recorder_files``, ``emulator_rejections``,
-``start_answer``, ``ran_settings``, ``planner_settings``). Each returns a value or raises
+(``vibration_report``, ``guard_status``, ``recorder_files``, ``emulator_rejections``,
+``planner_settings``). Each returns a value or raises
 ``MalformedMessageError``; a caller counts and ignores what raised (``MalformedCounter``) and goes on
 with its last good state. When the status topics become typed messages, this module is what changes.
 """
@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import math
-import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
@@ -23,9 +22,9 @@ import numpy as np
 
 from ..emulation.vibration_status import VibrationReport
 from ..errors import InvalidInputError, MalformedMessageError
-from ..vibration.settings import SETTINGS
+from ..vibration.settings import STREAM_KEYS
 from .cdr import DiagnosticStatusData, decode_diagnostic_array, decode_diagnostic_status
-from .fields import MAX_TEXT, check_number, check_text, parse_integer, parse_number
+from .fields import check_number, check_text, parse_integer, parse_number
 
 MAX_VALUES = 512  # key/values of one status (the suite's largest has ~30)
 MAX_STATUSES = 1024  # statuses of one DiagnosticArray
@@ -226,20 +225,6 @@ def emulator_rejections(status: StatusMessage) -> int | None:
 
 
 @dataclass(frozen=True)
-class PlannerStatus:
-    """The vibration planner's /diagnostics: its state ("idle", "running", "stopping", "aborted: <reason>")
-    and the running vibration's t0 (s; None when none runs)."""
-
-    state: str
-    t0_s: float | None
-
-
-def planner_status(status: StatusMessage) -> PlannerStatus:
-    """The PlannerStatus of the vibration planner's /diagnostics status."""
-    return PlannerStatus(_get(status.values, "state"), number(status.values, "t0_s", empty=None))
-
-
-@dataclass(frozen=True)
 class RecorderFiles:
     """The MCAP recorder's files as its /diagnostics names them: the one being written ("" when not
     recording) and the last finished one ("" before the first)."""
@@ -290,8 +275,6 @@ def guard_status_from_values(values: Mapping[str, str], message: str = "") -> Gu
 
 
 # -- the vibration planner's start answer ---------------------------------------------------------------------
-_LIST = r"(\[[^\]]{0,4000}\])"
-_T0 = re.compile(r"t0 = ([-+0-9.eE]{1,40}) s")
 
 
 def _json(text: str):
@@ -304,94 +287,12 @@ def _json(text: str):
         raise MalformedMessageError(f"not JSON: {str(exc)[:80]}", field="settings", kind="type") from None
 
 
-def _finite_list(text: str | None, key: str, count: int | None = None) -> list[float] | None:
-    if text is None:
-        return None
-    try:
-        values = _json(text)
-        if not isinstance(values, list) or (count is not None and len(values) != count) or not all(
-                isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in values):
-            return None
-    except MalformedMessageError:
-        return None
-    return [float(v) for v in values]
-
-
-def start_answer(text) -> dict:
-    """The vibration planner's start answer -> {gains, leg_amplitudes_um, leg_phases_rad (6 finite numbers
-    each), t0_s, settings (the JSON after "settings: "), text (the answer without it)}; None where a part is
-    missing or malformed.
-
-    Raises:
-        MalformedMessageError: ``text`` itself is not a clean string (see ``fields.check_text``).
-    """
-    text = check_text(text, "start answer", MAX_TEXT)
-
-    def find(pattern: str, key: str):
-        m = re.search(pattern, text)
-        return _finite_list(m.group(1) if m else None, key, 6)
-
-    settings = None
-    if "settings: " in text:
-        try:
-            settings = _json(text.rsplit("settings: ", 1)[1])
-        except MalformedMessageError:
-            settings = None
-        settings = settings if isinstance(settings, dict) else None
-    t0 = None
-    if (m := _T0.search(text)) is not None:
-        try:
-            t0 = parse_number(m.group(1), "t0_s")
-        except MalformedMessageError:
-            t0 = None
-    return {"gains": find(r"gains k = " + _LIST, "gains"),
-            "leg_amplitudes_um": find(r"leg amplitudes um = " + _LIST, "leg_amplitudes_um"),
-            "leg_phases_rad": find(r"leg phases rad = " + _LIST, "leg_phases_rad"), "t0_s": t0,
-            "settings": settings, "text": text.rsplit("; settings: ", 1)[0]}
-
-
-def ran_settings(text) -> dict:
-    """The settings the planner says it ran: the JSON object after "settings: " in its start answer, with t0_s,
-    ramp_s and duration_s finite numbers (s; ramp and duration >= 0).
-
-    Raises:
-        MalformedMessageError: no such object, or one of those three missing or not such a number.
-    """
-    text = check_text(text, "start answer", MAX_TEXT)
-    if "settings: " not in text:
-        raise MalformedMessageError("the start answer carries no 'settings: ' JSON", field="settings", kind="missing")
-    settings = _json(text.rsplit("settings: ", 1)[1])
-    if not isinstance(settings, dict):
-        raise MalformedMessageError("the start answer's settings are not a JSON object", field="settings", kind="type")
-    for key, low in (("t0_s", -math.inf), ("ramp_s", 0.0), ("duration_s", 0.0)):
-        value = settings.get(key)
-        if isinstance(value, bool) or not isinstance(value, (int, float)) or not low <= value < math.inf:
-            raise MalformedMessageError(f"the start answer's {key} is not a finite number >= {low:g}: {value!r}"[:120],
-                                        field=key, kind="range" if isinstance(value, (int, float)) else "type")
-    return settings
-
-
 def planner_settings(values: Mapping[str, object]) -> dict:
-    """The vibration planner's settings as its get_parameters answers them (Python values of each name of
-    vibration.settings.SETTINGS): direction 3 finite numbers, frame "platform" or "base", every other one a
-    finite number (floats then). The values' plausibility is the planner's settings check's business.
+    """The vibration planner's streaming parameters as its get_parameters answers them (Python values of each
+    name of vibration.settings.STREAM_KEYS), every one a finite number (floats then). The values' plausibility
+    is the planner's settings check's business.
 
     Raises:
         MalformedMessageError: a name missing or a value of the wrong kind.
     """
-    out: dict = {}
-    for name in SETTINGS:
-        value = _get(values, name)  # type: ignore[arg-type]  # any Mapping[str, ...]
-        if name == "direction":
-            if not isinstance(value, (list, tuple)) or len(value) != 3:
-                raise MalformedMessageError(f"direction must be 3 numbers, got {str(value)[:60]}", field=name,
-                                            kind="length")
-            out[name] = [check_number(v, name) for v in value]
-        elif name == "frame":
-            if not isinstance(value, str):
-                raise MalformedMessageError(f"frame must be a string, got {type(value).__name__}", field=name,
-                                            kind="type")
-            out[name] = choice({name: value}, name, ("platform", "base"))
-        else:
-            out[name] = check_number(value, name)
-    return out
+    return {name: check_number(_get(values, name), name) for name in STREAM_KEYS}  # type: ignore[arg-type]

@@ -6,9 +6,11 @@ default; port 0 = any free port) behind a random access token, and logs its URL 
 
 It uses what any client of the suite uses, nothing private:
 pub platform/target_pose (PoseStamped, base); calls kinematics/plan_path (GetPlan; an empty path's
-reason comes from the kinematics node's /diagnostics), vibration_planner/set_parameters_atomically,
-get_parameters and describe_parameters, vibration_planner/start and /stop, hardware_emulator/emergency_stop
-and /reset (Trigger); subscribes legs/joint_states, platform/pose_estimate (the controller's pose, FK of the
+reason comes from the kinematics node's /diagnostics), vibration_planner/get_parameters and
+describe_parameters (the streaming settings), the vibration_planner/vibrate action (a start is a goal, its
+refusal the result's outcome; stop cancels every vibrate goal), hardware_emulator/emergency_stop and /reset
+(Trigger); subscribes the vibrate action's feedback (any client's vibration: its plan and what the sensors
+show delivered), legs/joint_states, platform/pose_estimate (the controller's pose, FK of the
 sensed lengths: the page shows what the controller knows, never the emulator's truth),
 legs/force_estimate (raw, best effort: a slow page never holds up a publisher), vibration/status,
 /diagnostics (the recorder's status names the file it writes) and /rosout (its "recording to <path>").
@@ -37,17 +39,21 @@ import time
 from pathlib import Path
 
 import numpy as np
+from action_msgs.srv import CancelGoal
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import Log
-from rcl_interfaces.srv import DescribeParameters, GetParameters, SetParametersAtomically
+from rcl_interfaces.srv import DescribeParameters, GetParameters
+from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+
+from stewart_vibration_interfaces.action import Vibrate
 
 from ..errors import MalformedMessageError, StewartError
 from ..kinematics.robot_config import load_robot
@@ -57,9 +63,7 @@ from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import (
     MAX_PATH,
     planner_settings,
-    planner_status,
     recorder_files,
-    start_answer,
     statuses_from_cdr,
     vibration_report_from_cdr,
 )
@@ -67,7 +71,7 @@ from ..paper import paper_pose
 from ..robot import STANDARD_GRAVITY
 from ..ui import model
 from ..ui.server import UiServer, bind
-from ..vibration.settings import SETTINGS
+from ..vibration.settings import STREAM_KEYS, VIBRATION_KEYS, default_settings
 from .common import (
     BASE_FRAME,
     OK,
@@ -82,6 +86,8 @@ from .common import (
     run_node,
     text_param,
 )
+from .outcomes import outcome_name
+from .vibration_goal import goal_message, plan_record, settings_of_plan
 
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -174,14 +180,18 @@ class PlanningUiNode(Node):
         self.create_subscription(Log, "/rosout", self._on_rosout, ROSOUT_QOS)
         self.clients_ = {
             "plan_path": self.create_client(GetPlan, "kinematics/plan_path"),
-            "set": self.create_client(SetParametersAtomically, "vibration_planner/set_parameters_atomically"),
             "get": self.create_client(GetParameters, "vibration_planner/get_parameters"),
             "describe": self.create_client(DescribeParameters, "vibration_planner/describe_parameters"),
-            "start": self.create_client(Trigger, "vibration_planner/start"),
-            "stop": self.create_client(Trigger, "vibration_planner/stop"),
+            # cancel every vibrate goal, whoever sent it (the action protocol: a zero goal id and stamp)
+            "stop": self.create_client(CancelGoal, "vibration_planner/vibrate/_action/cancel_goal"),
             "estop": self.create_client(Trigger, "hardware_emulator/emergency_stop"),
             "reset": self.create_client(Trigger, "hardware_emulator/reset"),
         }
+        self.vibrate_client = ActionClient(self, Vibrate, "vibration_planner/vibrate")
+        # every vibration's feedback, whoever started it: the plan to follow and what the sensors show delivered
+        self.create_subscription(Vibrate.Impl.FeedbackMessage, "vibration_planner/vibrate/_action/feedback",
+                                 self._on_vibration_feedback, 10)
+        self.vibration_feedback = None  # the latest Vibrate feedback (any client's goal)
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0 / self.frame_rate, self._frame, clock=steady)
         # rclpy's EventsExecutor has no guard conditions: the queue is polled (an e-stop waits <= 10 ms)
@@ -241,8 +251,6 @@ class PlanningUiNode(Node):
                     "rejected" in status.message or "aborted" in status.message):
                 self._event(node, status.message, LEVELS.get(level, "ERROR"))
             try:
-                if node == "vibration_planner":
-                    self._follow_planner(status)
                 if node == "mcap_recorder":  # the file being written (also for a page opened after it started)
                     self._follow_recorder(status)
             except MalformedMessageError as exc:
@@ -431,7 +439,18 @@ class PlanningUiNode(Node):
         return {"state": r.state, "level": r.level, "reason": r.reason, "since_s": r.since, "time_s": r.time,
                 "amplitude_um": (r.amplitude * 1e6).tolist(), "event": r.event, "accepted": r.accepted,
                 "refused": r.refused, "estopped": r.state == "estopped",
-                "planner": planner.get("values", {}).get("state"), "planner_message": planner.get("message")}
+                "planner": planner.get("values", {}).get("state"), "planner_message": planner.get("message"),
+                "delivered": self._delivered_view()}
+
+    def _delivered_view(self) -> dict | None:
+        """What the latest vibration feedback says the sensors show delivered (None before any)."""
+        f = self.vibration_feedback
+        if f is None:
+            return None
+        return {"elapsed_s": f.elapsed_s, "frequency_hz": f.frequency_hz,
+                "amplitude_um": f.delivered_amplitude_m * 1e6,
+                "direction_error_deg": float(np.degrees(f.direction_error_rad)),
+                "phase_spread_deg": float(np.degrees(f.phase_spread_rad))}
 
     def _slow_tick(self) -> None:
         if not self.planner_known:
@@ -447,17 +466,17 @@ class PlanningUiNode(Node):
         except OSError:  # a path the recorder named that cannot be listed (gone, unreadable, too long)
             self.report_files = []
 
-    def _follow_planner(self, status) -> None:
-        """A vibration started by another client (the runner, ros2 service call): follow it for the summary."""
-        planner = planner_status(status)
-        t0 = planner.t0_s
-        if planner.state != "running" or t0 is None:
+    def _on_vibration_feedback(self, msg) -> None:
+        """A vibration's feedback (this page's goal or another client's: the runner, ros2 action send_goal):
+        follow a new plan for the summary, keep the delivered figures for the page."""
+        feedback = msg.feedback
+        self.vibration_feedback = feedback
+        plan = plan_record(feedback.plan)
+        if self.run is not None and abs(self.run["t0"] - plan["t0_s"]) < 1e-6:
             return
-        if self.run is not None and abs(self.run["t0"] - t0) < 1e-6:
-            return
-        nominal = self.latest.get("estimate", (None, None))[1]
-        self.run = {"t0": t0, "settings": None, "nominal": nominal, "source": "another client"}
-        self._get_planner_settings(lambda settings, run=self.run: run.__setitem__("settings", settings))
+        ours = bytes(msg.goal_id.uuid) == getattr(self, "own_goal", None)
+        self.run = {"t0": plan["t0_s"], "settings": settings_of_plan(plan), "nominal": np.asarray(plan["pose"]),
+                    "source": "this page" if ours else "another client"}
 
     def _summarize(self, run: dict, ended: float) -> None:
         if run.get("settings") is None or run.get("nominal") is None:
@@ -561,9 +580,10 @@ class PlanningUiNode(Node):
                "check": check})
 
     def _vibration_settings(self, args) -> tuple[dict, dict]:
-        """(the parameters to set, the planner's full settings with them)."""
+        """(the page's vibration, every setting with it: the planner's streaming parameters and the defaults of
+        what the page left out)."""
         params = model.vibration_from_fields(args)
-        return params, {**self.planner_settings, **params}
+        return params, {**default_settings(self.robot), **self.planner_settings, **params}
 
     def _estimate(self) -> np.ndarray:
         if "estimate" not in self.latest or time.monotonic() - self.seen.get("platform/pose_estimate", 0) > 1.0:
@@ -584,38 +604,55 @@ class PlanningUiNode(Node):
             reply({"ok": False, "refused_by": "planning_ui", "message": "not started: the platform is still moving "
                    "to its target (start when the move has settled)"})
             return
-        request = SetParametersAtomically.Request()
-        request.parameters = [Parameter(k, value=v).to_parameter_msg() for k, v in params.items()]
-
-        def after_set(response):
-            if not response.result.successful:
-                reply({"ok": False, "refused_by": "vibration_planner",
-                       "message": f"parameters refused: {response.result.reason}"})
-                return
-            self.planner_settings.update(params)
-            preview = model.vibration_preview(self.robot, pose, settings, self.planner_ranges)
-            if not preview["feasible"]:
-                reply({"ok": False, "refused_by": "planning_ui (core checks)", "message": f"not started: "
-                       f"{preview['reason']}", "preview": preview})
-                return
-            self._call("start", Trigger.Request(), lambda r: self._after_start(r, preview, pose, reply), reply)
-
-        self._call("set", request, after_set, reply)
-
-    def _after_start(self, response, preview, pose, reply) -> None:
-        if not response.success:
-            reply({"ok": False, "refused_by": "vibration_planner", "message": response.message, "preview": preview})
+        preview = model.vibration_preview(self.robot, pose, settings, self.planner_ranges)
+        if not preview["feasible"]:
+            reply({"ok": False, "refused_by": "planning_ui (core checks)", "message": f"not started: "
+                   f"{preview['reason']}", "preview": preview})
             return
-        answer = start_answer(response.message)
-        if answer["t0_s"] is not None and answer["settings"] is not None:
-            self.run = {"t0": answer["t0_s"], "settings": answer["settings"], "nominal": pose, "source": "this page"}
-        match = None
-        if answer["leg_amplitudes_um"]:
-            match = float(np.abs(np.array(answer["leg_amplitudes_um"]) - preview["leg_amplitudes_um"]).max())
-        self.last_start = answer
-        self._event("vibration_planner", answer["text"], "OK")
-        reply({"ok": True, "message": answer["text"], "answer": answer, "preview": preview,
-               "preview_vs_answer_um": match})
+        if not self.vibrate_client.server_is_ready():
+            reply({"ok": False, "refused_by": "planning_ui", "message": "the vibration_planner/vibrate action is not "
+                   "available (is the vibration planner running?)"})
+            return
+        vibration = {k: settings[k] for k in VIBRATION_KEYS}
+        answered = {"done": False}
+
+        def answer(payload: dict) -> None:
+            if not answered["done"]:
+                answered["done"] = True
+                reply(payload)
+
+        def on_feedback(msg) -> None:  # the first feedback carries the plan: the vibration started
+            if answered["done"]:
+                return
+            plan = plan_record(msg.feedback.plan)
+            self.run = {"t0": plan["t0_s"], "settings": settings_of_plan(plan), "nominal": pose,
+                        "source": "this page"}
+            match = float(np.abs(np.asarray(plan["leg_amplitudes_m"]) * 1e6 - preview["leg_amplitudes_um"]).max())
+            self.last_start = plan
+            text = (f"started: {plan['frequency_hz']:g} Hz, platform amplitude {plan['amplitude_m'] * 1e6:.3f} um "
+                    f"along {np.round(plan['direction_base'], 6).tolist()} (base frame), t0 = {plan['t0_s']:.6f} s")
+            self._event("vibration_planner", text, "OK")
+            answer({"ok": True, "message": text, "plan": plan, "preview": preview, "preview_vs_plan_um": match})
+
+        def on_result(future) -> None:
+            result = future.result()
+            if result is None:
+                return
+            code = result.result.outcome
+            if code.code != code.SUCCEEDED:
+                self._event("vibration_planner", f"{outcome_name(code.code)}: {code.message}", "WARN")
+            answer({"ok": False, "refused_by": "vibration_planner", "outcome": outcome_name(code.code),
+                    "message": code.message, "preview": preview})
+
+        def on_goal(future) -> None:
+            if future.exception() is not None or not future.result().accepted:
+                answer({"ok": False, "refused_by": "vibration_planner", "message": "the goal was not accepted"})
+                return
+            self.own_goal = bytes(future.result().goal_id.uuid)
+            future.result().get_result_async().add_done_callback(on_result)
+
+        self.vibrate_client.send_goal_async(goal_message(vibration), feedback_callback=on_feedback
+                                            ).add_done_callback(on_goal)
 
     def _trigger(self, name: str, reply) -> None:
         def done(response):
@@ -624,7 +661,13 @@ class PlanningUiNode(Node):
         self._call(name, Trigger.Request(), done, reply)
 
     def _cmd_stop(self, args, reply) -> None:
-        self._trigger("stop", reply)
+        """Cancel every vibration (the units ramp out), whichever client started it."""
+        def done(response):
+            canceling = len(response.goals_canceling)
+            reply({"ok": response.return_code == CancelGoal.Response.ERROR_NONE or canceling == 0,
+                   "message": f"cancelling {canceling} vibration(s): the units ramp out" if canceling else
+                   "no vibration is running"})
+        self._call("stop", CancelGoal.Request(), done, reply)
 
     def _send_estops(self) -> None:
         """The pages' e-stops, first and coalesced: one hardware_emulator/emergency_stop call at a time, sent again
@@ -745,11 +788,11 @@ class PlanningUiNode(Node):
     def _fetch_planner(self) -> None:
         """The planner's current settings and declared ranges (for the preview's checks)."""
         def got(settings):
-            self.planner_settings.update({k: v for k, v in settings.items() if k not in model.VIBRATION_PARAMETERS})
+            self.planner_settings.update({k: v for k, v in settings.items() if k in STREAM_KEYS})
             self.planner_known = True
 
         self._get_planner_settings(got)
-        names = [n for n in SETTINGS if n not in ("direction", "frame")]
+        names = list(STREAM_KEYS)
         describe = self.clients_["describe"]
         if describe.service_is_ready():
             def described(f):
@@ -770,11 +813,11 @@ class PlanningUiNode(Node):
             if f.exception() is not None:
                 return
             try:
-                then(planner_settings(parameter_values(SETTINGS, f.result().values)))
+                then(planner_settings(parameter_values(STREAM_KEYS, f.result().values)))
             except MalformedMessageError as exc:
                 self.malformed.refuse("vibration_planner/get_parameters", exc)
 
-        client.call_async(GetParameters.Request(names=list(SETTINGS))).add_done_callback(got)
+        client.call_async(GetParameters.Request(names=list(STREAM_KEYS))).add_done_callback(got)
 
 
 def parameter_values(names, values) -> dict:

@@ -23,7 +23,8 @@ from lifecycle_msgs.srv import ChangeState
 # RESEND_AFTER_S without an answer (CI once waited 20 s for vibration_planner/set_parameters, and once for
 # hardware_emulator/get_state, answers lost right after discovery)
 IDEMPOTENT_SERVICES = ("/set_parameters", "/get_parameters", "/describe_parameters", "/list_parameters",
-                       "/plan_path", "/get_state", "/get_available_states", "/get_available_transitions")
+                       "/plan_path", "/get_state", "/get_available_states", "/get_available_transitions",
+                       "/_action/cancel_goal")  # cancelling every goal again cancels nothing more
 RESEND_AFTER_S = 5.0
 
 # the primary state a lifecycle transition ends in when it succeeds (lifecycle_msgs/State labels)

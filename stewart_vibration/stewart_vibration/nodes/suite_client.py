@@ -15,14 +15,15 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from rcl_interfaces.srv import SetParameters
+from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
+
+from stewart_vibration_interfaces.action import Vibrate
 
 from ..messages.stamped import pose_from_cdr
 from ..messages.status_values import (
@@ -35,20 +36,22 @@ from ..motion.force_guard import LAG_MEMORY_S
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
-from ..runtime.steps import StepFailed
+from ..runtime.steps import StepFailed, VibrationEnd, VibrationStart
 from . import ensure_ament_prefix_path
 from .common import MalformedInputs, make_executor, pose_stamped, stamp_seconds
+from .outcomes import outcome_name
 from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
+from .vibration_goal import goal_message, plan_record
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
 
     from ..emulation.vibration_status import VibrationReport
 
-# planner refusals that only mean "not yet" (its clock or pose input has not arrived): start is retried
 # the 500 Hz poses a settling move follows (raw, checked and decoded only when asked): topic -> what it is
 FOLLOWED_POSES = {"ground_truth/platform_pose": "ground-truth pose", "platform/pose_estimate": "pose estimate"}
-NOT_READY_YET = ("clock not running", "no platform/pose_estimate received yet", "pose estimate is")
+# planner refusals that only mean "not yet" (its clock or pose input has not arrived): the goal is sent again
+NOT_READY_YET = ("NOT_READY", "CLOCK_NOT_RUNNING")
 # before the first move the force estimates must have kept within ESTIMATES_CURRENT_S (sim s) of /clock for longer
 # than the force guard remembers a lag (it slows moves by the largest lag of the last LAG_MEMORY_S; 0.15 s still
 # allows 10 mm/s); at most ESTIMATES_CURRENT_WAIT_S of wall time, then the run goes on and says so
@@ -85,7 +88,6 @@ class SuiteClient:
         self.target_pub = self.node.create_publisher(PoseStamped, "platform/target_pose", 10)
         self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
-        self.planner_message: str | None = None  # message of the planner's latest /diagnostics status
         self.recorder_fault: str | None = None  # the recorder's write failure (its /diagnostics fault_reason)
         self.stopping = False  # set for the safe stop after a failure: waits then go on despite the fault
         self.recorder_ready_clock: float | None = None  # /clock when the recorder was seen recording the states
@@ -99,6 +101,8 @@ class SuiteClient:
         self._raw_poses: dict[str, bytes] = {}  # topic -> its newest raw message while followed
         # topic -> (the raw message last decoded, its pose or the last good one)
         self._decoded: dict[str, tuple] = {topic: (None, None) for topic in FOLLOWED_POSES}
+        self.vibrate_client = ActionClient(self.node, Vibrate, "vibration_planner/vibrate")
+        self._vibration: dict = {}  # the latest vibrate goal: handle, plan (record), result (VibrationEnd)
 
     # -- callbacks --------------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
@@ -117,9 +121,7 @@ class SuiteClient:
         for error in errors:
             self.malformed.refuse("/diagnostics", error)
         for status in statuses:
-            if status.node == "vibration_planner":
-                self.planner_message = status.message
-            elif status.name.startswith("mcap_recorder") and self.recorder_fault is None:
+            if status.name.startswith("mcap_recorder") and self.recorder_fault is None:
                 if status.values.get("fault") == "write_failed":  # the typed field, not the message text
                     self.recorder_fault = status.values.get("fault_reason") or "write failed"
 
@@ -214,9 +216,9 @@ class SuiteClient:
         progress("ready: kinematics (pose estimates)")
         self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
         progress("ready: leg_force_estimator (force estimates)")
-        for service in ("vibration_planner/start", "mcap_recorder/stop"):
-            self._ready_client(Trigger, service, 60)
-        progress("ready: vibration_planner, mcap_recorder (services)")
+        self._ready_client(Trigger, "mcap_recorder/stop", 60)
+        self.spin_until(self.vibrate_client.server_is_ready, 60, "the vibration_planner/vibrate action")
+        progress("ready: vibration_planner (action), mcap_recorder (services)")
 
         def recorder_subscribed():
             infos = self.node.get_subscriptions_info_by_topic(f"{ns}/legs/joint_states")
@@ -294,25 +296,56 @@ class SuiteClient:
     def guard_status(self) -> GuardStatus | None:
         return self._guard
 
-    def set_planner_parameters(self, parameters: dict) -> list[str]:
-        """Set the planner's parameters (one SetParameters call); the refusals as "name: reason"."""
-        params = []
-        for key, value in parameters.items():
-            value = [float(v) for v in value] if isinstance(value, list) else value
-            value = float(value) if isinstance(value, int) and not isinstance(value, bool) else value
-            params.append(Parameter(key, value=value).to_parameter_msg())
-        res = self.call(SetParameters, "vibration_planner/set_parameters", SetParameters.Request(parameters=params))
-        return [f"{p.name}: {r.reason}" for p, r in zip(params, res.results, strict=True) if not r.successful]
-
-    def start_vibration(self) -> tuple[bool, str]:
-        """The planner's start; retried for up to 10 s while it only answers "not yet" (NOT_READY_YET)."""
-        res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
+    def start_vibration(self, vibration: dict) -> VibrationStart:
+        """Send the vibrate goal of ``vibration`` (the VIBRATION_KEYS) and wait for its plan (the first feedback)
+        or its refusal (the result); sent again for up to 10 s while the planner only says "not yet"
+        (NOT_READY_YET: its clock or pose estimate has not arrived)."""
         deadline = time.monotonic() + 10.0
-        while not res.success and res.message.startswith(NOT_READY_YET) and time.monotonic() < deadline:
+        while True:
+            self._vibration = {"plan": None, "result": None}
+            send = self.vibrate_client.send_goal_async(goal_message(vibration), feedback_callback=self._on_feedback)
+            self.spin_until(send.done, 30.0, "the planner to take the vibrate goal")
+            handle = send.result()
+            if not handle.accepted:
+                return VibrationStart(False, "INTERNAL_ERROR", "the planner rejected the goal", None)
+            self._vibration["handle"] = handle
+            handle.get_result_async().add_done_callback(self._on_result)
+            self.spin_until(lambda: self._vibration["plan"] is not None or self._vibration["result"] is not None,
+                            30.0, "the planner to start the vibration")
+            result = self._vibration["result"]
+            if self._vibration["plan"] is not None or result is None:
+                return VibrationStart(True, "SUCCEEDED", "started", self._vibration["plan"])
+            if result.outcome not in NOT_READY_YET or time.monotonic() >= deadline:
+                return VibrationStart(False, result.outcome, result.message, None)
             end = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
             self.spin_until(lambda e=end: time.monotonic() >= e, 1.0, "a moment")
-            res = self.call(Trigger, "vibration_planner/start", Trigger.Request())
-        return res.success, res.message
+
+    def _on_feedback(self, msg) -> None:
+        if self._vibration.get("plan") is None:
+            self._vibration["plan"] = plan_record(msg.feedback.plan)
+
+    def _on_result(self, future) -> None:
+        answer = future.result()
+        if answer is None:
+            return
+        r = answer.result
+        self._vibration["result"] = VibrationEnd(outcome_name(r.outcome.code), r.outcome.message, r.active_s,
+                                                 r.cycles_delivered)
+        if self._vibration.get("plan") is None and r.plan.frequency_hz > 0:
+            self._vibration["plan"] = plan_record(r.plan)
+
+    def vibration_result(self) -> VibrationEnd | None:
+        """The latest vibrate goal's result, None while it runs (or before any)."""
+        return self._vibration.get("result")
+
+    def stop_vibration(self) -> bool:
+        """Cancel the latest vibrate goal if it still runs (the units ramp out); whether a cancel was sent."""
+        handle = self._vibration.get("handle")
+        if handle is None or self._vibration.get("result") is not None:
+            return False
+        future = handle.cancel_goal_async()
+        self.spin_until(future.done, 10.0, "the planner to take the cancel")
+        return True
 
     # -- the end --------------------------------------------------------------------------------------------
     def stop_recorder(self, progress):

@@ -13,8 +13,6 @@ import os
 from pathlib import Path
 from typing import cast
 
-from std_srvs.srv import Trigger
-
 from ..runtime.bringup import SuiteProcesses
 from ..runtime.scenario import Scenario
 from ..runtime.sim_clock import StillFor
@@ -87,9 +85,8 @@ class SuiteRunner:
         client.stopping = True
         try:
             report = client.vibration_status
-            if report is not None and report.state not in ("idle", "stopped", "estopped"):
-                answer = client.call(Trigger, "vibration_planner/stop", Trigger.Request(), timeout=10.0)
-                progress(f"the vibration is stopped (vibration_planner/stop: {answer.message})")
+            if report is not None and report.state not in ("idle", "stopped", "estopped") and client.stop_vibration():
+                progress("the vibration is cancelled: the units ramp out")
             client.follow_poses(True)
             still = StillFor(SETTLE_HOLD_S)
 

@@ -1,68 +1,71 @@
-"""vibration planner node: a platform vibration -> self-contained vib_* command windows.
+"""vibration planner node: a vibration session (action) -> self-contained vib_* command windows.
 
-Topics (relative): sub platform/pose_estimate (PoseStamped, base), vibration/status
-(DiagnosticStatus from the hardware emulator: what the units really do; a malformed one is counted on
-/diagnostics and ignored, see messages.status_values); pub
-vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m,
-velocities m/s, accelerations m/s^2; header.stamp = the vibration's common
-start time t0, time_from_start relative to t0). Services vibration_planner/start
-and vibration_planner/stop (std_srvs/Trigger). Diagnostics on /diagnostics.
+Action vibration_planner/vibrate (stewart_vibration_interfaces/action/Vibrate): the goal carries the
+vibration (direction and frame, amplitude or acceleration, frequency, phase, duration, ramp); the node's
+parameters are only the streaming's timing (lookahead_s, window_period_s, sample_period_s, lead_s,
+start_lead_s, max_lookahead_s, pose_timeout_s). Feedback at 10 Hz: the units' state, the plan, the time
+since t0 and what the sensors show delivered (frequency, amplitude along the direction, direction error,
+the legs' phase spread; analysis.delivered). Result: the outcome (a code of the one table), the plan,
+the active time and the cycles delivered. Cancel = a ramp-out over ramp_s. One vibration at a time: a goal
+while one runs ends at once with BUSY.
+
+Topics (relative): sub platform/pose_estimate (PoseStamped, base; while a vibration runs its last 128 are kept
+for the delivered figures, the legs' phases from the lengths they imply), vibration/status (DiagnosticStatus
+from the hardware emulator: what the units really do; a malformed one is counted on /diagnostics and ignored,
+see messages.status_values); pub vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m,
+velocities m/s, accelerations m/s^2; header.stamp = the vibration's common start time t0, time_from_start
+relative to t0). Diagnostics on /diagnostics.
 
 The windows and their timing are vibration.streaming (pure): a finite vibration
 that fits ``max_lookahead_s`` is sent whole in its first window; otherwise every
 ``window_period_s`` a window with ``lookahead_s`` of vibration and a ramp-out
 tail, so if no later window arrives the units ramp out smoothly on their own.
 
-States: idle, running, stopping, aborted (with the reason). start works from
-idle or aborted: it needs a recent pose estimate (pose_timeout_s) and, when the
-emulator's status is known, no latched e-stop and, if the status is recent
-(STATUS_STALE_S; older means this process was held up), units at rest
-(otherwise it says why; on a stale status the emulator's own window check rules).
-t0 = start call (sim clock, at least the fresh pose estimate's stamp) + start_lead_s
+States: idle, running, stopping, aborted (with the reason). A goal starts from idle or aborted when
+vibration.start_gate allows it (no vibration running, no latched e-stop, units at rest by a recent
+status, the planner's clock running and the robot's, a recent pose estimate) and the settings pass
+vibration.settings.start_check; otherwise it ends at once with the refusal's outcome.
+t0 = the goal's arrival (sim clock, at least the fresh pose estimate's stamp) + start_lead_s
 (wall seconds: scaled to sim seconds by the sim clock's rate when it runs faster than real time). The planner
-aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN
-otherwise) and in its state -- when the emulator refuses one of its windows,
-e-stops, reports the units stopped or idle before the planned end, or when it
-was itself held up past the buffered look-ahead (the units have begun their
-ramp-out; judged on the first tick after the stall by the wall clock at the measured sim rate,
-since the sim clock is stale until the /clock sent meanwhile is taken). The start
-answer carries the settings that run as JSON after "settings: " (the run summary
-judges against those).
+aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN otherwise), in its state and in
+the goal's outcome -- when the emulator refuses one of its windows (ROBOT_REFUSED), e-stops
+(EMERGENCY_STOPPED, PHYSICS_FAULT), reports the units stopped or idle before the planned end (STOPPED_EARLY),
+or when it was itself held up past the buffered look-ahead (HELD_UP: the units have begun their ramp-out;
+judged on the first tick after the stall by the wall clock at the measured sim rate, since the sim clock is
+stale until the /clock sent meanwhile is taken).
 """
 
 from __future__ import annotations
 
-import json
 import time
+from collections import deque
 from typing import cast
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import ParameterDescriptor, ParameterType, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from std_srvs.srv import Trigger
+from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectory
 
-from ..errors import MalformedMessageError, StewartError
+from stewart_vibration_interfaces.action import Vibrate
+
+from ..analysis.delivered import delivered_vibration
+from ..errors import MalformedMessageError, RefusedError, StewartError
+from ..kinematics import inverse_kinematics
 from ..kinematics.robot_config import load_robot
 from ..messages import cdr
-from ..messages.stamped import pose_from_cdr
+from ..messages.stamped import pose_from_cdr, poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..runtime.sim_clock import ClockRate
-from ..vibration.settings import (
-    DEFAULT_DIRECTION,
-    DEFAULT_FRAME,
-    SETTINGS,
-    parameters,
-    settings_reason,
-    start_check,
-    start_refusal,
-)
+from ..vibration.settings import STREAM_KEYS, default_settings, parameters, settings_reason, start_check, start_refusal
+from ..vibration.start_gate import check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
-from ..vibration.waveform import acceleration_from_displacement
+from ..vibration.waveform import envelope, fade_out
 from .common import (
     ERROR,
     OK,
@@ -76,29 +79,30 @@ from .common import (
     run_node,
     text_param,
 )
+from .outcomes import outcome
+from .vibration_goal import UNIT_STATES, goal_settings, plan_message
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
 STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")
+FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
+DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
 
 class VibrationPlannerNode(Node):
-    """Thin adapter over stewart_vibration.vibration (decompose_vibration, VibrationStream)."""
+    """Thin adapter over stewart_vibration.vibration (start_gate, start_check, VibrationStream) and
+    analysis.delivered, behind the vibrate action."""
 
     def __init__(self):
         super().__init__("vibration_planner")
         self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
-        self.declare_parameter("direction", list(DEFAULT_DIRECTION), ParameterDescriptor(
-            type=ParameterType.PARAMETER_DOUBLE_ARRAY,
-            description="vibration direction (3 values, any non-zero length) in `frame`"))
-        self.declare_parameter("frame", DEFAULT_FRAME, text_param("frame of `direction`: platform | base"))
         for name, spec in parameters(self.robot).items():
-            declare_float(self, name, spec.default, float_param(spec.description, spec.low, spec.high))
+            if name in STREAM_KEYS:
+                declare_float(self, name, spec.default, float_param(spec.description, spec.low, spec.high))
         self.add_on_set_parameters_callback(self.on_set_parameters)
-        reason = settings_reason(self.robot, self.settings())
+        reason = settings_reason(self.robot, self.settings_with({}))
         if reason:
             raise ValueError(f"invalid initial parameters: {reason}")
 
@@ -108,9 +112,12 @@ class VibrationPlannerNode(Node):
         self.last_error = ""
         self.plan = None
         self.stream: VibrationStream | None = None
-        self.run = None  # dict: settings, t0 (s), next_send (s), seen (s from t0: the last tick's sim time)
+        self.run = None  # dict: settings, t0 (s), next_send (s), seen (s from t0: the last tick's sim time),
+        # goal (its handle), done (Future of (outcome name, message, run)), plan (VibrationPlan), next_feedback
+        # (wall s), stream
         self.pose_data = None  # raw PoseStamped bytes and their receive time (monotonic wall clock, s:
         # the sim clock may be stale when this process resumes from a stall)
+        self.recent_poses: deque = deque(maxlen=DELIVERED_WINDOW)  # raw, while a vibration runs
         self.emulator = None  # latest VibrationReport from vibration/status
         self.emulator_received = 0.0  # when it arrived (monotonic wall clock, s)
         self.seen_event = 0
@@ -123,8 +130,8 @@ class VibrationPlannerNode(Node):
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
         self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
-        self.create_service(Trigger, "vibration_planner/start", self.on_start)
-        self.create_service(Trigger, "vibration_planner/stop", self.on_stop)
+        self.action = ActionServer(self, Vibrate, "vibration_planner/vibrate", execute_callback=self.execute,
+                                   goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
         self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("platform/pose_estimate", 1.0, "from kinematics")
         self.diagnostics.watch("vibration/status", 3.0, "from hardware_emulator")
@@ -132,11 +139,15 @@ class VibrationPlannerNode(Node):
         self.get_logger().info(f"vibration planner ready (robot {self.robot.source})")
 
     # -- parameters -----------------------------------------------------------------
-    def settings(self) -> dict:
-        return {name: self.get_parameter(name).value for name in SETTINGS}
+    def settings_with(self, vibration: dict) -> dict:
+        """Every setting: the streaming parameters, and ``vibration``'s keys over the defaults of the rest."""
+        s = default_settings(self.robot)
+        s.update({name: self.get_parameter(name).value for name in STREAM_KEYS})
+        s.update(vibration)
+        return s
 
     def on_set_parameters(self, params) -> SetParametersResult:
-        s = self.settings()
+        s = self.settings_with({})
         for p in params:
             if p.name in s:
                 s[p.name] = p.value
@@ -155,8 +166,10 @@ class VibrationPlannerNode(Node):
         return self.get_clock().now().nanoseconds * 1e-9
 
     def on_pose(self, data: bytes) -> None:
-        """Keep the latest estimate (500 Hz: decoded only when a vibration starts)."""
+        """Keep the latest estimate (500 Hz: decoded only when a vibration starts or feedback is due)."""
         self.pose_data = (data, time.monotonic())
+        if self.run is not None:
+            self.recent_poses.append(data)
         self._pose_seen += 1
         if self._pose_seen % 50 == 1:  # the freshness watch needs no more than a few per second
             self.diagnostics.seen("platform/pose_estimate")
@@ -178,16 +191,19 @@ class VibrationPlannerNode(Node):
         self.seen_event = report.event_seq
         if new_event and report.event.startswith("refused") and report.event_stamp is not None \
                 and abs(report.event_stamp - t0) < 1e-6:
-            self.abort(f"the hardware emulator refused a window of this vibration ({report.event})", WARN)
+            self.abort(f"the hardware emulator refused a window of this vibration ({report.event})", WARN,
+                       "ROBOT_REFUSED")
         elif report.state == "estopped":
-            self.abort("emergency stop on the hardware emulator (call hardware_emulator/reset)", ERROR)
+            self.abort("emergency stop on the hardware emulator (call hardware_emulator/reset)", ERROR,
+                       "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED")
         elif report.state == "stopped" and report.since >= t0:
-            self.abort(f"the vibration units stopped: {report.reason}", WARN)
+            self.abort(f"the vibration units stopped: {report.reason}", WARN, "STOPPED_EARLY")
         elif report.state == "idle" and report.since > t0:
             end = cast(VibrationStream, self.stream).planned_end  # running or stopping: a stream is set
             if self.state == "running" and (end is None or report.since < t0 + end - 0.05):
                 self.abort(f"the vibration units went idle at {report.since:.3f} s, before the planned end "
-                           f"({'until stop' if end is None else f'{t0 + end:.3f} s'}): {report.reason}", WARN)
+                           f"({'until stop' if end is None else f'{t0 + end:.3f} s'}): {report.reason}", WARN,
+                           "STOPPED_EARLY")
 
     # -- state ---------------------------------------------------------------------------
     def _report(self, level, message: str) -> None:
@@ -196,111 +212,156 @@ class VibrationPlannerNode(Node):
                              windows_sent=self.stream.windows_sent if self.stream else 0,
                              t0_s=f"{run['t0']:.6f}" if run else "")
 
-    def abort(self, reason: str, level) -> None:
-        """Stop streaming; state 'aborted: reason' until the next start."""
+    def abort(self, reason: str, level, outcome_name: str) -> None:
+        """Stop streaming; state 'aborted: reason' until the next start; the goal ends with ``outcome_name``."""
         self.state = f"aborted: {reason}"
         self.last_error = reason
-        self.run = None
+        self._finish(outcome_name, reason)
         self.get_logger().error(f"vibration aborted: {reason}") if level == ERROR else \
             self.get_logger().warning(f"vibration aborted: {reason}")
         self._report(level, self.state)
 
-    def _refuse(self, response, reason: str):
-        self.last_error = reason
-        response.success, response.message = False, reason
-        reject(self, self.diagnostics, "start", reason)
-        return response
+    def _finish(self, outcome_name: str, message: str) -> None:
+        """End the running goal (its execute returns the result) and forget the run."""
+        run, self.run = self.run, None
+        self.recent_poses.clear()
+        if run is not None and not run["done"].done():
+            run["ended"] = self.now_s()
+            run["done"].set_result((outcome_name, message, run))
 
-    # -- services --------------------------------------------------------------------------
-    def on_start(self, request, response):
-        if self.state in ("running", "stopping"):
-            return self._refuse(response, f"already {self.state}; call stop first")
+    # -- the vibrate action -------------------------------------------------------------------
+    async def execute(self, goal_handle):
+        """One vibration session: refuse it with its outcome, or run it until it ends, is cancelled or aborts."""
+        settings = self.settings_with(goal_settings(goal_handle.request))
+        try:
+            self._start(settings, goal_handle)
+        except Exception as exc:  # noqa: BLE001 - every refusal (and a defect) ends the goal with its code
+            if isinstance(exc, StewartError):
+                name, reason = exc.outcome, str(exc) if isinstance(exc, RefusedError) else start_refusal(exc, settings)
+            else:
+                name, reason = "INTERNAL_ERROR", f"{type(exc).__name__}: {exc}"
+                self.get_logger().error(f"vibrate goal failed: {reason}")
+            self.last_error = reason
+            reject(self, self.diagnostics, "start", reason)
+            goal_handle.abort()
+            result = Vibrate.Result()
+            result.outcome = outcome(name, reason)
+            return result
+        name, message, run = await cast(dict, self.run)["done"]
+        result = Vibrate.Result(plan=run["plan"])
+        result.outcome = outcome(name, message)
+        result.active_s, result.cycles_delivered = self._delivered_dose(run)
+        if name == "SUCCEEDED":
+            goal_handle.succeed()
+        elif name == "CANCELED" and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        return result
+
+    def _start(self, settings: dict, goal_handle) -> None:
+        """Check and start the vibration of ``settings`` for ``goal_handle``; RefusedError / StewartError if not."""
         emulator = self.emulator
-        if emulator is not None and emulator.state == "estopped":
-            return self._refuse(response, "emergency stop latched on the hardware emulator: call "
-                                          "hardware_emulator/reset first")
         status_age = time.monotonic() - self.emulator_received
-        if emulator is not None and emulator.state in BUSY_STATES and status_age <= STATUS_STALE_S:
-            return self._refuse(response, f"the vibration units are not at rest ({emulator.message}); start again "
-                                          f"when they are")
-        if self.pose_data is None:
-            return self._refuse(response, "no platform/pose_estimate received yet")
         now = self.now_s()
-        if now <= 0:
-            return self._refuse(response, "clock not running (use_sim_time without /clock?)")
-        s = self.settings()
-        data, received = self.pose_data
-        age = time.monotonic() - received
-        if age > s["pose_timeout_s"]:
-            return self._refuse(response, f"pose estimate is {age:.3f} s old (wall time; pose_timeout_s "
-                                          f"{s['pose_timeout_s']})")
+        pose_age = None if self.pose_data is None else time.monotonic() - self.pose_data[1]
+        check_can_start(self.state, emulator.state if emulator else None, status_age, STATUS_STALE_S,
+                        emulator.time if emulator else None, now, pose_age, settings["pose_timeout_s"],
+                        self.clock_rate.rate())
+        data, _ = cast(tuple, self.pose_data)
         try:
             pose_stamp, pose = pose_from_cdr(data, "pose estimate")
         except MalformedMessageError as exc:
             self.malformed.refuse("platform/pose_estimate", exc)
-            return self._refuse(response, f"pose estimate unusable: {exc}")
+            raise RefusedError("NOT_READY", f"pose estimate unusable: {exc}") from None
         # just resumed from a stall, this process may not have taken the latest /clock yet: the
         # fresh pose estimate's stamp (sim time) bounds the present from below
         now = max(now, pose_stamp)
-        try:
-            started = start_check(self.robot, pose, s, self.clock_rate.wall_margin)  # wall s -> sim s
-        except StewartError as exc:
-            return self._refuse(response, start_refusal(exc, s))
+        started = start_check(self.robot, pose, settings, self.clock_rate.wall_margin)  # wall s -> sim s
         plan, stream, first = started.plan, started.stream, started.first
         t0 = now + started.start_lead
-        duration = s["duration_s"] if s["duration_s"] > 0 else None
         self.plan, self.stream = plan, stream
+        plan_msg = plan_message(plan, settings, t0)
         # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
-        self.run = {"settings": s, "t0": t0, "next_send": now + s["window_period_s"], "seen": now - t0}
+        self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,
+                    "goal": goal_handle, "done": Future(), "plan": plan_msg, "next_feedback": 0.0, "stream": stream}
         self.state, self.last_error = "running", ""
         self.seen_event = emulator.event_seq if emulator is not None else 0
         self.publish(first)
-        acc_g = acceleration_from_displacement(plan.amplitude, plan.frequency)
-        ran = dict(s, direction=list(s["direction"]), t0_s=t0, pose=pose.tolist())
-        text = (
-            f"started: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um ({acc_g:.3f} g) "
-            f"along {np.round(plan.direction, 6).tolist()} (base frame), phase {plan.phase:.4f} rad, "
-            f"t0 = {t0:.6f} s, ramp {s['ramp_s']} s, "
-            f"duration {'until stop' if duration is None else str(duration) + ' s'}"
-            f"{' (sent whole)' if stream.finished else ''}; "
-            f"gains k = {np.round(plan.gains, 6).tolist()}; "
-            f"leg amplitudes um = {np.round(plan.leg_amplitudes * 1e6, 3).tolist()}; "
-            f"leg phases rad = {np.round(plan.leg_phases, 4).tolist()}"
-            + ("; note: no vibration/status from the hardware emulator yet, so the units' state is unconfirmed"
-               if emulator is None else
-               f"; note: the last vibration/status is {status_age:.1f} s old (this process was held up?), so the "
-               f"units' state is unconfirmed; the hardware emulator checks the window" if status_age > STATUS_STALE_S
-               else "")
-            + f"; settings: {json.dumps(ran)}"
-        )
-        self.get_logger().info(text)
+        unconfirmed = ("; no vibration/status from the hardware emulator yet, so the units' state is unconfirmed"
+                       if emulator is None else
+                       f"; the last vibration/status is {status_age:.1f} s old (this process was held up?), so the "
+                       "units' state is unconfirmed; the hardware emulator checks the window"
+                       if status_age > STATUS_STALE_S else "")
+        self.get_logger().info(
+            f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "
+            f"{np.round(plan.direction, 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {settings['ramp_s']} s, "
+            f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}"
+            f"{unconfirmed}")
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
                              gains=np.round(plan.gains, 6).tolist(),
                              leg_amplitudes_um=np.round(plan.leg_amplitudes * 1e6, 3).tolist())
         self._report(OK, "running")
-        response.success, response.message = True, text
-        return response
 
-    def on_stop(self, request, response):
-        if self.state not in ("running", "stopping"):
-            response.success, response.message = True, f"already {self.state}"
-            return response
-        if self.state == "stopping":
-            response.success, response.message = True, "already stopping"
-            return response
-        t0 = self.run["t0"]
-        window = self.stream.stop_window(self.now_s() - t0)
+    def on_cancel(self, goal_handle) -> CancelResponse:
+        """Cancel = ramp out (the goal ends CANCELED when the units are at rest); a goal already ending is let be."""
+        run = self.run
+        if run is None or run["goal"] is not goal_handle:
+            return CancelResponse.ACCEPT
+        if self.state == "running":
+            self._stop_streaming()
+        return CancelResponse.ACCEPT
+
+    def _stop_streaming(self) -> None:
+        run = cast(dict, self.run)
+        stream = cast(VibrationStream, self.stream)
+        t0 = run["t0"]
+        window = stream.stop_window(self.now_s() - t0)
         self.state = "stopping"
         if window is None:
-            message = f"the vibration already ends at {t0 + self.stream.rest_at:.4f} s; letting it ramp out"
+            message = f"the vibration already ends at {t0 + stream.rest_at:.4f} s; letting it ramp out"
         else:
             self.publish(window)
-            message = (f"stopping: ramp-out from {t0 + self.stream.stop_at:.4f} s over "
-                       f"{self.run['settings']['ramp_s']} s, at rest at {t0 + window.rest_at:.4f} s")
+            message = (f"stopping: ramp-out from {t0 + stream.stop_at:.4f} s over {run['settings']['ramp_s']} s, at "
+                       f"rest at {t0 + window.rest_at:.4f} s")
         self._report(OK, "stopping")
         self.get_logger().info(message)
-        response.success, response.message = True, message
-        return response
+
+    def _feedback(self, run: dict) -> None:
+        """The goal's feedback: the units' state, the plan, the time since t0 and the delivered figures."""
+        feedback = Vibrate.Feedback(plan=run["plan"], elapsed_s=self.now_s() - run["t0"])
+        report = self.emulator
+        feedback.state = UNIT_STATES.get(report.state if report else "idle", 0)
+        plan = cast(VibrationStream, self.stream).plan
+        poses = poses_from_cdr(list(self.recent_poses), "pose estimate")
+        try:
+            # the legs' hinge-to-hinge lengths the estimate implies: their vibration is the units' (the struts
+            # hold still), and this needs no second 500 Hz stream
+            lengths = inverse_kinematics(self.robot, poses.values, check_limits=False)
+            delivered = delivered_vibration(poses.stamps, poses.values[:, :3], poses.stamps, lengths, plan.frequency,
+                                            plan.direction, plan.leg_amplitudes, plan.leg_phases)
+        except StewartError:  # a non-finite sample: say nothing this time
+            delivered = None
+        if delivered is not None and delivered.known:
+            feedback.frequency_hz = delivered.frequency_hz
+            feedback.delivered_amplitude_m = delivered.amplitude_m
+            feedback.direction_error_rad = delivered.direction_error_rad
+            feedback.phase_spread_rad = delivered.phase_spread_rad
+        run["goal"].publish_feedback(feedback)
+
+    def _delivered_dose(self, run: dict) -> tuple[float, float]:
+        """(active s: from t0 to the run's end or the units' commanded rest, whichever is first; cycles: the
+        commanded envelope's integral over that time times the frequency) of a finished run."""
+        s, stream = run["settings"], run["stream"]  # the run's own: another may have begun since
+        end = min(run.get("ended", run["t0"]), run["t0"] + stream.rest_at)
+        active = max(end - run["t0"], 0.0)
+        if active <= 0:
+            return 0.0, 0.0
+        times = np.linspace(0.0, active, max(int(active / 1e-3), 2))
+        weight = envelope(times, s["duration_s"] if s["duration_s"] > 0 else None, s["ramp_s"])[0]
+        if stream.stop_at is not None:  # a cancel's ramp-out
+            weight = weight * fade_out(times, stream.stop_at, s["ramp_s"])[0]
+        return float(active), float(np.trapezoid(weight, times) * stream.plan.frequency)
 
     # -- streaming ---------------------------------------------------------------------------
     def tick(self) -> None:
@@ -320,7 +381,7 @@ class VibrationPlannerNode(Node):
             try:
                 cast(VibrationStream, self.stream).check_stall(run["seen"], gap * self.clock_rate.rate())
             except StreamInterrupted as exc:
-                self.abort(str(exc), WARN)
+                self.abort(str(exc), WARN, "HELD_UP")
             return
         now = self.now_s()
         rel = run["seen"] = now - run["t0"]
@@ -328,16 +389,22 @@ class VibrationPlannerNode(Node):
         end = cast(VibrationStream, self.stream).planned_end if self.state == "running" else \
             cast(VibrationStream, self.stream).rest_at
         if cast(VibrationStream, self.stream).finished and end is not None and rel >= end:
-            self.state, self.run = "idle", None
+            cancelled = self.state == "stopping"
+            self.state = "idle"
+            self._finish("CANCELED" if cancelled else "SUCCEEDED",
+                         "cancelled: ramped out" if cancelled else "the vibration ran as planned")
             self._report(OK, "idle")
             return
+        if wall >= run["next_feedback"]:
+            run["next_feedback"] = wall + FEEDBACK_PERIOD_S
+            self._feedback(run)
         if cast(VibrationStream, self.stream).finished or now < run["next_send"]:
             return
         run["next_send"] = now + run["settings"]["window_period_s"]
         try:
             window = cast(VibrationStream, self.stream).next_window(rel)
         except StreamInterrupted as exc:
-            self.abort(str(exc), WARN)
+            self.abort(str(exc), WARN, "HELD_UP")
             return
         if window is not None:
             self.publish(window)
@@ -349,6 +416,13 @@ class VibrationPlannerNode(Node):
         self.diagnostics.values.update(windows_sent=str(cast(VibrationStream, self.stream).windows_sent),
                                        last_window_points=str(len(window.times)),
                                        last_window_encode_ms=f"{(time.perf_counter() - started) * 1e3:.2f}")
+
+
+    def shutdown(self) -> None:
+        """A vibration still running ramps out (its goal ends SHUTDOWN): the units never keep a stale stream."""
+        if self.run is not None and self.state == "running":
+            self._stop_streaming()
+        self._finish("SHUTDOWN", "the vibration planner is shutting down: the vibration ramps out")
 
 
 def main(args=None) -> int:

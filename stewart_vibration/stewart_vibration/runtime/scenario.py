@@ -2,7 +2,7 @@
 
 A scenario is a list of steps, each ``move_to: paper | home | [x, y, z, roll,
 pitch, yaw]`` (m, rad), ``guarded_move_to: <pose>`` (a move the kinematics node's
-force guard must stop short of its target) or ``vibrate: {planner parameters}``,
+force guard must stop short of its target) or ``vibrate: {vibration settings}`` (the keys of a vibrate goal),
 plus the pass/fail bounds of the run summary and optionally ``tissue: <file>``
 (a soft-tissue model the emulator applies and kinematics checks against; a relative
 path is looked up beside the scenario, then in config/).
@@ -60,8 +60,8 @@ class MoveStep:
 
 @dataclass(frozen=True)
 class VibrateStep:
-    """Planner settings to set before a start (a subset of ``vibration.settings.VIBRATION_KEYS``; duration_s
-    always). What ran is what the planner reports in its start answer, which the summary judges against."""
+    """The vibration of a vibrate goal: every key of ``vibration.settings.VIBRATION_KEYS`` (the step's values
+    over the defaults). What ran is the plan the planner reports, which the summary judges against."""
 
     parameters: dict
 
@@ -154,7 +154,8 @@ BOUND_RANGE = Plausible(0.0, 1e9)  # a pass/fail bound: finite and >= 0, in the 
 
 
 def _vibrate(robot: Robot, value, where: str, index: int, vibration_duration: float | None) -> dict:
-    """A vibrate step's settings, typed and passed through the planner's check (its defaults for the rest)."""
+    """A vibrate step's vibration (every VIBRATION_KEYS key: the step's values, the defaults for the rest),
+    typed and passed through the planner's check."""
     params = {} if value is None else value
     if not isinstance(params, dict):
         raise ConfigError(f"{where}: step {index} vibrate needs a mapping of planner settings, got "
@@ -176,7 +177,7 @@ def _vibrate(robot: Robot, value, where: str, index: int, vibration_duration: fl
                           f"{settings['duration_s']}")
     if reason := settings_reason(robot, settings):
         raise ConfigError(f"{where}: step {index} vibrate: {reason}")
-    return params
+    return {key: settings[key] for key in VIBRATION_KEYS}
 
 
 def resolve_tissue_path(value, base: Path) -> str:

@@ -13,8 +13,7 @@ from typing import Any, Protocol, cast
 
 import numpy as np
 
-from ..errors import MalformedMessageError
-from ..messages.status_values import GuardStatus, ran_settings
+from ..messages.status_values import GuardStatus
 from .scenario import MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
@@ -65,13 +64,34 @@ class RunRecord:
     guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
 
 
+@dataclass(frozen=True)
+class VibrationStart:
+    """How a vibrate goal began: started (``ok``, with the plan the planner runs: messages' plan record with
+    t0_s and pose) or refused (the outcome name of the one table and the planner's reason)."""
+
+    ok: bool
+    outcome: str
+    message: str
+    plan: dict | None
+
+
+@dataclass(frozen=True)
+class VibrationEnd:
+    """How a vibrate goal ended: its outcome name, the planner's message, the active time (s) and the cycles
+    delivered (the commanded envelope's)."""
+
+    outcome: str
+    message: str
+    active_s: float
+    cycles_delivered: float
+
+
 class SuiteClient(Protocol):
     """What the steps need from the running suite (``nodes.suite_client.SuiteClient`` over ROS)."""
 
     clock: float | None  # latest /clock (sim s)
     vibration_status: Any  # latest emulation.vibration_status.VibrationReport, or None
     status_history: list  # (state, since, reason) of every vibration/status state change seen
-    planner_message: str | None  # message of the planner's latest /diagnostics status
 
     def spin_until(self, predicate, timeout: float, what: str) -> None:
         """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s) waiting for ``what``, or if a node died."""
@@ -94,11 +114,15 @@ class SuiteClient(Protocol):
     def guard_status(self) -> GuardStatus | None:
         """The latest well-formed kinematics/guard_status (messages.status_values.GuardStatus); None before one."""
 
-    def set_planner_parameters(self, parameters: dict) -> list[str]:
-        """Set the planner's parameters in one call; returns the refusals as "name: reason" (empty: all set)."""
+    def start_vibration(self, vibration: dict) -> VibrationStart:
+        """Send the planner's vibrate goal of ``vibration`` (every key of VIBRATION_KEYS) and wait until it began
+        (its plan) or was refused."""
 
-    def start_vibration(self) -> tuple[bool, str]:
-        """Call the planner's start: (success, its answer: the settings that ran, or why it refused)."""
+    def vibration_result(self) -> VibrationEnd | None:
+        """The latest vibrate goal's result; None while it runs."""
+
+    def stop_vibration(self) -> bool:
+        """Cancel the latest vibrate goal if it runs (a ramp-out); whether a cancel was sent."""
 
 
 class ScenarioSteps:
@@ -197,31 +221,31 @@ class ScenarioSteps:
 
     # -- vibration -----------------------------------------------------------------------------------------
     def vibrate(self, step: VibrateStep, label: str) -> None:
-        """Set the planner's parameters, start, and follow the emulator's vibration/status until the
-        vibration is over; an abort, a refusal or a vibration shorter than planned fails the step. The record
-        keeps the settings the planner reports it ran (its start answer), which the summary judges against."""
+        """Send the planner's vibrate goal and follow the emulator's vibration/status until the vibration is
+        over; a refusal, an outcome other than SUCCEEDED or a vibration shorter than planned fails the step. The
+        record keeps the settings and the plan the planner ran, which the summary judges against."""
         opts, client = self.options, self.client
-        refused = client.set_planner_parameters(step.parameters)
-        if refused:
-            raise StepFailed(f"planner refused parameters: {'; '.join(refused)}")
-        ok, answer = client.start_vibration()
-        if not ok:
-            raise StepFailed(f"vibration start refused: {answer}")
-        try:
-            ran = ran_settings(answer)
-        except MalformedMessageError as exc:
-            raise StepFailed(f"the planner's start answer is malformed: {exc}") from None
-        start, t0 = client.clock, float(ran["t0_s"])
-        ramp, duration = float(ran["ramp_s"]), float(ran["duration_s"])
-        opts.progress(f"{label}: vibrating: {answer.rsplit('; settings: ', 1)[0]}")
-        record = {"parameters": ran, "start_time": start, "t0": t0, "start_message": answer}
+        start = client.clock  # before the goal: a lower bound of its t0 (the summary finds the windows from it)
+        started = client.start_vibration(step.parameters)
+        if not started.ok or started.plan is None:
+            raise StepFailed(f"vibration start refused ({started.outcome}): {started.message}")
+        plan = started.plan
+        ran = dict(step.parameters, t0_s=plan["t0_s"], pose=plan["pose"], plan=plan)
+        t0 = float(plan["t0_s"])
+        ramp, duration = float(plan["ramp_s"]), float(plan["duration_s"])
+        opts.progress(f"{label}: vibrating: started: {plan['frequency_hz']:g} Hz, platform amplitude "
+                      f"{plan['amplitude_m'] * 1e6:.3f} um ({plan['acceleration_g']:.3f} g) along "
+                      f"{np.round(plan['direction_base'], 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {ramp} s, "
+                      f"duration {duration} s; gains k = {np.round(plan['gains'], 6).tolist()}; leg amplitudes um = "
+                      f"{np.round(np.asarray(plan['leg_amplitudes_m']) * 1e6, 3).tolist()}")
+        record: dict[str, Any] = {"parameters": ran, "start_time": start, "t0": t0}
         self.record.vibrations.append(record)
         rtf = max(opts.real_time_factor, 0.05)
 
         def failed() -> str | None:
-            report, planner = client.vibration_status, client.planner_message
-            if planner is not None and "aborted:" in planner:
-                return f"the planner aborted the vibration: {planner}"
+            report, ended = client.vibration_status, client.vibration_result()
+            if ended is not None and ended.outcome != "SUCCEEDED":
+                return f"the planner ended the vibration ({ended.outcome}): {ended.message}"
             if report is not None and report.state in ("estopped", "stopped") and report.since >= t0 - 1e-6:
                 return f"the vibration units {report.message}"
             if report is not None and report.event.startswith("refused") and report.event_stamp is not None and \
@@ -258,6 +282,13 @@ class ScenarioSteps:
                           30 / rtf, "the units to come to rest")
         if reason := failed():
             fail(reason)
+        client.spin_until(lambda: client.vibration_result() is not None, 30 / rtf,
+                          "the planner's result of the vibration")
+        if reason := failed():
+            fail(reason)
+        result = cast(VibrationEnd, client.vibration_result())
+        record["outcome"] = result.outcome
+        record["planner_active_s"], record["cycles_delivered"] = result.active_s, result.cycles_delivered
         record["stop_time"] = client.clock
         ended = client.vibration_status.since
         record["status_active_s"] = ended - t0

@@ -1,7 +1,7 @@
 """The surgical planning UI (issue 16): a browser page served by the ``planning_ui`` node.
 
 - ``model``: the page's model and its server-side checks (pure: numpy and the core, no rclpy, no web
-  server): pose entry in mm/deg -> reachability, path margins, vibration preview, start-answer parsing,
+  server): pose entry in mm/deg -> reachability, path margins, vibration preview,
   rate limiting, decimation.
 - ``server``: the HTTP + WebSocket server (asyncio + ``websockets``; no rclpy): token, static page,
   commands in, live frames out.

@@ -291,7 +291,7 @@ def run_summary(robot: Robot, joints: StreamBuffer, pose: StreamBuffer, forces: 
     """The run summary of one vibration from the live buffers (what ``stewart-vibration run`` reports from the
     MCAP): platform amplitude and direction error (of ``pose``: the page passes the
     controller's pose estimate), leg amplitudes, phases and frequency, the
-    leg-force model error. ``parameters``: the settings that ran (the start answer's JSON); ``ended``: the
+    leg-force model error. ``parameters``: the settings that ran (from the vibrate goal's plan); ``ended``: the
     sim time the units came to rest (a vibration until stop is summarised over what ran)."""
     from ..analysis.run_summary import summarize_vibration
 

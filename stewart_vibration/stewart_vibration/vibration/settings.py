@@ -1,9 +1,9 @@
 """The vibration planner's settings: the one source of their names, defaults, ranges and checks.
 
-The planner node declares its parameters from ``PARAMETERS``, the scenario files (``runtime.scenario``)
-and the planning UI set the ``VIBRATION_KEYS`` of them, and the run summary
-(``analysis.run_summary``) judges a vibration against the settings the planner reports it ran (its start
-answer), never against defaults filled in again.
+The planner node declares its streaming parameters (``STREAM_KEYS``) from ``parameters``; a vibration goal
+(the scenario files' vibrate steps, ``runtime.scenario``, and the planning UI) carries the ``VIBRATION_KEYS``;
+and the run summary (``analysis.run_summary``) judges a vibration against the settings the planner reports
+it ran (the goal's and its parameters, with the plan), never against defaults filled in again.
 
 ``start_check`` is what the planner does before it starts (and the UI's preview repeats): the settings
 check, the decomposition at the pose with the unit's limits, the first streamed window (ramp-in
@@ -82,8 +82,10 @@ DEFAULT_FRAME = "platform"
 SETTINGS = ("direction", "frame", "amplitude_m", "acceleration_g", "frequency_hz", "phase_rad", "duration_s", "ramp_s",
             "lookahead_s", "window_period_s", "sample_period_s", "lead_s", "start_lead_s", "max_lookahead_s",
             "pose_timeout_s")
-# what a vibration is (a scenario's vibrate step, the planning UI); the rest is the streaming's timing
+# what a vibration is (a scenario's vibrate step, the planning UI, a vibration goal); the rest is the
+# streaming's timing: the planner's own parameters
 VIBRATION_KEYS = SETTINGS[:8]
+STREAM_KEYS = SETTINGS[8:]
 
 
 def default_settings(robot: Robot) -> dict:

@@ -70,7 +70,7 @@ const fmt = (v, d = 3) => (v === null || v === undefined || Number.isNaN(v) ? "-
 function esc(text) { const d = document.createElement("div"); d.textContent = String(text ?? ""); return d.innerHTML; }
 function badge(el, text, cls) { el.textContent = text; el.className = "badge " + cls; }
 function refusal(reply) {
-  const who = reply.refused_by ? `refused by ${reply.refused_by}: ` : "";
+  const who = (reply.refused_by ? `refused by ${reply.refused_by}: ` : "") + (reply.outcome ? `${reply.outcome}: ` : "");
   return `<span class="refusal">${esc(who + reply.message)}</span>`;
 }
 function readNumber(id) { const v = $(id).value.trim(); return v === "" ? NaN : Number(v); }
@@ -172,7 +172,7 @@ function showPreview(reply) {
   $("vib-platform").innerHTML = `at the current pose estimate: platform <b>${fmt(p.amplitude_um, 3)} um</b> ` +
     `(${fmt(p.acceleration_g, 3)} g) at ${fmt(p.frequency_hz, 2)} Hz along [${fmt(d[0], 4)}, ${fmt(d[1], 4)}, ` +
     `${fmt(d[2], 4)}] (base frame), phase ${fmt(p.phase_rad, 4)} rad`;
-  const planner = ui.lastStart && ui.lastStart.answer ? ui.lastStart.answer.leg_amplitudes_um : null;
+  const planner = ui.lastStart && ui.lastStart.plan ? ui.lastStart.plan.leg_amplitudes_m.map((v) => v * 1e6) : null;
   const accMax = p.limits.acceleration_max_g;
   for (let i = 0; i < 6; i++) {
     const tr = body.insertRow();
@@ -185,17 +185,17 @@ function showPreview(reply) {
 }
 
 async function startVibration() {
-  $("start-result").textContent = "setting the planner's parameters, then start...";
+  $("start-result").textContent = "sending the vibration goal...";
   const reply = await send("start", vibArgs());
   ui.lastStart = reply;
   if (reply.preview) showPreview({ ok: true, preview: reply.preview });
   if (!reply.ok) { $("start-result").innerHTML = "start " + refusal(reply); return; }
-  const a = reply.answer;
+  const a = reply.plan;
   $("start-result").innerHTML = `<b>started</b> (vibration_planner): t0 = ${fmt(a.t0_s, 3)} s; planner leg amplitudes ` +
-    `[${a.leg_amplitudes_um.map((v) => fmt(v, 3)).join(", ")}] um; phases [${a.leg_phases_rad.map((v) => fmt(v, 4)).join(", ")}] rad; ` +
+    `[${a.leg_amplitudes_m.map((v) => fmt(v * 1e6, 3)).join(", ")}] um; phases [${a.leg_phases_rad.map((v) => fmt(v, 4)).join(", ")}] rad; ` +
     `gains [${a.gains.map((v) => fmt(v, 4)).join(", ")}]; preview vs planner: <b id="preview-match">` +
-    `${fmt(reply.preview_vs_answer_um, 4)} um</b> max difference` +
-    `<div class="dim mono">${esc(a.text)}</div>`;
+    `${fmt(reply.preview_vs_plan_um, 4)} um</b> max difference` +
+    `<div class="dim mono">${esc(reply.message)}</div>`;
 }
 
 async function trigger(cmd, label) {

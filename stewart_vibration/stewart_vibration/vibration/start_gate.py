@@ -1,0 +1,53 @@
+"""Whether a vibration may start now (pure): the planner's checks of the robot's state before it plans,
+each refusal with its outcome name (RefusedError)."""
+
+from __future__ import annotations
+
+from ..errors import RefusedError
+
+BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")  # the units move (vibration/status states)
+CLOCK_MISMATCH_S = 10.0  # the planner's clock this far from the robot's: not the same clock
+
+
+def check_can_start(planner_state: str, units_state: str | None, status_age_s: float, status_stale_s: float,
+                    robot_time_s: float | None, now_s: float, pose_age_s: float | None, pose_timeout_s: float,
+                    clock_rate: float = 1.0) -> None:
+    """Refuse a start the robot cannot carry out now; return None when it may go ahead.
+
+    Args:
+        planner_state: the planner's state ("idle", "running", "stopping", "aborted: ...").
+        units_state: the latest vibration/status state of the units, None before one arrived.
+        status_age_s: wall seconds since that status arrived.
+        status_stale_s: an older status says nothing about now (this process was held up).
+        robot_time_s: the robot's clock when that status was sent (s), None if unknown.
+        now_s: the planner's clock (s; 0 when it does not run).
+        pose_age_s: wall seconds since the latest pose estimate, None before one.
+        pose_timeout_s: a pose estimate older than this is stale (s).
+        clock_rate: the planner's clock's rate (s per wall s; faster than real time the robot's clock moves
+            that much more while a status ages).
+
+    Raises:
+        RefusedError: BUSY, ESTOP_LATCHED, UNITS_NOT_AT_REST, NOT_READY (no or a stale pose estimate),
+            CLOCK_NOT_RUNNING or CLOCK_MISMATCH, with the reason and what to do.
+    """
+    if planner_state in ("running", "stopping"):
+        raise RefusedError("BUSY", f"a vibration is {planner_state}; cancel it first")
+    fresh = units_state is not None and status_age_s <= status_stale_s
+    if units_state == "estopped":
+        raise RefusedError("ESTOP_LATCHED", "emergency stop latched on the hardware emulator: call "
+                                            "hardware_emulator/reset first")
+    if fresh and units_state in BUSY_STATES:
+        raise RefusedError("UNITS_NOT_AT_REST", f"the vibration units are not at rest ({units_state}); start again "
+                                                "when they are")
+    if now_s <= 0:
+        raise RefusedError("CLOCK_NOT_RUNNING", "the planner's clock is not running (use_sim_time without /clock?)")
+    if fresh and robot_time_s is not None and \
+            abs(now_s - robot_time_s) > CLOCK_MISMATCH_S + status_age_s * max(clock_rate, 1.0):
+        raise RefusedError("CLOCK_MISMATCH", f"the planner's clock reads {now_s:.3f} s but the robot's read "
+                                             f"{robot_time_s:.3f} s {status_age_s:.1f} s ago: start the planner "
+                                             "with use_sim_time:=true when the robot runs on /clock")
+    if pose_age_s is None:
+        raise RefusedError("NOT_READY", "no platform/pose_estimate received yet")
+    if pose_age_s > pose_timeout_s:
+        raise RefusedError("NOT_READY", f"pose estimate is {pose_age_s:.3f} s old (wall time; pose_timeout_s "
+                                        f"{pose_timeout_s})")

@@ -1,0 +1,49 @@
+"""vibration.start_gate: each reason a vibration cannot start now, with its outcome name, and none when it can."""
+
+from __future__ import annotations
+
+import pytest
+
+from stewart_vibration.errors import RefusedError
+from stewart_vibration.vibration.start_gate import CLOCK_MISMATCH_S, check_can_start
+
+READY = dict(planner_state="idle", units_state="idle", status_age_s=0.2, status_stale_s=2.5, robot_time_s=100.0,
+             now_s=100.3, pose_age_s=0.01, pose_timeout_s=1.0, clock_rate=1.0)
+
+
+def refusal(**change) -> str | None:
+    try:
+        check_can_start(**{**READY, **change})
+    except RefusedError as exc:
+        assert str(exc)  # every refusal says why
+        return exc.outcome
+    return None
+
+
+def test_a_ready_robot_may_start():
+    assert refusal() is None
+    assert refusal(planner_state="aborted: the units stopped") is None  # an abort latches nothing
+    assert refusal(units_state=None, robot_time_s=None) is None  # no status yet: the emulator checks the window
+    assert refusal(units_state="running", status_age_s=5.0) is None  # a stale status says nothing about now
+
+
+@pytest.mark.parametrize("change, outcome", [
+    ({"planner_state": "running"}, "BUSY"),
+    ({"planner_state": "stopping"}, "BUSY"),
+    ({"units_state": "estopped"}, "ESTOP_LATCHED"),
+    ({"units_state": "estopped", "status_age_s": 60.0}, "ESTOP_LATCHED"),  # a latch holds however old its word
+    ({"units_state": "ramping_out"}, "UNITS_NOT_AT_REST"),
+    ({"units_state": "pending"}, "UNITS_NOT_AT_REST"),
+    ({"now_s": 0.0}, "CLOCK_NOT_RUNNING"),
+    ({"now_s": 1.8e9}, "CLOCK_MISMATCH"),  # a planner on the wall clock beside a robot on sim time
+    ({"pose_age_s": None}, "NOT_READY"),
+    ({"pose_age_s": 1.5}, "NOT_READY"),
+])
+def test_each_reason_has_its_outcome(change, outcome):
+    assert refusal(**change) == outcome
+
+
+def test_a_clock_running_faster_than_real_time_is_the_same_clock():
+    """At 20x real time a 1 s old status lags the robot's clock by 20 s: that is no mismatch."""
+    assert refusal(now_s=100.0 + 20.0, status_age_s=1.0, clock_rate=20.0) is None
+    assert refusal(now_s=100.0 + CLOCK_MISMATCH_S + 1.0, status_age_s=0.0, clock_rate=1.0) == "CLOCK_MISMATCH"
