@@ -89,13 +89,13 @@ class ScriptedSuite:
     def start_vibration(self, vibration):
         self.sent_parameters = dict(vibration)
         if self.refuse:
-            return VibrationStart(False, *self.refuse, None)
+            return VibrationStart(*self.refuse, None)
         self.t0, self.duration = self.clock + 1.0, float(vibration["duration_s"])
         self.active_s = self.duration if self.active_s is None else self.active_s
         plan = {"t0_s": self.t0, "pose": [0.0] * 6, "ramp_s": 0.2, "duration_s": self.duration, "frequency_hz": 35.0,
                 "amplitude_m": 6e-5, "acceleration_g": 0.3, "direction_base": [0.0, 0.0, 1.0], "gains": [0.5] * 6,
                 "leg_amplitudes_m": [3e-5] * 6}
-        return VibrationStart(True, "SUCCEEDED", "started", plan)
+        return VibrationStart("SUCCEEDED", "started", plan)
 
     def vibration_result(self):
         return self.result

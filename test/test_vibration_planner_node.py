@@ -16,6 +16,7 @@ from ros_client import PLANNER_NOT_READY, node_under_test
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import pose_to_position_quaternion, rotation_from_rpy
+from stewart_vibration.nodes.common import stamp_seconds
 from stewart_vibration.paper import paper_pose
 
 pytestmark = pytest.mark.integration
@@ -67,7 +68,7 @@ def start_with_pose(client, poses, pose, timeout_s: float = 10.0, publish_also=N
 
 
 def plan_t0(plan) -> float:
-    return plan.t0.sec + plan.t0.nanosec * 1e-9
+    return stamp_seconds(plan.t0)
 
 
 def independent_gains(robot, pose):

@@ -24,7 +24,7 @@ _stewart_interfaces() {
       return 1
     fi
   done
-  echo "[venv] building stewart_vibration_interfaces with colcon (about 15 s)" >&2
+  echo "[venv] building stewart_vibration_interfaces with colcon (about 20 s)" >&2
   build="$venv/.interfaces_build"
   rm -rf "$build"
   if ! PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" "$venv/bin/colcon" --log-base "$build/log" build \

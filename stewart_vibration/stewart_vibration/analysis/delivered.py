@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..kinematics.rotations import wrap_angle
-from .fits import direction_error_deg, fit_sinusoid, line_vibration
+from .fits import direction_error_deg, fit_sinusoid, line_of_fit
 
 MIN_CYCLES = 3.0  # fewer cycles in the window: nothing is said (figures 0)
 MIN_SAMPLES = 16
@@ -77,7 +77,7 @@ def delivered_vibration(pose_times, positions, unit_times, unit_positions, frequ
     d = d / np.linalg.norm(d)
     fit = fit_sinusoid(t, p, frequency)
     along = float(abs(d @ fit.complex_amplitude))
-    line = line_vibration(t, p, frequency)
+    line = line_of_fit(fit)  # the same fit: one least squares for the amplitude and the line
     measured_frequency = _frequency_from_phase_drift(t, p @ d, frequency)
     spread = 0.0
     amplitudes = np.asarray(leg_amplitudes, dtype=float)

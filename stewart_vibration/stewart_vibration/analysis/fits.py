@@ -145,11 +145,15 @@ def line_vibration(times, positions, frequency: float) -> LineVibration:
     Raises:
         InvalidInputError: fewer than 4 samples, or a non-finite position (``fit_sinusoid``).
     """
-    fit = fit_sinusoid(times, positions, frequency)
+    return line_of_fit(fit_sinusoid(times, positions, frequency))
+
+
+def line_of_fit(fit: SinusoidFit) -> LineVibration:
+    """The LineVibration of a fit of positions [n, 3] (``fit_sinusoid``): the principal axis of its complex
+    amplitude (see ``line_vibration``)."""
     c = fit.complex_amplitude
     u, sv, _ = np.linalg.svd(np.stack([c.real, c.imag], axis=1))
-    direction = u[:, 0]
-    return LineVibration(direction=direction, amplitude=float(sv[0]), off_axis_ratio=float(sv[1] / sv[0]))
+    return LineVibration(direction=u[:, 0], amplitude=float(sv[0]), off_axis_ratio=float(sv[1] / sv[0]))
 
 
 def direction_error_deg(measured, expected) -> float:

@@ -169,7 +169,7 @@ class PlanningUiNode(Node):
         self.planner_settings = model.stream_defaults(self.robot)
         self.planner_known = False
         self.planner_ranges: dict = {}
-        self.last_start = None
+        self.own_goal: bytes | None = None  # the id of the vibrate goal this page sent last
 
         # -- interfaces --
         self.target_pub = self.create_publisher(PoseStamped, "platform/target_pose", 10)
@@ -474,7 +474,7 @@ class PlanningUiNode(Node):
         plan = plan_record(feedback.plan)
         if self.run is not None and abs(self.run["t0"] - plan["t0_s"]) < 1e-6:
             return
-        ours = bytes(msg.goal_id.uuid) == getattr(self, "own_goal", None)
+        ours = bytes(msg.goal_id.uuid) == self.own_goal
         self.run = {"t0": plan["t0_s"], "settings": settings_of_plan(plan), "nominal": np.asarray(plan["pose"]),
                     "source": "this page" if ours else "another client"}
 
@@ -624,11 +624,8 @@ class PlanningUiNode(Node):
         def on_feedback(msg) -> None:  # the first feedback carries the plan: the vibration started
             if answered["done"]:
                 return
-            plan = plan_record(msg.feedback.plan)
-            self.run = {"t0": plan["t0_s"], "settings": settings_of_plan(plan), "nominal": pose,
-                        "source": "this page"}
+            plan = plan_record(msg.feedback.plan)  # the run is followed from the feedback topic (every goal's)
             match = float(np.abs(np.asarray(plan["leg_amplitudes_m"]) * 1e6 - preview["leg_amplitudes_um"]).max())
-            self.last_start = plan
             text = (f"started: {plan['frequency_hz']:g} Hz, platform amplitude {plan['amplitude_m'] * 1e6:.3f} um "
                     f"along {np.round(plan['direction_base'], 6).tolist()} (base frame), t0 = {plan['t0_s']:.6f} s")
             self._event("vibration_planner", text, "OK")

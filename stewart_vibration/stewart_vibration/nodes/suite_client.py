@@ -307,16 +307,16 @@ class SuiteClient:
             self.spin_until(send.done, 30.0, "the planner to take the vibrate goal")
             handle = send.result()
             if not handle.accepted:
-                return VibrationStart(False, "INTERNAL_ERROR", "the planner rejected the goal", None)
+                return VibrationStart("INTERNAL_ERROR", "the planner rejected the goal", None)
             self._vibration["handle"] = handle
             handle.get_result_async().add_done_callback(self._on_result)
             self.spin_until(lambda: self._vibration["plan"] is not None or self._vibration["result"] is not None,
                             30.0, "the planner to start the vibration")
             result = self._vibration["result"]
             if self._vibration["plan"] is not None or result is None:
-                return VibrationStart(True, "SUCCEEDED", "started", self._vibration["plan"])
+                return VibrationStart("SUCCEEDED", "started", self._vibration["plan"])
             if result.outcome not in NOT_READY_YET or time.monotonic() >= deadline:
-                return VibrationStart(False, result.outcome, result.message, None)
+                return VibrationStart(result.outcome, result.message, None)
             end = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
             self.spin_until(lambda e=end: time.monotonic() >= e, 1.0, "a moment")
 

@@ -9,11 +9,11 @@ from builtin_interfaces.msg import Time as TimeMsg
 from stewart_vibration_interfaces.action import Vibrate
 from stewart_vibration_interfaces.msg import VibrationPlan, VibrationUnitsStatus
 
-from ..messages.cdr import stamp_parts, stamp_seconds
+from ..messages.cdr import stamp_parts
 from ..vibration.decompose import VibrationDecomposition
 from ..vibration.settings import VIBRATION_KEYS
 from ..vibration.waveform import acceleration_from_displacement
-from .common import pose_from_msg, pose_stamped
+from .common import pose_from_msg, pose_stamped, stamp_seconds
 
 UNIT_STATES = {"idle": VibrationUnitsStatus.IDLE, "pending": VibrationUnitsStatus.PENDING,
                "ramping_in": VibrationUnitsStatus.RAMPING_IN, "running": VibrationUnitsStatus.RUNNING,
@@ -60,7 +60,7 @@ def plan_message(plan: VibrationDecomposition, settings: dict, t0: float) -> Vib
 
 def plan_record(msg: VibrationPlan) -> dict:
     """A VibrationPlan as plain values for a run's record: t0_s, pose [6] (m, rad), and every field (SI)."""
-    return {"t0_s": stamp_seconds(msg.t0.sec, msg.t0.nanosec), "frequency_hz": msg.frequency_hz,
+    return {"t0_s": stamp_seconds(msg.t0), "frequency_hz": msg.frequency_hz,
             "amplitude_m": msg.amplitude_m, "acceleration_g": msg.acceleration_g,
             "direction_base": np.asarray(msg.direction, float).tolist(), "phase_rad": msg.phase_rad,
             "ramp_s": msg.ramp_s, "duration_s": msg.duration_s, "gains": np.asarray(msg.gains, float).tolist(),

@@ -110,7 +110,6 @@ class VibrationPlannerNode(Node):
         self.malformed = MalformedInputs(self, self.diagnostics)
         self.state = "idle"
         self.last_error = ""
-        self.plan = None
         self.stream: VibrationStream | None = None
         self.run = None  # dict: settings, t0 (s), next_send (s), seen (s from t0: the last tick's sim time),
         # goal (its handle), done (Future of (outcome name, message, run)), plan (VibrationPlan), next_feedback
@@ -280,7 +279,7 @@ class VibrationPlannerNode(Node):
         started = start_check(self.robot, pose, settings, self.clock_rate.wall_margin)  # wall s -> sim s
         plan, stream, first = started.plan, started.stream, started.first
         t0 = now + started.start_lead
-        self.plan, self.stream = plan, stream
+        self.stream = stream
         plan_msg = plan_message(plan, settings, t0)
         # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
         self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,

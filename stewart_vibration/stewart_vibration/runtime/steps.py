@@ -66,13 +66,17 @@ class RunRecord:
 
 @dataclass(frozen=True)
 class VibrationStart:
-    """How a vibrate goal began: started (``ok``, with the plan the planner runs: messages' plan record with
-    t0_s and pose) or refused (the outcome name of the one table and the planner's reason)."""
+    """How a vibrate goal began: started (with the plan the planner runs: messages' plan record with t0_s and
+    pose) or refused (no plan; the outcome name of the one table and the planner's reason)."""
 
-    ok: bool
     outcome: str
     message: str
     plan: dict | None
+
+    @property
+    def ok(self) -> bool:
+        """Whether the vibration started (its plan came)."""
+        return self.plan is not None
 
 
 @dataclass(frozen=True)
@@ -227,7 +231,7 @@ class ScenarioSteps:
         opts, client = self.options, self.client
         start = client.clock  # before the goal: a lower bound of its t0 (the summary finds the windows from it)
         started = client.start_vibration(step.parameters)
-        if not started.ok or started.plan is None:
+        if started.plan is None:
             raise StepFailed(f"vibration start refused ({started.outcome}): {started.message}")
         plan = started.plan
         ran = dict(step.parameters, t0_s=plan["t0_s"], pose=plan["pose"], plan=plan)

@@ -44,7 +44,6 @@ POSE_FIELDS = ("x_mm", "y_mm", "z_mm", "roll_deg", "pitch_deg", "yaw_deg")
 POSITION_LIMIT_MM = 1000.0  # entries beyond these are typos, refused before any check
 ANGLE_LIMIT_DEG = 360.0
 # The planner's vibration parameters the page sets (vibration_planner SetParameters)
-VIBRATION_PARAMETERS = VIBRATION_KEYS
 
 
 def stream_defaults(robot: Robot) -> dict:
