@@ -24,17 +24,23 @@ _stewart_interfaces() {
       return 1
     fi
   done
-  echo "[venv] building stewart_vibration_interfaces with colcon (about 20 s)" >&2
-  build="$venv/.interfaces_build"
-  rm -rf "$build"
-  if ! PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" "$venv/bin/colcon" --log-base "$build/log" build \
-      --merge-install --base-paths "$src" --build-base "$build/build" --install-base "$venv" \
-      --event-handlers console_cohesion- summary- status- > "$build.log" 2>&1; then
-    tail -n 30 "$build.log" >&2
-    echo "[venv] building stewart_vibration_interfaces failed; the whole log: $build.log" >&2
-    return 1
-  fi
-  echo "$want" > "$stamp"
+  # one build at a time: two shells set up at once (a test run beside a main job) would build into the same
+  # folder; the second waits and finds the stamp written
+  (
+    command -v flock >/dev/null 2>&1 && flock 9
+    [ -f "$stamp" ] && [ "$(cat "$stamp")" = "$want" ] && exit 0
+    echo "[venv] building stewart_vibration_interfaces with colcon (about 20 s)" >&2
+    build="$venv/.interfaces_build"
+    rm -rf "$build"
+    if ! PATH="$venv/bin:$PATH" AMENT_PREFIX_PATH="$venv" CMAKE_PREFIX_PATH="$venv" "$venv/bin/colcon" --log-base "$build/log" build \
+        --merge-install --base-paths "$src" --build-base "$build/build" --install-base "$venv" \
+        --event-handlers console_cohesion- summary- status- > "$build.log" 2>&1; then
+      tail -n 30 "$build.log" >&2
+      echo "[venv] building stewart_vibration_interfaces failed; the whole log: $build.log" >&2
+      exit 1
+    fi
+    echo "$want" > "$stamp"
+  ) 9>"$venv/.interfaces.lock"
 }
 _stewart_env() {
   local repo venv py stamp want
