@@ -95,6 +95,18 @@ def ros_domain(monkeypatch):
     lock.close()
 
 
+@pytest.fixture(scope="module")
+def module_ros_domain():
+    """Like ros_domain, held by a test module whose tests share one set of node processes."""
+    domain, lock = claim_ros_domain()
+    mp = pytest.MonkeyPatch()
+    mp.setenv("ROS_DOMAIN_ID", str(domain))
+    mp.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    yield domain
+    mp.undo()
+    lock.close()
+
+
 @pytest.fixture
 def second_ros_domain(ros_domain):
     """Another held domain (1..101) for a test that needs two isolated graphs."""

@@ -142,7 +142,9 @@ def service_call(node, args: list[str]) -> int:
     if response is None:
         raise SystemExit(f"no response from {name} in {WAIT_S:g} s")
     print(f"response:\n{response!r}\n")
-    return 1 if getattr(response, "success", True) is False else 0
+    refused = getattr(response, "success", True) is False or \
+        (hasattr(response, "outcome") and response.outcome.code != 1)  # Outcome.SUCCEEDED
+    return 1 if refused else 0
 
 
 def param_set(node, args: list[str]) -> int:

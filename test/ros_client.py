@@ -22,11 +22,17 @@ from stewart_vibration.nodes.service_calls import ServiceClients, answer_with_re
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 
-class VibrationGoal:
-    """A vibrate goal a test sent: its feedback as it comes, its result and outcome once it ends."""
+class ActionGoal:
+    """An action goal a test sent (vibrate, move_to_pose): its feedback as it comes, its result and outcome once
+    it ends."""
 
     def __init__(self, client: RosTestClient):
         self.client, self.feedback, self.handle, self.result_future = client, [], None, None
+        self.feedback_times: list[float] = []  # wall arrival time (monotonic s) of each feedback
+
+    def on_feedback(self, msg) -> None:
+        self.feedback_times.append(time.monotonic())
+        self.feedback.append(msg)
 
     def plan(self, timeout: float = 20.0):
         """The plan (VibrationPlan) of the first feedback; None if the goal ended without one."""
@@ -34,9 +40,9 @@ class VibrationGoal:
         return self.feedback[0].feedback.plan if self.feedback else None
 
     def result(self, timeout: float = 30.0):
-        """The Vibrate result once the goal ended (TimeoutError if it did not within ``timeout`` s)."""
+        """The result once the goal ended (TimeoutError if it did not within ``timeout`` s)."""
         if not self.client.spin_until(self.result_future.done, timeout):
-            raise TimeoutError("the vibrate goal did not end")
+            raise TimeoutError("the goal did not end")
         return self.result_future.result().result
 
     def outcome(self, timeout: float = 30.0) -> tuple[str, str]:
@@ -134,20 +140,44 @@ class RosTestClient:
 
     def vibrate_server_ready(self, timeout: float) -> bool:
         """Whether the planner's vibrate action is up within ``timeout`` s."""
-        from rclpy.action import ActionClient
-
         from stewart_vibration_interfaces.action import Vibrate
 
-        if "vibrate" not in self._actions:
-            self._actions["vibrate"] = ActionClient(self.node, Vibrate, "vibration_planner/vibrate")
-            if not self.spin_until(self._actions["vibrate"].server_is_ready, timeout):
+        return self.action_server_ready(Vibrate, "vibration_planner/vibrate", timeout)
+
+    def action_server_ready(self, action_type, name: str, timeout: float) -> bool:
+        """Whether the action ``name`` is up within ``timeout`` s (its client made on first use)."""
+        from rclpy.action import ActionClient
+
+        if name not in self._actions:
+            self._actions[name] = ActionClient(self.node, action_type, name)
+            if not self.spin_until(self._actions[name].server_is_ready, timeout):
                 return False
             # a goal sent at once can lose its answer (the server replies before it has matched this client's
             # reply reader: nodes.service_calls), and a goal cannot be sent twice: let discovery finish first
             self.spin_for(0.5)
-        return self.spin_until(self._actions["vibrate"].server_is_ready, timeout)
+        return self.spin_until(self._actions[name].server_is_ready, timeout)
 
-    def vibrate(self, vibration: dict | None = None, timeout: float = 20.0, **values) -> VibrationGoal:
+    def send_goal(self, name: str, goal_msg, timeout: float = 20.0) -> ActionGoal:
+        """Send ``goal_msg`` to the action ``name`` (ready: action_server_ready); returns once it was taken."""
+        goal = ActionGoal(self)
+        sent = self._actions[name].send_goal_async(goal_msg, feedback_callback=goal.on_feedback)
+        if not self.spin_until(sent.done, timeout) or not sent.result().accepted:
+            raise TimeoutError(f"the {name} goal was not taken")
+        goal.handle = sent.result()
+        goal.result_future = goal.handle.get_result_async()
+        return goal
+
+    def move(self, pose, timeout: float = 20.0, **values) -> ActionGoal:
+        """Send kinematics' move_to_pose goal to ``pose`` (6,) (m, rad; base; ``values``: speed_scale,
+        force_limit_n, moment_limit_nm, frame of nodes.move_messages.move_goal)."""
+        from stewart_vibration.nodes.move_messages import MOVE_ACTION, move_goal
+        from stewart_vibration_interfaces.action import MoveToPose
+
+        if not self.action_server_ready(MoveToPose, MOVE_ACTION, timeout):
+            raise TimeoutError(f"action {MOVE_ACTION} not available")
+        return self.send_goal(MOVE_ACTION, move_goal(pose, **values), timeout)
+
+    def vibrate(self, vibration: dict | None = None, timeout: float = 20.0, **values) -> ActionGoal:
         """Send a vibrate goal (the defaults of a 35 Hz / 0.3 g / 1 s vibration along the tibia axis, updated
         by ``vibration`` and ``values``); returns once the planner has taken it, with its handle."""
         from stewart_vibration.nodes.vibration_goal import goal_message
@@ -157,14 +187,31 @@ class RosTestClient:
                     **(vibration or {}), **values}
         if not self.vibrate_server_ready(timeout):
             raise TimeoutError("action vibration_planner/vibrate not available")
-        client = self._actions["vibrate"]
-        goal = VibrationGoal(self)
-        sent = client.send_goal_async(goal_message(settings), feedback_callback=goal.feedback.append)
-        if not self.spin_until(sent.done, timeout) or not sent.result().accepted:
-            raise TimeoutError("the vibrate goal was not taken")
-        goal.handle = sent.result()
-        goal.result_future = goal.handle.get_result_async()
-        return goal
+        return self.send_goal("vibration_planner/vibrate", goal_message(settings), timeout)
+
+    def plan_path(self, *waypoints, speed_scale: float = 0.0, timeout: float = 20.0):
+        """Kinematics' PlanPath answer for ``waypoints`` (poses (6,), m, rad, base; one: from the pose
+        estimate): outcome, failing_waypoint, failing_time_s, path, duration_s."""
+        from rclpy.time import Time
+
+        from stewart_vibration.nodes.common import pose_stamped
+        from stewart_vibration_interfaces.srv import PlanPath
+
+        request = PlanPath.Request(waypoints=[pose_stamped(p, Time().to_msg()) for p in waypoints],
+                                   speed_scale=float(speed_scale))
+        return self.call(PlanPath, "kinematics/plan_path", request, timeout)
+
+    def start_recording(self, name: str = "", recorder: str = "/mcap_recorder"):
+        """The recorder's StartRecording answer (outcome, path)."""
+        from stewart_vibration_interfaces.srv import StartRecording
+
+        return self.call(StartRecording, f"{recorder}/start", StartRecording.Request(name=name))
+
+    def stop_recording(self, recorder: str = "/mcap_recorder"):
+        """The recorder's StopRecording answer (outcome, path, messages, bytes)."""
+        from stewart_vibration_interfaces.srv import StopRecording
+
+        return self.call(StopRecording, f"{recorder}/stop", StopRecording.Request())
 
     def close(self) -> None:
         self.executor.shutdown()

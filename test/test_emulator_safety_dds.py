@@ -40,6 +40,7 @@ from stewart_vibration.messages.status_values import vibration_report_from_value
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.nodes.common import pose_from_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
+from stewart_vibration_interfaces.msg import LegTrajectoryStatus, Outcome
 
 pytestmark = pytest.mark.integration
 EMULATOR = "stewart_vibration.nodes.hardware_emulator_node"
@@ -61,6 +62,7 @@ class Recorder:
         self.poses = client.subscribe("ground_truth/platform_pose", PoseStamped, depth=10000)
         self.clock = client.subscribe("/clock", Clock)
         self.diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
+        self.answers = client.subscribe("legs/trajectory_status", LegTrajectoryStatus)  # typed, per trajectory
         self.status: list = []
         client.node.create_subscription(DiagnosticStatus, "vibration/status", self.status.append, STATUS_QOS)
 
@@ -140,6 +142,12 @@ def test_legal_per_strut_trajectories_that_wreck_the_platform_are_refused_and_no
             legs.publish(data)
             assert client.spin_until(lambda c=count: len(rec.rejections()) > c, 20), proc.log_text()[-2000:]
             assert "universal_joint_max" in rec.rejections()[-1], rec.rejections()[-1]
+            # the sender's typed answer: refused with the code, keyed by the trajectory's last point
+            assert client.spin_until(lambda c=count: len(rec.answers) > c, 20)
+            answer = rec.answers[-1]
+            assert not answer.accepted and answer.outcome.code == Outcome.UNREACHABLE_POSE, answer
+            home_lengths = inverse_kinematics(robot, robot.home_pose)
+            assert np.allclose(answer.final_positions, home_lengths + np.asarray(delta), atol=1e-12)
         assert rec.wait_sim(t0 + 3.0)
         _, pos = assert_published_within_limits(robot, rec, t0, rec.now() - 0.01)
         home = inverse_kinematics(robot, robot.home_pose)
@@ -243,6 +251,10 @@ def test_an_oversized_trajectory_is_refused_without_stalling_physics(robot, ros_
         t0 = rec.now()
         client.publisher("legs/joint_trajectory", JointTrajectory).publish(data)
         assert client.spin_until(lambda: any("bytes" in r for r in rec.rejections()), 120), proc.log_text()[-2000:]
+        assert client.spin_until(lambda: rec.answers, 20)
+        answer = rec.answers[-1]  # refused from its size, unread: no points, no key
+        assert not answer.accepted and answer.outcome.code == Outcome.LIMIT_EXCEEDED and answer.points == 0
+        assert np.isnan(answer.final_positions).all()
         assert rec.wait_sim(rec.now() + 2.0)
         # physics never stalled (it did for 20 s); the reader is the process that just sent the 176 MB, whose own
         # publishing delays what it receives by about a second on this machine
@@ -262,7 +274,7 @@ def test_stopping_the_emulator_mid_move_brakes_the_robot_to_rest_first(robot, ro
         data, duration = minjerk_bytes(robot, [0.01, -0.01, 0.01, -0.01, 0.01, -0.01])
         begin = rec.now()
         client.publisher("legs/joint_trajectory", JointTrajectory).publish(data)
-        assert rec.wait_sim(begin + 0.45 * duration)
+        assert rec.wait_sim(begin + 0.3 * duration)
         proc.popen.send_signal(signal.SIGINT)
         assert client.spin_until(lambda: not proc.alive(), 20), proc.log_text()[-2000:]
         assert proc.popen.returncode == 0
@@ -271,7 +283,9 @@ def test_stopping_the_emulator_mid_move_brakes_the_robot_to_rest_first(robot, ro
         rates = np.abs(np.diff(pos[-6:, :6], axis=0)).max() / PERIOD
         assert rates < 1e-4, rates  # the last states published: at rest
         goal = inverse_kinematics(robot, robot.home_pose) + np.array([0.01, -0.01, 0.01, -0.01, 0.01, -0.01])
-        assert np.abs(pos[-1, :6] - goal).max() > 1e-3  # it stopped short: it did not run the move to its end
+        # it stopped short: it did not run the move to its end (a busy machine delivers the signal late, so the
+        # margin is not the braking distance of a signal on time)
+        assert np.abs(pos[-1, :6] - goal).max() > 2e-4
 
 
 def test_a_physics_divergence_latches_a_fault_reported_as_error_and_the_robot_is_held(robot, ros_domain, tmp_path):

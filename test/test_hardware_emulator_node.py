@@ -1,7 +1,8 @@
 """hardware_emulator + kinematics nodes, each in its own process, on sim time over real DDS (issues 5, 11, 13):
-moves reach their target, unsafe commands are refused with a reason, vibration windows splice or are
-refused, the watchdog ramps a command that ends away from rest, nothing latches, and the e-stop holds
-until reset -- all observed as a user would (joint states, vibration/status, /diagnostics)."""
+move goals (kinematics/move_to_pose) reach their target, unsafe strut commands are refused with a typed
+answer (legs/trajectory_status), vibration windows splice or are refused, the watchdog ramps a command that
+ends away from rest, nothing latches, and the e-stop holds until reset -- all observed as a user would (joint
+states, vibration/status, legs/trajectory_status, /diagnostics)."""
 
 from __future__ import annotations
 
@@ -21,10 +22,12 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration.messages import cdr
 from stewart_vibration.messages.status_values import status_from_msg, vibration_report
-from stewart_vibration.nodes.common import duration_msg, pose_from_msg, pose_stamped
+from stewart_vibration.nodes.common import duration_msg, pose_from_msg
+from stewart_vibration.nodes.outcomes import outcome_name
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
+from stewart_vibration_interfaces.msg import LegTrajectoryStatus
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -83,15 +86,19 @@ def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
     states = client.subscribe("legs/joint_states", JointState, depth=5000)
     diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)
+    answers = client.subscribe("legs/trajectory_status", LegTrajectoryStatus)
     status = []
     client.node.create_subscription(DiagnosticStatus, "vibration/status", status.append, STATUS_QOS)
     vib_pub = client.publisher("vibration/joint_trajectory", JointTrajectory)
     assert client.spin_until(lambda: len(estimates) > 5 and status, 30), logs(procs)
     assert report(status[-1]).state == "idle"
 
-    # target pose -> ground truth within 10 um and 0.01 deg after settling
+    # a move goal -> SUCCEEDED, the robot took its trajectory; ground truth within 10 um and 0.01 deg after settling
     target = paper_pose(robot)
-    client.publisher("platform/target_pose", PoseStamped).publish(pose_stamped(target, Time()))
+    move = client.move(target)
+    name, message = move.outcome(120)
+    assert (name, move.status()) == ("SUCCEEDED", 4), (name, message, logs(procs))
+    assert answers and all(a.accepted for a in answers), [(a.seq, a.outcome.message) for a in answers]
 
     def settled():
         if not truth:
@@ -101,7 +108,8 @@ def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
 
     assert client.spin_until(settled, 120), logs(procs)
 
-    # unsafe strut commands are refused with a reason; the emulator survives
+    # unsafe strut commands are refused, each with its typed answer (code and reason); the emulator survives
+    answered = len(answers)
     legs = [f"leg_{i}" for i in range(1, 7)]
     bad = JointTrajectory(joint_names=legs)
     bad.points = [JointTrajectoryPoint(positions=[0.30] * 6, time_from_start=duration_msg(1.0))]
@@ -110,10 +118,18 @@ def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):
     fast.points = [JointTrajectoryPoint(positions=[0.20] * 6, time_from_start=duration_msg(0.1))]
     client.publisher("legs/joint_trajectory", JointTrajectory).publish(fast)
 
-    def reasons():
-        return " | ".join(s.message for a in diagnostics for s in a.status if "rejected" in s.message)
+    assert client.spin_until(lambda: len(answers) >= answered + 2, 30), logs(procs)
+    refused = answers[answered:]
+    assert [(a.accepted, a.points) for a in refused] == [(False, 1), (False, 1)]
+    assert refused[0].seq < refused[1].seq
+    assert np.allclose(refused[0].final_positions, 0.30) and np.allclose(refused[1].final_positions, 0.20)
+    kinds = [(outcome_name(a.outcome.code), a.outcome.message) for a in refused]
+    assert kinds[0][0] == "UNREACHABLE_POSE" and "stroke" in kinds[0][1], kinds
+    assert kinds[1][0] == "LIMIT_EXCEEDED" and "strut_velocity_max" in kinds[1][1], kinds
+    assert all(np.isnan(a.end_time_s) for a in refused)
 
-    assert client.spin_until(lambda: "stroke" in reasons() and "strut_velocity_max" in reasons(), 30), reasons()
+    def reasons():  # the emulator's rejections of vibration windows (no typed answer of their own)
+        return " | ".join(s.message for a in diagnostics for s in a.status if "rejected" in s.message)
 
     # a window in the future, ending at rest: accepted, pending -> running -> idle ("commands ended")
     start = sim_now(clock) + 0.5

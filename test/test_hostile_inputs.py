@@ -1,4 +1,4 @@
-"""Hostile input through every message-to-core validation path, property-based (issue 13, acceptance 1).
+"""Hostile input through every message-to-core validation path, property-based.
 
 Hypothesis generates malformed and boundary inputs (NaN/inf, huge values, wrong names, sizes, frames and
 stamps, non-increasing times, discontinuous splices, garbage bytes) next to legal ones, and checks for
@@ -18,13 +18,17 @@ import pytest
 from geometry_msgs.msg import PoseStamped
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
-from nav_msgs.srv import GetPlan
 
 from stewart_vibration import load_robot
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
-from stewart_vibration.errors import InvalidInputError, StewartError, VibrationLimitError
+from stewart_vibration.errors import (
+    InvalidInputError,
+    RefusedError,
+    StewartError,
+    VibrationLimitError,
+)
 from stewart_vibration.kinematics import check_pose, condition_number, joint_angles, leg_vectors
 from stewart_vibration.kinematics.rotations import (
     pose_from_position_quaternion,
@@ -33,10 +37,11 @@ from stewart_vibration.kinematics.rotations import (
     rotation_from_rpy,
 )
 from stewart_vibration.messages import cdr
+from stewart_vibration.motion.move_goal import move_request
 from stewart_vibration.motion.paths import checked_path
-from stewart_vibration.motion.profiles import minimum_jerk
-from stewart_vibration.nodes.common import check_frame, pose_from_msg
-from stewart_vibration.nodes.kinematics_node import unset_pose
+from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
+from stewart_vibration.nodes.move_messages import base_pose
+from stewart_vibration.nodes.outcomes import NAMES, outcome_of
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
@@ -46,6 +51,8 @@ from stewart_vibration.vibration.feasibility import check_command_limits
 from stewart_vibration.vibration.settings import SETTINGS, default_settings, settings_reason
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream
 from stewart_vibration.vibration.waveform import sinusoid
+from stewart_vibration_interfaces.action import MoveToPose
+from stewart_vibration_interfaces.srv import PlanPath
 
 # hostile numbers (1e308, inf) overflow inside numpy on their way to a refusal: expected, not worth a line each
 pytestmark = [pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning"),
@@ -158,76 +165,139 @@ def assert_pose_feasible(poses) -> None:
     assert (condition_number(ROBOT, poses) <= LIM.condition_number_max * (1 + 1e-12)).all()
 
 
-def message_pose(msg, what: str):
-    """What the kinematics node does with a PoseStamped: frame, pose (quaternion normalised within 1e-3)."""
-    check_frame(msg.header.frame_id, what)
-    return pose_from_msg(msg.pose)
+# -- 1. poses as messages: move goals --------------------------------------------------------------------
+# the kinematics node's values a move goal's 0 stands for (its parameters' defaults)
+NODE_SPEED_SCALE, NODE_FORCE_N, NODE_MOMENT_NM = 0.5, 200.0, 15.0
+SLOWEST_SPEED_SCALE = 0.01  # the slowest move a goal may ask for (the speed_scale parameter's minimum too)
 
 
-# -- 1. poses as messages ------------------------------------------------------------------------------
+@st.composite
+def move_goals(draw):
+    """MoveToPose goals to the pose messages, their values mostly 0 (the node's), legal, or hostile."""
+    speed = draw(st.one_of(st.just(0.0), st.just(0.0), st.floats(SLOWEST_SPEED_SCALE, 1.0), near(0.5, 0.6),
+                           st.floats(0.0, 2 * SLOWEST_SPEED_SCALE)))
+    force = draw(st.one_of(st.just(0.0), st.just(0.0), st.floats(0.0, NODE_FORCE_N), near(100.0, 150.0)))
+    moment = draw(st.one_of(st.just(0.0), st.just(0.0), st.floats(0.0, NODE_MOMENT_NM), near(8.0, 10.0)))
+    return MoveToPose.Goal(target=draw(pose_messages()), speed_scale=speed, force_limit_n=force,
+                           moment_limit_nm=moment)
+
+
+def message_goal(goal):
+    """What the kinematics node does with a MoveToPose goal before it looks at the robot: the frame
+    (UNKNOWN_FRAME), the pose (quaternion normalised within 1e-3), the values (0 = the node's; a goal may only
+    lower a limit): the MoveRequest."""
+    target = base_pose(goal.target, "target pose")
+    return move_request(target, goal.speed_scale, goal.force_limit_n, goal.moment_limit_nm, NODE_SPEED_SCALE,
+                        NODE_FORCE_N, NODE_MOMENT_NM)
+
+
+def planned_move(request, goal_lengths):
+    """What the node plans from home for ``request``: the minimum-jerk strut move at its speed scale, sampled
+    (positions, velocities) and its duration."""
+    home = check_pose(ROBOT, HOME)
+    speed = LIM.strut_velocity_max * request.speed_scale
+    duration = minimum_jerk_duration(home, goal_lengths, speed, 0.5)
+    pos, vel, _ = minimum_jerk(home, goal_lengths, duration, np.linspace(0.0, duration, 101))
+    return pos, vel, duration
+
+
+def refused_as(refusal) -> str:
+    """The outcome name a refusal ends a goal with: one of the table's, never INTERNAL_ERROR (a defect)."""
+    code = outcome_of(refusal).code
+    assert code in NAMES and NAMES[code] != "INTERNAL_ERROR", (type(refusal).__name__, refusal.outcome, str(refusal))
+    return NAMES[code]
+
+
 @examples("pose")
-@given(msg=pose_messages())
-def test_target_pose_messages_are_refused_with_a_reason_or_reachable(msg):
-    pose, refusal = attempt(message_pose, msg, "target pose", label="message")
+@given(goal=move_goals())
+def test_move_goals_are_refused_with_their_code_or_reachable(goal):
+    msg = goal.target
+    request, refusal = attempt(message_goal, goal, label="goal")
     q = quaternion_of(msg)
     position = np.array([msg.pose.position.x, msg.pose.position.y, msg.pose.position.z])
     finite = bool(np.isfinite(q).all() and np.isfinite(position).all())
     norm = float(np.linalg.norm(q)) if finite else math.nan
     frame_ok = msg.header.frame_id in ("", "base")
+    speed, force, moment = goal.speed_scale, goal.force_limit_n, goal.moment_limit_nm
+    values_ok = bool(np.isfinite([speed, force, moment]).all() and (speed == 0.0 or SLOWEST_SPEED_SCALE <= speed <= 1.0)
+                     and 0.0 <= force <= NODE_FORCE_N and 0.0 <= moment <= NODE_MOMENT_NM)
     if refusal is None:
         assert frame_ok and finite and abs(norm - 1.0) <= 1e-3 * (1 + 1e-9), (msg.header.frame_id, q, position)
+        assert values_ok, (speed, force, moment)
+        pose = request.target
         assert np.isfinite(pose).all()
         # the orientation is that of the normalised quaternion
         assert np.abs(rotation_from_rpy(pose[3:]) - rotation_from_quaternion(q / norm)).max() < 1e-9
         assert np.array_equal(pose[:3], position)
+        # 0 = the node's values; a goal's own limit is never above the node's
+        assert SLOWEST_SPEED_SCALE <= request.speed_scale <= 1.0 and request.speed_scale == (speed or NODE_SPEED_SCALE)
+        assert (request.force_limit, request.moment_limit) == (force or NODE_FORCE_N, moment or NODE_MOMENT_NM)
         lengths, refusal = attempt(check_pose, ROBOT, pose, label="pose")
         if refusal is None:
             assert_pose_feasible(pose)
             assert np.abs(lengths - np.linalg.norm(leg_vectors(ROBOT, pose), axis=-1)).max() < 1e-12
+            # the move it plans there at the goal's speed scale: finite, within that fraction of the strut speed
+            planned, refusal = attempt(planned_move, request, lengths, label="plan")
+            if refusal is None:
+                pos, vel, duration = planned
+                assert np.isfinite(duration) and np.isfinite(pos).all() and np.isfinite(vel).all()
+                assert np.abs(vel).max() <= LIM.strut_velocity_max * request.speed_scale * (1 + REL)
+            else:
+                assert refused_as(refusal) in ("INVALID_ARGUMENT", "LIMIT_EXCEEDED"), str(refusal)
+        else:
+            assert refused_as(refusal) == "UNREACHABLE_POSE", str(refusal)
     else:
-        # refused: a frame other than base, or a bad number; a unit quaternion (within 1e-3) in base never is
-        assert not (frame_ok and finite and abs(norm - 1.0) <= 1e-3 * (1 - 1e-9)), (msg.header.frame_id, q,
-                                                                                    str(refusal))
+        # refused: a frame other than base, a bad number or a value out of its range; a unit quaternion (within
+        # 1e-3) in base with values in range never is
+        assert not (frame_ok and finite and abs(norm - 1.0) <= 1e-3 * (1 - 1e-9) and values_ok), \
+            (msg.header.frame_id, q, (speed, force, moment), str(refusal))
+        name = refused_as(refusal)
+        # the first check that fails names the code: the frame, then the numbers
+        assert name == ("UNKNOWN_FRAME" if not frame_ok else "INVALID_ARGUMENT"), (msg.header.frame_id, name,
+                                                                                   str(refusal))
 
 
-# -- 2. GetPlan requests -----------------------------------------------------------------------------
+# -- 2. PlanPath requests -----------------------------------------------------------------------------
 @st.composite
 def plan_requests(draw):
-    request = GetPlan.Request()
-    if draw(st.booleans()):  # a goal-only request, as the README calls it (start left at its defaults)
-        if draw(st.booleans()):
-            request.start.pose.orientation.w = 0.0
-    else:
-        request.start = draw(pose_messages(0.02, 0.3))
-    request.goal = draw(pose_messages(0.02, 0.3))
-    request.tolerance = draw(ANY_FLOAT)
+    """PlanPath requests of 0-3 waypoints (one: from the pose estimate, which there may not be yet) and a speed
+    scale, legal or hostile."""
+    request = PlanPath.Request(waypoints=draw(st.lists(pose_messages(0.02, 0.3), min_size=0, max_size=3)))
+    request.speed_scale = draw(st.one_of(st.just(0.0), st.floats(SLOWEST_SPEED_SCALE, 1.0), ANY_FLOAT))
     estimate = draw(st.sampled_from([None, "home", "paper"]))
     return request, {None: None, "home": HOME, "paper": paper_pose(ROBOT)}[estimate]
 
 
 def plan_path(request, estimate):
-    """What the kinematics node's plan_path does: unset start = the current estimate, frames, checked path."""
-    if unset_pose(request.start):
+    """What the kinematics node's plan_path does: the waypoints' frames and poses (one: from the estimate),
+    the speed scale, each segment's checked path."""
+    if not request.waypoints:
+        raise InvalidInputError("no waypoint")
+    poses = [base_pose(msg, f"waypoint {i}") for i, msg in enumerate(request.waypoints)]
+    if len(poses) == 1:
         if estimate is None:
-            raise InvalidInputError("start pose unset and no pose estimate yet")
-        start = estimate
-    else:
-        start = message_pose(request.start, "plan_path start")
-    goal = message_pose(request.goal, "plan_path goal")
-    return start, goal, checked_path(ROBOT, start, goal)
+            raise RefusedError("NOT_READY", "one waypoint and no pose estimate yet")
+        poses.insert(0, estimate)
+    move_request(poses[-1], request.speed_scale, 0.0, 0.0, NODE_SPEED_SCALE, 0.0, 0.0)
+    segments = [checked_path(ROBOT, a, b) for a, b in zip(poses[:-1], poses[1:])]
+    return poses, np.concatenate(segments)
 
 
 @examples("plan_path")
 @given(case=plan_requests())
-def test_plan_path_requests_are_refused_with_a_reason_or_every_waypoint_is_reachable(case):
+def test_plan_path_requests_are_refused_with_their_code_or_every_sample_is_reachable(case):
     request, estimate = case
     result, refusal = attempt(plan_path, request, estimate, label="plan")
     if refusal is None:
-        start, goal, poses = result
-        assert np.allclose(poses[0], start, atol=1e-12) and np.array_equal(poses[-1], goal)
-        assert_pose_feasible(poses)
-        steps = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
+        poses, samples = result
+        assert np.allclose(samples[0], poses[0], atol=1e-12) and np.array_equal(samples[-1], poses[-1])
+        assert_pose_feasible(samples)
+        steps = np.linalg.norm(np.diff(samples[:, :3], axis=0), axis=1)
         assert steps.max(initial=0.0) <= 1e-3 * (1 + 1e-9)
+        assert request.speed_scale == 0.0 or SLOWEST_SPEED_SCALE <= request.speed_scale <= 1.0
+    else:
+        assert refused_as(refusal) in ("INVALID_ARGUMENT", "UNKNOWN_FRAME", "NOT_READY", "UNREACHABLE_POSE",
+                                       "LIMIT_EXCEEDED"), (type(refusal).__name__, str(refusal))
 
 
 # -- 3. leg trajectories on the emulator ------------------------------------------------------------------

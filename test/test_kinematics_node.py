@@ -6,15 +6,17 @@ import math
 
 import numpy as np
 import pytest
-from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
-from nav_msgs.srv import GetPlan
 from ros_client import RosTestClient
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import inverse_kinematics, pose_to_position_quaternion
+from stewart_vibration.nodes.move_messages import MOVE_ACTION
+from stewart_vibration.nodes.outcomes import outcome_name
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
+from stewart_vibration_interfaces.action import MoveToPose
+from stewart_vibration_interfaces.srv import PlanPath
 
 pytestmark = pytest.mark.integration
 
@@ -50,13 +52,17 @@ def joint_state(lengths, vib=None):
     return msg
 
 
-def test_pose_estimate_trajectory_and_rejections(robot, kinematics_node):
+def stamped_state(lengths, seconds: int):
+    msg = joint_state(lengths)
+    msg.header.stamp.sec = seconds
+    return msg
+
+
+def test_pose_estimate_move_goal_and_its_refusals(robot, kinematics_node):
     proc, client = kinematics_node
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)
     trajectories = client.subscribe("legs/joint_trajectory", JointTrajectory)
-    diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
     states = client.publisher("legs/joint_states", JointState)
-    targets = client.publisher("platform/target_pose", PoseStamped)
     assert client.wait_for_subscribers("legs/joint_states"), proc.log_text()
 
     # leg + vib lengths of a known pose -> FK pose estimate
@@ -71,7 +77,7 @@ def test_pose_estimate_trajectory_and_rejections(robot, kinematics_node):
 
     # a reachable target -> one minimum-jerk trajectory ending at the IK lengths
     target = robot.home_pose + np.array([0.005, 0.0, -0.004, 0.0, 0.05, 0.0])
-    targets.publish(pose_msg(target))
+    move = client.move(target)
     assert client.spin_until(lambda: len(trajectories) > 0, 20), proc.log_text()
     traj = trajectories[-1]
     assert traj.joint_names == [f"leg_{i}" for i in range(1, 7)]
@@ -82,72 +88,100 @@ def test_pose_estimate_trajectory_and_rejections(robot, kinematics_node):
     assert speeds <= robot.limits.strut_velocity_max + 1e-12
     assert np.allclose(traj.points[-1].velocities, 0, atol=1e-12)
 
-    # bad targets: NaN, non-unit quaternion, unreachable -> nothing sent, reason on /diagnostics
+    # a second goal while the move is pending or under way: BUSY, nothing sent
     sent = len(trajectories)
+    assert client.move(robot.home_pose).outcome()[0] == "BUSY"
+
+    # this test's only clock is the states' stamps: a state stamped after the move's end, at its goal, ends it
+    # SUCCEEDED with the residual error of that state (0 here) against the target
+    states.publish(stamped_state(inverse_kinematics(robot, target), 10))
+    name, message = move.outcome()
+    assert name == "SUCCEEDED", message
+    result = move.result()
+    assert result.position_error_m < 1e-9 and result.angle_error_rad < 1e-9, result
+    assert math.isclose(result.final_pose.position.x, target[0], abs_tol=1e-9)
+    assert move.status() == 4  # action_msgs/GoalStatus SUCCEEDED
+    assert move.feedback and 0.0 <= move.feedback[-1].feedback.progress <= 1.0
+
+    # bad goals: each refused with its code, nothing sent
+    def goal_of(msg, **values):
+        goal = MoveToPose.Goal(target=msg, **values)
+        return client.send_goal(MOVE_ACTION, goal)
+
     nan_msg = pose_msg(target)
     nan_msg.pose.position.x = float("nan")
-    targets.publish(nan_msg)
-    targets.publish(pose_msg(target, quat=[0, 0, 0, 2.0]))
-    unreachable = robot.home_pose + np.array([0, 0, 0.2, 0, 0, 0])
-    targets.publish(pose_msg(unreachable))
     world = pose_msg(target)
     world.header.frame_id = "world"  # a pose in another frame is refused, not read as base
-    targets.publish(world)
-
-    def reasons():  # anywhere in the message: a "stale: ..." prefix precedes it once the one joint state is old
-        return [s.message for a in diagnostics for s in a.status if "rejected target pose" in s.message]
-
-    kinds = ("non-finite", "unit quaternion", "stroke limit", "'world'")  # each of the four, by its content
-    assert client.spin_until(lambda: all(k in " | ".join(reasons()) for k in kinds), 20), (reasons(), proc.log_text())
+    cases = [
+        (goal_of(nan_msg), "INVALID_ARGUMENT", "finite"),
+        (goal_of(pose_msg(target, quat=[0, 0, 0, 2.0])), "INVALID_ARGUMENT", "unit quaternion"),
+        (goal_of(pose_msg(robot.home_pose + np.array([0, 0, 0.2, 0, 0, 0]))), "UNREACHABLE_POSE", "stroke"),
+        (goal_of(world), "UNKNOWN_FRAME", "'world'"),
+        (goal_of(pose_msg(robot.home_pose), speed_scale=2.0), "INVALID_ARGUMENT", "speed_scale"),
+        (goal_of(pose_msg(robot.home_pose), force_limit_n=1e4), "INVALID_ARGUMENT", "guard_force_n"),
+        (goal_of(pose_msg(robot.home_pose), moment_limit_nm=-1.0), "INVALID_ARGUMENT", "negative"),
+    ]
+    for goal, code, words in cases:
+        name, message = goal.outcome()
+        assert (name, words in message) == (code, True), (code, words, message)
+        assert goal.status() == 6  # ABORTED
     client.spin_for(0.3)
     assert len(trajectories) == sent
 
-    # a target while the move is pending or under way is refused: this test's only clock is the states' stamps, so
-    # a state stamped after the move's end (at its goal) ends it
-    targets.publish(pose_msg(robot.home_pose))
-    assert client.spin_until(lambda: "a move is under way" in " | ".join(reasons()), 20), (reasons(), proc.log_text())
-    ended = joint_state(inverse_kinematics(robot, target))
-    ended.header.stamp.sec = 10
-    count = len(estimates)
-    states.publish(ended)
-    assert client.spin_until(lambda: len(estimates) > count, 20), proc.log_text()
-
     # hand-typed quaternions (the README's example: norm 1.00004) are normalised and accepted, also in an
     # empty frame (documented as base)
-    typed = pose_msg(target, quat=[0.0, 0.025, 0.0, 1.00003])
+    typed = pose_msg(robot.home_pose, quat=[0.0, 0.025, 0.0, 1.00003])
     typed.header.frame_id = ""
-    targets.publish(typed)
-    assert client.spin_until(lambda: len(trajectories) > sent, 20), (reasons(), proc.log_text())
+    typed_goal = goal_of(typed)
+    assert client.spin_until(lambda: len(trajectories) > sent, 20), proc.log_text()
+    typed_goal.cancel()  # a stop along the path; the states' stamps are the clock: one at rest, later, ends it
+    stop = None if not client.spin_until(lambda: len(trajectories[-1].points) == 1, 10) else trajectories[-1]
+    assert stop is not None, "a cancel sends a one-point stop"
+    states.publish(stamped_state(stop.points[0].positions, 20))
+    assert typed_goal.outcome()[0] == "CANCELED"
+    assert typed_goal.status() == 5  # CANCELED
     assert proc.alive()
 
 
 def test_plan_path_service(robot, kinematics_node):
     proc, client = kinematics_node
-    request = GetPlan.Request()
-    request.start = pose_msg(robot.home_pose)
-    request.goal = pose_msg(robot.home_pose + np.array([0.01, 0, 0, 0, 0, 0.1]))
-    response = client.call(GetPlan, "kinematics/plan_path", request)
-    assert len(response.plan.poses) >= 11
-    last = response.plan.poses[-1].pose.position
+    start, goal = robot.home_pose, robot.home_pose + np.array([0.01, 0, 0, 0, 0, 0.1])
+    response = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(waypoints=[pose_msg(start),
+                                                                                          pose_msg(goal)]))
+    assert outcome_name(response.outcome.code) == "SUCCEEDED", response.outcome
+    assert len(response.path.poses) >= 11 and response.failing_waypoint == -1 and response.duration_s > 0.5
+    last = response.path.poses[-1].pose.position
     assert math.isclose(last.x, 0.01, abs_tol=1e-12)
-    diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
-    request.goal = pose_msg(robot.home_pose + np.array([0.0, 0.0, 0.2, 0, 0, 0]))
-    assert len(client.call(GetPlan, "kinematics/plan_path", request).plan.poses) == 0
-    assert client.spin_until(lambda: any("plan_path" in s.message and "StrokeLimitError" in s.message
-                                         for a in diagnostics for s in a.status), 10)  # the reason is visible
 
-    # goal only, as the README calls it: from the current pose estimate (not from the origin)
+    # through three waypoints, the second segment out of the stroke: refused with its code and the waypoint
+    beyond = robot.home_pose + np.array([0.0, 0.0, 0.2, 0, 0, 0])
+    refused = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(
+        waypoints=[pose_msg(start), pose_msg(goal), pose_msg(beyond)]))
+    assert outcome_name(refused.outcome.code) == "UNREACHABLE_POSE" and "stroke" in refused.outcome.message
+    assert refused.failing_waypoint == 2 and refused.failing_time_s == pytest.approx(response.duration_s)
+    assert not refused.path.poses
+    world = pose_msg(goal)
+    world.header.frame_id = "world"
+    odd = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(waypoints=[pose_msg(start), world]))
+    assert outcome_name(odd.outcome.code) == "UNKNOWN_FRAME"
+    none = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request())
+    assert outcome_name(none.outcome.code) == "INVALID_ARGUMENT"
+    # one waypoint before any state: nothing to start from
+    alone = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(waypoints=[pose_msg(goal)]))
+    assert outcome_name(alone.outcome.code) == "NOT_READY"
+
+    # one waypoint, as the README calls it: from the current pose estimate (not from the origin)
     states = client.publisher("legs/joint_states", JointState)
     current = robot.home_pose + np.array([0.003, 0.0, 0.0, 0.0, 0.0, 0.0])
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)
     assert client.wait_for_subscribers("legs/joint_states")
     states.publish(joint_state(inverse_kinematics(robot, current)))
     assert client.spin_until(lambda: estimates, 10)
-    goal_only = GetPlan.Request()
-    goal_only.goal.header.frame_id = "base"
-    goal_only.goal.pose.position.z = 0.165
-    goal_only.goal.pose.orientation.w = 1.0
-    plan = client.call(GetPlan, "kinematics/plan_path", goal_only).plan.poses
+    target = PoseStamped()
+    target.header.frame_id = "base"
+    target.pose.position.z = 0.165
+    target.pose.orientation.w = 1.0
+    plan = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(waypoints=[target])).path.poses
     assert len(plan) > 2
     first = plan[0].pose.position
     assert math.isclose(first.x, 0.003, abs_tol=1e-9) and math.isclose(plan[-1].pose.position.z, 0.165, abs_tol=1e-12)

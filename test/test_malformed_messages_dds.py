@@ -7,10 +7,11 @@ estimator, MCAP recorder, planning UI (a page open on it, so it reads its 500 Hz
 kinematics/guard_status are latched on their transient-local topics. Then a seeded fuzzer publishes malformed
 versions of every message type each node subscribes to (tests/malformed_messages.py: statuses named like each
 publisher's with non-numeric values, NUL and non-UTF-8 strings, joint states, poses, wrenches and trajectories
-with NaN / inf / huge values, wrong lengths and names, garbage CDR, /clock with negative seconds), and the test
-checks that every node is alive, still does its job (clock, pose and force estimates, a planned path, service
-answers, frames to the page and the scene) and counted what it ignored on /diagnostics; restarted nodes get the
-latched malformed status again and survive it.
+with NaN / inf / huge values, wrong lengths and names, garbage CDR, /clock with negative seconds) and sends the
+malformed target poses as kinematics' move_to_pose goals, and the test checks that every node is alive, still
+does its job (clock, pose and force estimates, a planned path, service answers, frames to the page and the
+scene), counted what it ignored on /diagnostics and refused every bad goal with its outcome code; restarted
+nodes get the latched malformed status again and survive it.
 
 Also, as the issue's user saw it: a spoofed emulator status with a non-numeric rejection count during a move
 (kinematics stays alive and the move completes), and a burst of 200 e-stops from the planning UI (every one
@@ -33,11 +34,10 @@ from action_msgs.srv import CancelGoal
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped, WrenchStamped
-from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import Log
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.serialization import serialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from ros_client import RosTestClient
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -46,13 +46,18 @@ from trajectory_msgs.msg import JointTrajectory
 from websockets.sync.client import connect
 
 from stewart_vibration import load_robot
-from stewart_vibration.errors import InvalidInputError
+from stewart_vibration.errors import InvalidInputError, MalformedMessageError, StewartError
+from stewart_vibration.kinematics import check_pose
 from stewart_vibration.messages import cdr
-from stewart_vibration.nodes.common import pose_stamped
+from stewart_vibration.nodes.common import check_frame, pose_from_msg, pose_stamped
+from stewart_vibration.nodes.move_messages import MOVE_ACTION
 from stewart_vibration.nodes.suite_client import SuiteClient
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
+from stewart_vibration_interfaces.action import MoveToPose
+from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, Outcome
+from stewart_vibration_interfaces.srv import PlanPath
 
 pytestmark = [pytest.mark.integration]
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -77,12 +82,13 @@ CONTROLLER_NODES = {"kinematics", "vibration_planner", "leg_force_estimator", "p
 # what each node must have counted as malformed, per input, after the fuzz (its /diagnostics status name)
 EXPECTED = {
     "hardware_emulator: hardware emulator": ["/clock"],
-    "kinematics: kinematics": ["legs/joint_states", "platform/target_pose", "platform/external_wrench_estimate",
-                               "/diagnostics", "/clock"],
+    # (kinematics reads the emulator's answers on legs/trajectory_status now, not on /diagnostics: typed, nothing
+    # to count, it must only survive them)
+    "kinematics: kinematics": ["legs/joint_states", "platform/external_wrench_estimate", "/clock"],
     "vibration_planner: vibration planner": ["vibration/status", "/clock"],
     "leg_force_estimator: leg force estimator": ["legs/joint_states", "vibration/status", "legs/joint_trajectory",
                                                  "vibration/joint_trajectory", "/clock"],
-    "planning_ui: planning UI": ["vibration/status", "/diagnostics", "/rosout", "legs/joint_states",
+    "planning_ui: planning UI": ["vibration/status", "/diagnostics", "legs/joint_states",
                                  "platform/pose_estimate", "legs/force_estimate", "/clock"],
     "foxglove_bridge: foxglove bridge": ["vibration/status", "vibration/joint_trajectory", "ground_truth/platform_pose",
                                          "/clock"],
@@ -207,6 +213,54 @@ class SceneWatcher:
         self.thread.join(5)
 
 
+def trajectory_statuses(rng, count: int = 30) -> list[bytes]:
+    """legs/trajectory_status answers (the emulator's, to leg trajectories) that answer nothing kinematics sent or
+    are malformed: refusals and takes of unknown, NaN or inf final lengths, codes outside the outcome table, NaN /
+    inf end times, empty, replacement-character and 70 kB messages, and mangled bytes."""
+    out = []
+    refused = LegTrajectoryStatus(seq=7, accepted=False, points=3, end_time_s=float("nan"))
+    refused.final_positions = [float("nan")] * 6
+    refused.outcome.code, refused.outcome.message = 9999, "refused"
+    for i in range(count):
+        if i % 4 == 3:
+            out.extend(bad.mangled(rng, serialize_message(refused), 1, i))
+            continue
+        msg = LegTrajectoryStatus(seq=int(rng.integers(0, 2**32)), accepted=bool(i % 2),
+                                  points=int(rng.integers(0, 2**32)),
+                                  end_time_s=float(rng.choice([np.nan, np.inf, -np.inf, 1e300])))
+        msg.final_positions = [float(v) for v in rng.choice([np.nan, np.inf, 0.3, -1.0], 6)]
+        msg.outcome.code = int(rng.choice([0, 302, 9999, 65535]))
+        msg.outcome.message = ["", "\ufffd" * 10, "x" * 70_000][i % 3]
+        out.append(serialize_message(msg))
+    return out
+
+
+def goal_refusal(robot, target: PoseStamped) -> str | None:
+    """The outcome a move goal to ``target`` (node defaults otherwise) must be refused with -- the node checks the
+    frame, the pose message, then the pose -- or None for a legal one."""
+    try:
+        check_frame(target.header.frame_id, "target pose")
+    except MalformedMessageError:
+        return "UNKNOWN_FRAME"
+    try:
+        check_pose(robot, pose_from_msg(target.pose))
+    except StewartError as exc:
+        return exc.outcome
+    return None
+
+
+def goal_targets(data: list[bytes]) -> list[PoseStamped]:
+    """The malformed PoseStamped of ``data`` that are messages at all (mangled bytes that do not deserialize
+    cannot be a goal's target: the action's own transport refuses them before the node sees them)."""
+    out = []
+    for raw in data:
+        try:
+            out.append(deserialize_message(raw, PoseStamped))
+        except Exception:  # noqa: BLE001 - rclpy raises its RMW error types
+            continue
+    return out
+
+
 def subscribed(client: RosTestClient, topic: str, node: str) -> bool:
     return any(i.node_name == node for i in client.node.get_subscriptions_info_by_topic(topic))
 
@@ -266,17 +320,20 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         raw = {topic: c.node.create_publisher(kind, topic, 50) for topic, kind in (
             ("legs/joint_states", JointState), ("legs/force_estimate", JointState),
             ("ground_truth/platform_pose", PoseStamped),
-            ("platform/pose_estimate", PoseStamped), ("platform/target_pose", PoseStamped),
-            ("platform/external_wrench_estimate", WrenchStamped), ("legs/joint_trajectory", JointTrajectory),
+            ("platform/pose_estimate", PoseStamped), ("platform/external_wrench_estimate", WrenchStamped),
+            ("legs/joint_trajectory", JointTrajectory),
             ("vibration/joint_trajectory", JointTrajectory), ("/diagnostics", DiagnosticArray),
-            ("/clock", Clock))}
+            ("/clock", Clock), ("legs/trajectory_status", LegTrajectoryStatus))}
         raw["/rosout"] = c.node.create_publisher(Log, "/rosout", QoSProfile(
             depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         raw["vibration/status"], raw["kinematics/guard_status"] = suite.status_pub, suite.guard_pub
         batches = {
             "legs/joint_states": bad.joint_states(rng), "legs/force_estimate": bad.joint_states(rng, LEG_NAMES, 30),
-            "ground_truth/platform_pose": bad.poses(rng), "platform/pose_estimate": bad.poses(rng, 30),
-            "platform/target_pose": bad.poses(rng), "platform/external_wrench_estimate": bad.wrenches(rng),
+            "ground_truth/platform_pose": bad.poses(rng), "platform/pose_estimate": bad.poses(rng, 30)}
+        # malformed target poses: kinematics' move goals now (drawn here: the seeded fuzz of the rest is the same)
+        targets = goal_targets(bad.poses(rng))
+        batches |= {
+            "platform/external_wrench_estimate": bad.wrenches(rng),
             "legs/joint_trajectory": bad.trajectories(rng, LEG_NAMES),
             "vibration/joint_trajectory": bad.trajectories(rng, VIB_NAMES), "/diagnostics": bad.diagnostic_arrays(rng),
             "vibration/status": bad.vibration_statuses(rng), "kinematics/guard_status": bad.guard_statuses(rng),
@@ -284,14 +341,20 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
             + bad.mangled(rng, serialize_message(Clock()), 6),
             "/rosout": [serialize_message(Log(name="mcap_recorder", msg=f"recording to {path}"))
                         for path in ("/tmp/" + "a" * 5000, "/tmp/run\x01/x.mcap", "/tmp/\ufffd.mcap")],
+            # its own generator: the seeded fuzz of the others stays the same
+            "legs/trajectory_status": trajectory_statuses(np.random.default_rng(29)),
         }
         for topic in batches:
             assert spin_until(lambda t=topic: raw[t].get_subscription_count() > 0, 30), (topic, suite.logs())
-        plan = GetPlan.Request()
-        plan.goal = pose_stamped(robot.home_pose, Time(), "base")
-        plan.goal.pose.position.x = float("nan")
+        assert c.action_server_ready(MoveToPose, MOVE_ACTION, 30), suite.logs()
+        moves = []  # (target, ActionGoal) of every move goal sent
+        plan = PlanPath.Request(waypoints=[pose_stamped(robot.home_pose, Time(), "base")])
+        plan.waypoints[0].pose.position.x = float("nan")
         sent, unsendable = 0, []
         for i in range(max(map(len, batches.values()))):
+            if i < len(targets):
+                moves.append((targets[i], c.send_goal(MOVE_ACTION, MoveToPose.Goal(target=targets[i]))))
+                sent += 1
             for topic, messages in batches.items():
                 if i < len(messages):
                     try:
@@ -299,8 +362,8 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
                         sent += 1
                     except RCLError:  # Fast DDS deserializes a small fixed-size type (Clock) to send it: refused
                         unsendable.append(topic)
-            if i % 10 == 0:
-                c.call(GetPlan, "kinematics/plan_path", plan)  # a malformed request: an empty path, no crash
+            if i % 10 == 0:  # a malformed request: refused with its code, no crash
+                assert c.call(PlanPath, "kinematics/plan_path", plan).outcome.code == Outcome.INVALID_ARGUMENT
             spin(0.01)
         # kinematics reads only the newest wrench estimate of a batch between moves, the bridge the newest
         # ground-truth pose at each scene tick, and rclpy's /clock subscription keeps one message (the emulator's
@@ -315,6 +378,21 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         assert sent > 1000 and set(unsendable) <= {"/clock"}, unsendable
         spin(1.0)
         assert not suite.dead(), ("dead after the fuzz", suite.dead(), suite.logs())
+        # every bad goal was refused with its code (or BUSY: checked first, while another goal runs), nothing run;
+        # the legal ones among them (a frame "base\0x" reads "base", the stamp is not used) are moves of nothing,
+        # judged on the states kinematics reads -- fuzzed ones among them (stamped far ahead, lengths of another
+        # pose): such a goal may end TIMEOUT, the robot holding
+        ended = []
+        for target, goal in moves:
+            name, message = goal.outcome(30)
+            expected = goal_refusal(robot, target)
+            ended.append((expected, name))
+            assert message, (target, name)
+            if expected is None:
+                assert name in ("SUCCEEDED", "BUSY", "TIMEOUT"), (target, name, message)
+            else:
+                assert name in (expected, "BUSY") and goal.status() == 6, (target, expected, name, message)
+        assert len(moves) > 20 and sum(expected is not None for expected, _ in ended) > len(moves) // 2, ended
 
         # every node counted what it ignored, per input, on /diagnostics (the runner: in its client)
         def counted() -> list[str]:
@@ -339,9 +417,8 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
         quiet = [n for n in list(EXPECTED) + ["mcap_recorder: mcap recorder"]]
         assert spin_until(lambda: all(suite.published_since(n, after) for n in quiet), 10), \
             ("no /diagnostics since the fuzz", [n for n in quiet if not suite.published_since(n, after)])
-        legal = GetPlan.Request()
-        legal.goal = pose_stamped(paper_pose(robot), Time(), "base")
-        assert c.call(GetPlan, "kinematics/plan_path", legal).plan.poses, suite.logs()
+        legal = c.plan_path(paper_pose(robot))
+        assert legal.outcome.code == Outcome.SUCCEEDED and legal.path.poses, (legal.outcome, suite.logs())
         assert c.call(CancelGoal, "vibration_planner/vibrate/_action/cancel_goal", CancelGoal.Request()).return_code \
             in (CancelGoal.Response.ERROR_NONE, CancelGoal.Response.ERROR_REJECTED)  # answered (no goal to cancel)
         assert "no emergency stop" in c.call(Trigger, "hardware_emulator/reset", Trigger.Request()).message
@@ -369,9 +446,11 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
 
 
 def test_a_spoofed_emulator_status_during_a_move_leaves_kinematics_guarding_it(ros_domain, tmp_path):
-    """A /diagnostics status named like the emulator's with a non-numeric rejection count, sent during a move (it
-    killed kinematics: the force guard was gone for that move): kinematics ignores and counts it, the move
-    completes at its target and the guard stays armed."""
+    """Spoofed emulator answers during a move: a /diagnostics status named like the emulator's with a non-numeric
+    rejection count (it killed kinematics when kinematics read the emulator's rejections there: the force guard
+    was gone for that move) and legs/trajectory_status answers to no trajectory kinematics sent, odd or mangled
+    (the emulator's answers now): kinematics survives them, the move goal succeeds at its target and the guard
+    stays armed all along (the goal's feedback)."""
     env = ros_environment(ros_domain)
     procs = {name: start_python_module(name, module, args, env, tmp_path)
              for name, (module, args) in nodes(tmp_path).items() if name in ("emulator", "kinematics", "estimator")}
@@ -382,12 +461,13 @@ def test_a_spoofed_emulator_status_during_a_move_leaves_kinematics_guarding_it(r
         estimates = client.subscribe("platform/external_wrench_estimate", WrenchStamped, depth=10)
         diagnostics = client.subscribe("/diagnostics", DiagnosticArray, depth=200)
         spoofer = client.node.create_publisher(DiagnosticArray, "/diagnostics", 50)
-        targets = client.publisher("platform/target_pose", PoseStamped)
+        answers = client.publisher("legs/trajectory_status", LegTrajectoryStatus, 50)
         assert client.spin_until(lambda: len(truth) > 50 and len(estimates) > 50, 90), procs
-        assert client.wait_for_subscribers("platform/target_pose")
+        assert client.wait_for_subscribers("legs/trajectory_status"), procs
         target = robot.home_pose + np.array([0.0, 0.0, 0.008, 0.0, 0.0, 0.0])  # a 1.6 s move at 5 mm/s
-        targets.publish(pose_stamped(target, Time(), "base"))
+        move = client.move(target)
         spoofs = bad.diagnostic_arrays(np.random.default_rng(5), 21)[::7]  # the emulator's: rejections non-numeric
+        odd_answers = trajectory_statuses(np.random.default_rng(6), 8)
 
         def kinematics_values() -> dict:
             out = {}
@@ -405,12 +485,18 @@ def test_a_spoofed_emulator_status_during_a_move_leaves_kinematics_guarding_it(r
         while time.monotonic() < deadline and not at_target():
             for data in spoofs:
                 spoofer.publish(data)
+            for data in odd_answers:
+                answers.publish(data)
             client.spin_for(0.02)
         assert at_target(), ([procs[n].log_text()[-2000:] for n in procs])
         assert procs["kinematics"].alive(), procs["kinematics"].log_text()
-        assert client.spin_until(lambda: int(kinematics_values().get("malformed /diagnostics", "0")) > 5, 10), \
-            kinematics_values()
-        assert "force guard tripped" not in kinematics_values().get("message", "")
+        name, message = move.outcome(30)
+        assert (name, move.status()) == ("SUCCEEDED", 4), (name, message, procs["kinematics"].log_text()[-2000:])
+        states = {f.feedback.guard_state for f in move.feedback}
+        assert move.feedback and states == {ForceGuardStatus.ARMED}, states  # guarded all along, never tripped
+        client.spin_for(1.0)
+        assert procs["kinematics"].alive(), procs["kinematics"].log_text()
+        assert kinematics_values(), "kinematics' /diagnostics went silent"
     finally:
         client.close()
         for proc in procs.values():

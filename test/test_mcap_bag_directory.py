@@ -178,7 +178,8 @@ def test_recorder_folder_is_a_bag_directory_among_other_files(ros_domain, tmp_pa
 @pytest.mark.integration
 def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path):
     from ros_client import RosTestClient
-    from std_srvs.srv import Trigger
+
+    from stewart_vibration_interfaces.msg import Outcome
 
     env = _env(ros_domain)
     folder = tmp_path / "bag"
@@ -190,7 +191,7 @@ def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path
     try:
         for part in range(2):
             if part:
-                assert client.call(Trigger, "/mcap_recorder/start", Trigger.Request()).success
+                assert client.start_recording().outcome.code == Outcome.SUCCEEDED
                 assert not (folder / "metadata.yaml").exists()
             pub = start_python_module(f"publisher{part}", PUBLISHER, ["--count", "50", "--rate", "200",
                                                                        "--topics", "joint_states"],
@@ -199,8 +200,9 @@ def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path
             pub.stop()
             sent[JS] += 50
             assert client.spin_until(lambda: sum(_on_disk(p)[JS] for p in folder.glob("*.mcap")) >= sent[JS], 30)
-            answer = client.call(Trigger, "/mcap_recorder/stop", Trigger.Request())
-            assert answer.success and (folder / "metadata.yaml").exists()
+            answer = client.stop_recording()
+            assert answer.outcome.code == Outcome.SUCCEEDED and (folder / "metadata.yaml").exists()
+            assert answer.messages == 50 and answer.bytes == Path(answer.path).stat().st_size
     finally:
         client.close()
         rec.stop()

@@ -100,7 +100,8 @@ def test_refused_at_run_time_and_a_standalone_recorder_makes_its_own_run_folder(
     from rcl_interfaces.msg import ParameterType, ParameterValue
     from rcl_interfaces.srv import SetParameters
     from ros_client import RosTestClient
-    from std_srvs.srv import Trigger
+
+    from stewart_vibration_interfaces.msg import Outcome
 
     env = _env(ros_domain)
     work = tmp_path / "work"
@@ -127,10 +128,21 @@ def test_refused_at_run_time_and_a_standalone_recorder_makes_its_own_run_folder(
             result = set_param(name, value)
             assert not result.successful and words in result.reason, (name, value, result.reason)
         assert set_param("file_pattern", "part_{index}_{node}.mcap").successful
-        assert client.call(Trigger, "/mcap_recorder/stop", Trigger.Request()).success
-        started = client.call(Trigger, "/mcap_recorder/start", Trigger.Request())
-        assert started.success and started.message == str(folders[0].resolve() / "part_2_mcap_recorder.mcap")
-        assert client.call(Trigger, "/mcap_recorder/stop", Trigger.Request()).success
+        assert client.stop_recording().outcome.code == Outcome.SUCCEEDED
+        started = client.start_recording()
+        assert started.outcome.code == Outcome.SUCCEEDED
+        assert started.path == str(folders[0].resolve() / "part_2_mcap_recorder.mcap")
+        assert client.stop_recording().outcome.code == Outcome.SUCCEEDED
+        # typed refusals: nothing to stop; a second start while recording; a name that is not a plain file name
+        assert client.stop_recording().outcome.code == \
+            Outcome.NOT_RECORDING
+        named = client.start_recording("reduction_1")
+        assert named.outcome.code == Outcome.SUCCEEDED and named.path.endswith("/reduction_1.mcap"), named
+        again = client.start_recording("other")
+        assert again.outcome.code == Outcome.BUSY and again.path == named.path
+        assert client.stop_recording().outcome.code == Outcome.SUCCEEDED
+        bad = client.start_recording("../escape")
+        assert bad.outcome.code == Outcome.INVALID_ARGUMENT and "separator" in bad.outcome.message, bad
     finally:
         client.close()
         os.killpg(rec.pid, signal.SIGINT)
@@ -145,7 +157,8 @@ def test_refused_at_run_time_and_a_standalone_recorder_makes_its_own_run_folder(
 def test_a_full_disk_is_an_error_at_once_and_the_file_stays_readable(ros_domain, tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
     from ros_client import RosTestClient
-    from std_srvs.srv import Trigger
+
+    from stewart_vibration_interfaces.msg import Outcome
 
     env = _env(ros_domain)
     with small_filesystem(tmp_path / "small", 512 * 1024) as fs:
@@ -183,8 +196,8 @@ def test_a_full_disk_is_an_error_at_once_and_the_file_stays_readable(ros_domain,
             client.spin_for(1.5)  # the 1 s report: never OK again
             later = [s for t, s in statuses if t > first_error]
             assert later and all(s.level == DiagnosticStatus.ERROR for s in later)
-            answer = client.call(Trigger, "/mcap_recorder/stop", Trigger.Request())
-            assert not answer.success and "ENOSPC" in answer.message
+            answer = client.stop_recording()
+            assert answer.outcome.code == Outcome.RECORDING_FAILED and "ENOSPC" in answer.outcome.message
         finally:
             client.close()
             if pub is not None:
@@ -266,9 +279,9 @@ def test_a_stopped_recorder_counts_what_it_lost(ros_domain, tmp_path, executor):
 
 def test_a_bag_of_two_recordings_is_summarised_whole_with_its_gap(ros_domain, tmp_path):
     from ros_client import RosTestClient
-    from std_srvs.srv import Trigger
 
     from stewart_vibration.analysis.run_summary import load_signals, recording_coverage, recording_problems
+    from stewart_vibration_interfaces.msg import Outcome
 
     env = _env(ros_domain)
     folder = tmp_path / "bag"
@@ -279,7 +292,7 @@ def test_a_bag_of_two_recordings_is_summarised_whole_with_its_gap(ros_domain, tm
         assert wait_for(lambda: "recording to" in rec.log_text(), 30), rec.log_text()
         for part, start_s in ((1, 1000.0), (2, 1003.0)):  # 2 s each, the second from 3 s on: a 1 s gap
             if part == 2:
-                assert client.call(Trigger, "/mcap_recorder/start", Trigger.Request()).success
+                assert client.start_recording().outcome.code == Outcome.SUCCEEDED
             pub = start_python_module(f"publisher{part}", PUBLISHER, ["--count", "1000", "--rate", "500",
                                                                        "--start-s", str(start_s)],
                                       env, tmp_path / "logs")
@@ -294,7 +307,7 @@ def test_a_bag_of_two_recordings_is_summarised_whole_with_its_gap(ros_domain, tm
                     return False
 
             assert client.spin_until(on_disk, 30)
-            assert client.call(Trigger, "/mcap_recorder/stop", Trigger.Request()).success
+            assert client.stop_recording().outcome.code == Outcome.SUCCEEDED
     finally:
         client.close()
         rec.stop()

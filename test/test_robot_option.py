@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 import yaml
 from geometry_msgs.msg import PoseStamped
-from nav_msgs.srv import GetPlan
 from rcl_interfaces.srv import GetParameters
 
 from stewart_vibration import check_pose, load_robot, pose_to_position_quaternion
@@ -21,6 +20,8 @@ from stewart_vibration.cli.main import main
 from stewart_vibration.errors import StrokeLimitError
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.runtime.suite import SUITE_NODES
+from stewart_vibration_interfaces.msg import Outcome
+from stewart_vibration_interfaces.srv import PlanPath
 
 CONFIG = Path(__file__).resolve().parents[1] / "stewart_vibration" / "config"
 SHORT_STROKE_M = 0.200
@@ -73,11 +74,11 @@ def test_every_node_of_the_main_job_runs_the_given_robot(short_robot, tmp_path, 
         for node in (n.name for n in SUITE_NODES if n.robot_config):
             answer = runner.call(GetParameters, f"{node}/get_parameters", GetParameters.Request(names=["robot_config"]))
             assert answer.values[0].string_value == str(short_robot.resolve()), node
-        request = GetPlan.Request()
-        request.start, request.goal = pose_msg(shipped.home_pose), pose_msg(goal)
-        assert len(runner.call(GetPlan, "kinematics/plan_path", request).plan.poses) == 0  # refused: the stroke
-        request.goal = pose_msg(shipped.home_pose + GOAL_OFFSET / 3)  # within both strokes: still planned
-        assert len(runner.call(GetPlan, "kinematics/plan_path", request).plan.poses) > 2
+        request = PlanPath.Request(waypoints=[pose_msg(shipped.home_pose), pose_msg(goal)])
+        answer = runner.call(PlanPath, "kinematics/plan_path", request)
+        assert answer.outcome.code == Outcome.UNREACHABLE_POSE and not answer.path.poses  # refused: the stroke
+        request.waypoints[1] = pose_msg(shipped.home_pose + GOAL_OFFSET / 3)  # within both strokes: still planned
+        assert len(runner.call(PlanPath, "kinematics/plan_path", request).path.poses) > 2
     finally:
         runner.stop()
     assert not runner.record.failures, runner.record.failures

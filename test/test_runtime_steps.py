@@ -11,6 +11,7 @@ import pytest
 from stewart_vibration.messages.status_values import StatusMessage, guard_status
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
 from stewart_vibration.runtime.steps import (
+    MoveResult,
     RunOptions,
     RunRecord,
     ScenarioSteps,
@@ -25,11 +26,12 @@ class ScriptedSuite:
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
     def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None,
-                 outcome="SUCCEEDED"):
+                 outcome="SUCCEEDED", move_outcome="SUCCEEDED"):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
         # the robot as built: the truth is off the controller's estimate by this much (6,)
         self.truth_offset = np.zeros(6) if truth_offset is None else np.asarray(truth_offset, float)
         self.vibration_status, self.outcome, self.result = None, outcome, None
+        self.move_outcome = move_outcome
         self.status_history = []
         self.report_period_s, self._reported = report_period_s, float("-inf")
         self.active_s, self.refuse, self.guard_trips = active_s, refuse, guard_trips
@@ -68,8 +70,16 @@ class ScriptedSuite:
                                            "SUCCEEDED" else "the vibration units stopped", self.active_s,
                                            35.0 * (self.active_s - 0.2))
 
-    def send_target(self, pose):
+    def send_move(self, pose):
         self.target, self.sent_at = np.asarray(pose, float), self.clock
+
+    def move_result(self):
+        """A move ends 0.2 s after it was sent: at its target, or GUARD_STOPPED 1 mm short (guard_trips)."""
+        if self.target is None or self.clock - self.sent_at <= 0.2:
+            return None
+        if self.guard_trips:
+            return MoveResult("GUARD_STOPPED", "force guard tripped: force", 1e-3, 0.0, 55.0, 1.0, 0.2)
+        return MoveResult(self.move_outcome, "at the target", 0.0, 0.0, 3.0, 0.1, 0.2)
 
     def ground_truth(self):
         return self.pose + self.truth_offset
@@ -145,9 +155,17 @@ def test_a_short_vibration_or_a_refused_start_fails_the_step():
 def test_a_guarded_move_must_be_stopped_by_the_force_guard():
     target = np.r_[0, 0, 0.17, 0, 0, 0]
     record = run(ScriptedSuite(guard_trips=True), [MoveStep("guarded", target, guarded=True)])
-    assert record.guard_stops[0]["short_of_target_m"] == pytest.approx(1e-3)
+    stop = record.guard_stops[0]
+    assert stop["short_of_target_m"] == pytest.approx(1e-3) and stop["peak_force_n"] == 55.0
     with pytest.raises(StepFailed, match="the force guard did not stop the move"):
         run(ScriptedSuite(guard_trips=False), [MoveStep("guarded", target, guarded=True)])
+    with pytest.raises(StepFailed, match="ended CANCELED"):
+        run(ScriptedSuite(move_outcome="CANCELED"), [MoveStep("guarded", target, guarded=True)])
+
+
+def test_a_move_that_does_not_succeed_fails_its_step_with_the_outcome():
+    with pytest.raises(StepFailed, match=r"the move to home ended TIMEOUT: at the target"):
+        run(ScriptedSuite(move_outcome="TIMEOUT"), [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0])])
 
 
 def test_the_start_is_judged_from_a_report_from_t0_on():

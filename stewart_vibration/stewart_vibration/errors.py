@@ -102,6 +102,28 @@ class ActuatorLimitError(LimitExceededError):
     """A strut command exceeds an actuator limit (velocity, force) or the emulator is stopped."""
 
 
+class TissueLimitError(ActuatorLimitError):
+    """The tissue model predicts a strut force above strut_force_max on a waypoint (``waypoint``: its index)."""
+
+    outcome = "TISSUE_LIMIT"
+
+    def __init__(self, message: str, *, waypoint=None, **limits):
+        super().__init__(message, **limits)
+        self.waypoint = waypoint
+
+
+class GuardBlockedError(ActuatorLimitError):
+    """A target further along the direction of a move the force guard stopped (until it is reset)."""
+
+    outcome = "GUARD_BLOCKED"
+
+
+class EmergencyStopLatchedError(ActuatorLimitError):
+    """A motion command while the emergency stop is latched (limit_name "emergency_stop")."""
+
+    outcome = "ESTOP_LATCHED"
+
+
 class MalformedMessageError(InvalidInputError):
     """A received message (or service answer) that cannot be read: a field missing, of the wrong type, not
     finite, out of its range, a bad string (NUL, control characters, not UTF-8, too long), a wrong array

@@ -343,8 +343,8 @@ def _print_ui_help(namespace: str, domain: int) -> None:
     print(f"""
 Nodes are running (Ctrl-C stops them and finishes the MCAP). In another shell:
   export ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-  ros2 topic pub --once {ns}/platform/target_pose geometry_msgs/msg/PoseStamped \\
-    "{{header: {{frame_id: base}}, pose: {{position: {{z: 0.165}}, orientation: {{w: 1.0}}}}}}"
+  ros2 action send_goal --feedback {ns}/kinematics/move_to_pose stewart_vibration_interfaces/action/MoveToPose \\
+    "{{target: {{header: {{frame_id: base}}, pose: {{position: {{z: 0.165}}, orientation: {{w: 1.0}}}}}}}}"
   ros2 action send_goal --feedback {ns}/vibration_planner/vibrate stewart_vibration_interfaces/action/Vibrate \\
     "{{direction: [0.0, 0.0, 1.0], frame: platform, acceleration_g: 0.3, frequency_hz: 35.0, \\
       duration_s: 2.0, ramp_s: 0.2}}"

@@ -27,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import ActuatorLimitError, PhysicsFaultError
+from ..errors import ActuatorLimitError, EmergencyStopLatchedError, PhysicsFaultError
 from ..kinematics import inverse_kinematics
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
@@ -157,13 +157,13 @@ class SafetyController:
                                     "robot is held (reconfigure the emulator)", time=self.fault.time,
                                     reason=self.fault.reason)
         if self.estopped:
-            raise ActuatorLimitError("emergency stop is active: call reset first", limit_name="emergency_stop")
+            raise EmergencyStopLatchedError("emergency stop is active: call reset first", limit_name="emergency_stop")
 
     # -- vibration commands -----------------------------------------------------------------------
     def command_vibration(self, now: float, names, start, times, positions, velocities=None,
                           accelerations=None) -> float:
         """Validate and splice a vib_* window arriving at ``now`` (s); returns the splice time (s). Raises
-        InvalidInputError / VibrationLimitError / ActuatorLimitError (e-stop) / PhysicsFaultError with the
+        InvalidInputError / VibrationLimitError / EmergencyStopLatchedError / PhysicsFaultError with the
         reason; the refusal is also recorded in the vibration status. At most MAX_WINDOW_POINTS points."""
         try:
             self.refuse_when_stopped()

@@ -57,7 +57,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..errors import ActuatorLimitError
+from ..errors import GuardBlockedError
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..robot import Robot
 from ..splines import quintic_hermite, smoothstep
@@ -126,7 +126,10 @@ class GuardedMove:
     goal_pose: np.ndarray
     baseline: tuple | None = None  # force and moment magnitudes at the move's start (its first estimate)
     calibrated: bool = False
-    stopped: bool = False  # a trip sent its stop: the move ends there, not at ``end``
+    stopped: bool = False  # a trip or a cancel sent its stop: the move ends there
+    stop: StopPlan | None = None  # a cancel's stop (a trip's is the trip's): ``end`` is its end
+    force_limit: float | None = None  # this move's own limits (N, N m; None = the guard's)
+    moment_limit: float | None = None
     samples: list = field(default_factory=list)  # (t, sigma, |F|, |M|) of the estimates during the move
 
     @property
@@ -141,7 +144,9 @@ class GuardedMove:
 
     @property
     def end(self) -> float:
-        """The move's end (s, emulator clock)."""
+        """The move's end (s, emulator clock): the end of a cancel's stop, else of the planned move."""
+        if self.stop is not None:
+            return self.stop.receipt_time + self.stop.duration
         return self.start_time + self.duration
 
     def progress(self, times):
@@ -203,6 +208,7 @@ class GuardTrip:
     goal_pose: np.ndarray
     direction: np.ndarray
     detail: str = ""
+    limit: float = 0.0  # the limit that tripped (N or N m; 0 for "estimates")
 
 
 class ForceGuard:
@@ -237,6 +243,7 @@ class ForceGuard:
         self.receipt_window = RECEIPT_WINDOW_S  # grows with the command delays measured on this robot
         self._delays = []  # measured command delays (s): the move's calibrated start - the node's "now" at sending
         self._checks = np.zeros(0)  # the emulator times (s) at which assess ran, over the last CHECK_MEMORY_S
+        self.predicted = (float("nan"), float("nan"))  # the latest prediction of force and moment at a stop's end
 
     # -- settings ---------------------------------------------------------------------------------
     def set_limits(self, force_limit: float | None = None, moment_limit: float | None = None) -> bool:
@@ -294,7 +301,7 @@ class ForceGuard:
         return move.end
 
     def check_target(self, current_pose, target_pose) -> None:
-        """Raise ActuatorLimitError (limit_name "force_guard") if a trip is latched and the target lies further
+        """Raise GuardBlockedError (limit_name "force_guard") if a trip is latched and the target lies further
         along the direction of a move the guard stopped since the last reset."""
         trip = self.trip
         if trip is None:
@@ -302,8 +309,8 @@ class ForceGuard:
         step = pose_direction(self.robot, current_pose, target_pose)
         along = max(float(step @ direction) for direction in self.blocked)
         if along > DIRECTION_TOLERANCE_M:
-            raise ActuatorLimitError(
-                f"force guard tripped at {trip.time:.3f} s ({trip.which} {self._tripped_value(trip)}): a target "
+            raise GuardBlockedError(
+                f"force guard tripped at {trip.time:.3f} s ({trip.which} {self._tripped_value(trip)}): a goal "
                 f"{along * 1e3:.3f} mm further along the stopped move's direction is refused until "
                 "kinematics/reset_guard is called or guard_force_n / guard_moment_nm is changed",
                 limit_name="force_guard", value=along, limit=0.0)
@@ -312,18 +319,39 @@ class ForceGuard:
         if trip.which == "estimates":
             return trip.detail
         if trip.which == "force":
-            return f"{trip.force:.1f} N, predicted {trip.predicted_force:.1f} N > guard_force_n {self.force_limit:g} N"
-        return (f"{trip.moment:.2f} N m, predicted {trip.predicted_moment:.2f} N m > guard_moment_nm "
-                f"{self.moment_limit:g} N m")
+            return f"{trip.force:.1f} N, predicted {trip.predicted_force:.1f} N > the force limit {trip.limit:g} N"
+        return f"{trip.moment:.2f} N m, predicted {trip.predicted_moment:.2f} N m > the moment limit {trip.limit:g} N m"
 
     def begin_move(self, start_time: float, duration: float, start_lengths, goal_lengths, start_pose,
-                   goal_pose) -> None:
+                   goal_pose, force_limit: float | None = None, moment_limit: float | None = None) -> None:
         """A move was sent (estimated start ``start_time`` s, emulator clock): watch it. The load at its start
-        (the baseline a trip must rise above) is its first estimate."""
+        (the baseline a trip must rise above) is its first estimate. ``force_limit`` / ``moment_limit``: this
+        move's own limits (N, N m; None: the guard's)."""
         self.move = GuardedMove(float(start_time), float(duration), np.asarray(start_lengths, float).copy(),
                                 np.asarray(goal_lengths, float).copy(), np.asarray(start_pose, float).copy(),
-                                np.asarray(goal_pose, float).copy())
+                                np.asarray(goal_pose, float).copy(), force_limit=force_limit,
+                                moment_limit=moment_limit)
         self._state_t, self._state_sigma = np.zeros(0), np.zeros(0)
+        self.predicted = (float("nan"), float("nan"))
+
+    def limits(self, move: GuardedMove | None = None) -> tuple[float, float]:
+        """The force and moment limits (N, N m; 0 = off) that watch ``move`` (default: the current one)."""
+        move = self.move if move is None else move
+        force = self.force_limit if move is None or move.force_limit is None else move.force_limit
+        moment = self.moment_limit if move is None or move.moment_limit is None else move.moment_limit
+        return force, moment
+
+    def cancel(self, newest_state_time: float, attempt: int = 0) -> StopPlan | None:
+        """A controlled stop of the current move on request (not a trip: nothing is latched, no direction
+        blocked): the stop a trip would command now (within deceleration_scale x strut_acceleration_max, for
+        an arrival within the receipt window, doubled per ``attempt`` after the robot refused the last one);
+        the move ends there. None if there is no move to stop or it reaches its goal first."""
+        move = self.move
+        if move is None or (move.stopped and attempt == 0) or attempt > MAX_STOP_RETRIES:
+            return None
+        stop = self.plan_stop(newest_state_time, window_s=self.receipt_window * 2**attempt)
+        move.stop, move.stopped = stop, stop is not None
+        return stop
 
     def observe_states(self, stamps, strut_lengths) -> None:
         """Measured strut lengths [n, 6] at stamps [n] (s): the move's progress (for the fit) and its start."""
@@ -389,19 +417,23 @@ class ForceGuard:
         at 0.2 s gaps)."""
         self._note_check(newest_state_time)
         move = self.move
-        if move is None or move.baseline is None or not move.samples or \
+        if move is None or move.stopped or move.baseline is None or not move.samples or \
                 (self.trip is not None and move is self._stopping):
             return None
         later = self.plan_stop(newest_state_time, max(next_check_s, self.check_gap))
         target = 1.0 if later is None else later.progress
         checks = []
-        for which, column, limit, base in (("force", 2, self.force_limit, move.baseline[0]),
-                                           ("moment", 3, self.moment_limit, move.baseline[1])):
+        force_limit, moment_limit = self.limits(move)
+        predicted_load = [float("nan"), float("nan")]
+        for which, column, limit, base in (("force", 2, force_limit, move.baseline[0]),
+                                           ("moment", 3, moment_limit, move.baseline[1])):
             if limit <= 0:
                 continue
             now, predicted = _predict(move.samples, column, target)
+            predicted_load[column - 2] = float(predicted)
             rising = now > base + 0.01 * limit and predicted > now
             checks.append((which, now, predicted, limit, rising))
+        self.predicted = (predicted_load[0], predicted_load[1])
         for which, _now, predicted, limit, rising in checks:
             if rising and predicted > limit:
                 values = {c[0]: c for c in checks}
@@ -409,7 +441,7 @@ class ForceGuard:
                 f = values.get("force", (None, latest[2], latest[2]))
                 m = values.get("moment", (None, latest[3], latest[3]))
                 trip = self._trip(move, newest_state_time if time is None else time, newest_state_time,
-                                  (float(f[1]), float(m[1])), (float(f[2]), float(m[2])), which)
+                                  (float(f[1]), float(m[1])), (float(f[2]), float(m[2])), which, limit=limit)
                 return trip
         return None
 
@@ -432,7 +464,8 @@ class ForceGuard:
             keep = self._lags[:, 0] >= newest_state_time - LAG_MEMORY_S
             self._lags = np.vstack([self._lags[keep], [newest_state_time, newest_state_time - self.newest_estimate]])
         move = self.move
-        if move is None or self.max_estimate_age <= 0 or (self.trip is not None and move is self._stopping):
+        if move is None or move.stopped or self.max_estimate_age <= 0 or \
+                (self.trip is not None and move is self._stopping):
             return None
         if not np.isfinite(self.newest_estimate):  # no estimator has ever answered: unguarded (the node warns)
             return None
@@ -493,12 +526,13 @@ class ForceGuard:
         if trip is None or trip.which != "estimates" or self._before_blind is None:
             return False
         force, moment = float(np.linalg.norm(self.last_wrench[:3])), float(np.linalg.norm(self.last_wrench[3:]))
-        which = next((name for name, value, limit in (("force", force, self.force_limit),
-                                                      ("moment", moment, self.moment_limit))
+        force_limit, moment_limit = self.limits(self._stopping)
+        which = next((name for name, value, limit in (("force", force, force_limit), ("moment", moment, moment_limit))
                       if 0 < limit <= value), None)
         if which is not None:
             self.trip = replace(trip, which=which, force=force, moment=moment, predicted_force=force,
                                 predicted_moment=moment, time=self.newest_estimate,
+                                limit=force_limit if which == "force" else moment_limit,
                                 detail=f"found when estimates returned after a blind stop ({trip.detail})")
             self._before_blind = None
             return False
@@ -515,13 +549,13 @@ class ForceGuard:
             self.trip, self.blocked, self.peak = None, [], (0.0, 0.0)
 
     def _trip(self, move: GuardedMove, time: float, newest_state_time: float, load: tuple[float, float],
-              predicted: tuple[float, float], which: str, detail: str = "") -> GuardTrip:
+              predicted: tuple[float, float], which: str, detail: str = "", limit: float = 0.0) -> GuardTrip:
         """Latch a trip of ``move`` at ``time`` (s) with its stop plan; block the move's direction."""
         stop = self.plan_stop(newest_state_time)
         direction = pose_direction(self.robot, move.start_pose, move.goal_pose)
         norm = np.linalg.norm(direction)
         self.trip = GuardTrip(time, load[0], load[1], predicted[0], predicted[1], which, stop, move.goal_pose.copy(),
-                              direction / norm if norm > 0 else direction, detail)
+                              direction / norm if norm > 0 else direction, detail, limit)
         self.blocked.append(self.trip.direction)
         self._stopping = move
         move.stopped = stop is not None  # without a stop the move runs on to its goal
@@ -652,7 +686,7 @@ class ForceGuard:
             return (f"armed: guard_force_n {self.force_limit:g} N, guard_moment_nm {self.moment_limit:g} N m "
                     "(0 = off)")
         stop = f"struts stopped over {trip.stop.duration:.2f} s" if trip.stop else "the move ended before a stop"
-        return (f"tripped at {trip.time:.3f} s: {trip.which} {self._tripped_value(trip)}; {stop}; holding; targets "
+        return (f"tripped at {trip.time:.3f} s: {trip.which} {self._tripped_value(trip)}; {stop}; holding; goals "
                 "further in that direction are refused until kinematics/reset_guard or a new limit")
 
 

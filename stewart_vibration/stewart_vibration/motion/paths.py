@@ -11,7 +11,7 @@ import numpy as np
 
 from ..dynamics.newton_euler import leg_forces
 from ..dynamics.tissue import TissueModel, tissue_wrench
-from ..errors import ActuatorLimitError
+from ..errors import TissueLimitError
 from ..input_checks import as_batch
 from ..kinematics import check_pose
 from ..kinematics.rotations import rotation_from_rpy, rpy_from_rotation, so3_exp, so3_log
@@ -83,9 +83,9 @@ def check_path_forces(robot: Robot, poses, tissue: TissueModel | None = None, fi
 
     Raises:
         InvalidInputError: a pose is not numeric, not [..., 6] or not finite (``as_batch``).
-        ActuatorLimitError: |force| > strut_force_max on some waypoint: names the first such waypoint (index +
+        TissueLimitError: |force| > strut_force_max on some waypoint: names the first such waypoint (index +
             ``first_index`` of ``count``, and its pose) and its leg with the largest |force| / limit; ``leg``
-            (1..6), ``limit_name`` "strut_force_max", ``value`` (N) and ``limit`` (N).
+            (1..6), ``limit_name`` "strut_force_max", ``value`` (N), ``limit`` (N), ``waypoint`` (index).
     """
     poses = as_batch(poses, 6, "poses").reshape(-1, 6)
     forces = predicted_leg_forces(robot, poses, tissue)
@@ -97,11 +97,11 @@ def check_path_forces(robot: Robot, poses, tissue: TissueModel | None = None, fi
         load = f" under the tissue load '{tissue.name}'" if tissue is not None else ""
         pose = ", ".join(f"{v:.4f}" for v in poses[k])
         total = len(poses) + first_index if count is None else count
-        raise ActuatorLimitError(
+        raise TissueLimitError(
             f"leg_{leg + 1}: predicted force {forces[k, leg]:.1f} N at waypoint {k + first_index} of {total} "
             f"(pose [{pose}]) "
             f"exceeds strut_force_max_n {limit:g} N{load}", leg=leg + 1, limit_name="strut_force_max",
-            value=float(forces[k, leg]), limit=limit)
+            value=float(forces[k, leg]), limit=limit, waypoint=k + first_index)
     return forces
 
 
@@ -129,7 +129,7 @@ def checked_path(robot: Robot, start, goal, max_step_m: float = 1e-3, max_step_r
         InvalidInputError: ``start`` or ``goal`` is not numeric, not [..., 6] or not finite.
         UnreachablePoseError, StrokeLimitError, JointLimitError, SingularPoseError: the first infeasible
             waypoint (``check_pose``; start and goal before the waypoints between).
-        ActuatorLimitError: with ``tissue``, a strut's predicted force exceeds strut_force_max
+        TissueLimitError: with ``tissue``, a strut's predicted force exceeds strut_force_max
             (``check_path_forces``).
     """
     start, goal = as_batch(start, 6, "start pose"), as_batch(goal, 6, "goal pose")

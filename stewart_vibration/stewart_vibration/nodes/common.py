@@ -10,6 +10,7 @@ import time
 import numpy as np
 import rclpy
 from builtin_interfaces.msg import Duration as DurationMsg
+from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
@@ -25,6 +26,7 @@ from ..kinematics.rotations import (
     pose_from_position_quaternion,
     pose_to_position_quaternion,
 )
+from ..messages.cdr import stamp_parts
 from ..messages.fields import BASE_FRAME, check_frame, check_time
 from ..messages.malformed import MalformedCounter
 from ..rate_limit import RepeatedLine
@@ -466,6 +468,12 @@ def duration_seconds(msg) -> float:
 def stamp_seconds(stamp) -> float:
     """Seconds of a builtin_interfaces/Time stamp."""
     return stamp.sec + stamp.nanosec * 1e-9
+
+
+def time_message(seconds: float) -> TimeMsg:
+    """builtin_interfaces/Time of ``seconds`` (s)."""
+    sec, nanosec = stamp_parts(seconds)
+    return TimeMsg(sec=sec, nanosec=nanosec)
 
 
 __all__ = [

@@ -47,6 +47,8 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
+from stewart_vibration_interfaces.msg import LegTrajectoryStatus
+
 from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_command_refusal
 from ..emulation.consumer_pace import MAX_WAIT_S, ConsumerPace, paces_consumers
@@ -56,7 +58,7 @@ from ..emulation.plant import load_plant_option
 from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..emulation.vibration_status import ERROR as STATUS_ERROR
 from ..emulation.vibration_status import WARN as STATUS_WARN
-from ..errors import StewartError
+from ..errors import RefusedError, StewartError
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
@@ -77,7 +79,9 @@ from .common import (
     int_param,
     run_node,
     text_param,
+    time_message,
 )
+from .outcomes import outcome, outcome_of
 
 CLOCK_DEPTH = 100
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -190,6 +194,8 @@ class HardwareEmulatorNode(LifecycleNode):
         self.imu_encoder = cdr.ImuEncoder(PLATFORM_FRAME)
         self.tissue_pub = None
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
+        self.trajectory_seq = 0
+        self.trajectory_status_pub = self.create_publisher(LegTrajectoryStatus, "legs/trajectory_status", 50)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
         self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
         self.create_service(Trigger, "hardware_emulator/emergency_stop", self.on_emergency_stop)
@@ -371,21 +377,43 @@ class HardwareEmulatorNode(LifecycleNode):
 
     # -- commands (executor thread) ------------------------------------------------------
     def on_leg_trajectory(self, data: bytes) -> None:
+        """A leg trajectory: taken or refused; the typed answer goes to legs/trajectory_status either way."""
         refusal = self._refusal() or raw_command_refusal(data, LEG_TRAJECTORY)
         if refusal:
             self.rejections.add("leg trajectory", refusal)
+            self.answer_trajectory(None, RefusedError("ROBOT_INACTIVE" if self._refusal() else "LIMIT_EXCEEDED",
+                                                      refusal))
             return
+        traj = None
         try:
             traj = cdr.decode_joint_trajectory(data)
             # not refused: the emulator exists; it takes the lock only around its snapshot and its commit
-            cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
-                                                                 traj.positions, traj.velocities,
-                                                                 traj.accelerations, lock=self.lock)
+            taken = cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
+                                                                         traj.positions, traj.velocities,
+                                                                         traj.accelerations, lock=self.lock)
         except StewartError as exc:
             self.rejections.add("leg trajectory", str(exc))
+            self.answer_trajectory(traj, exc)
             return
+        self.answer_trajectory(traj, None, taken.end)
         self.diagnostics.set(self._level(OK), self._message("following leg trajectory"),
                              last_leg_trajectory_points=len(traj.times))
+
+    def answer_trajectory(self, traj, refusal: StewartError | None, end_time: float = float("nan")) -> None:
+        """Publish the typed answer to one leg trajectory (``traj`` as decoded, or None when unread)."""
+        self.trajectory_seq += 1
+        final = np.full(6, np.nan)
+        if traj is not None and len(traj.times):
+            names = list(traj.names)
+            for i, name in enumerate(LEG_NAMES):
+                if name in names and names.index(name) < traj.positions.shape[1]:
+                    final[i] = traj.positions[-1, names.index(name)]
+        msg = LegTrajectoryStatus(seq=self.trajectory_seq, accepted=refusal is None,
+                                  points=0 if traj is None else len(traj.times), end_time_s=float(end_time))
+        msg.final_positions = final
+        msg.outcome = outcome("SUCCEEDED", "taken") if refusal is None else outcome_of(refusal)
+        msg.header.stamp = time_message(self.emulator.time if self.emulator is not None else 0.0)
+        self.trajectory_status_pub.publish(msg)
 
     def on_vibration(self, data: bytes) -> None:
         refusal = self._refusal() or raw_command_refusal(data, VIBRATION_WINDOW)

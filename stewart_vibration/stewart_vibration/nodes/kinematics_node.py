@@ -1,22 +1,26 @@
-"""kinematics node: target poses -> checked minimum-jerk leg trajectories; leg states -> pose estimates;
-a force guard over every move.
+"""kinematics node: reduction moves (an action) -> checked minimum-jerk leg trajectories; leg states -> pose
+estimates; a force guard over every move.
 
-Topics (relative): sub platform/target_pose (PoseStamped), legs/joint_states
-(JointState), platform/external_wrench_estimate (WrenchStamped, the guard's input);
-pub legs/joint_trajectory (JointTrajectory, leg_* absolute lengths, m),
+Topics (relative): sub legs/joint_states (JointState), platform/external_wrench_estimate (WrenchStamped, the
+guard's input), legs/trajectory_status (LegTrajectoryStatus: the robot's answer to each leg trajectory),
+vibration/status; pub legs/joint_trajectory (JointTrajectory, leg_* absolute lengths, m),
 platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per state with its stamp),
 kinematics/guard_status (diagnostic_msgs/DiagnosticStatus, reliable + transient local: the force
 guard armed or tripped, with its limits, the trip's figures and the peak load since).
-Services: kinematics/plan_path (nav_msgs/GetPlan), kinematics/reset_guard (std_srvs/Trigger).
+Action kinematics/move_to_pose (MoveToPose): the goal is the target (frame base or empty, finite, a unit
+quaternion), a speed scale and the guard's limits for this move (a goal may only lower them); feedback at
+20 Hz (progress, time left, pose estimate, measured and predicted load, guard state); the result has the
+outcome code, the residual pose error, the peak load and the duration (motion.move_goal decides the end).
+Cancel = a controlled stop along the path (ForceGuard.cancel). A goal is refused with its code (BUSY while
+one runs or a move is under way, beyond ``target_rate_hz``: motion.target_gate).
+Services: kinematics/plan_path (PlanPath: a checked path through waypoints, nothing moves), kinematics/reset_guard
+(std_srvs/Trigger).
 Diagnostics on /diagnostics, with the state stream's health (received, lost,
 processed, lag); ERROR while the force guard is tripped. States arrive raw and are solved in vectorised
 batches of ``batch_size`` (the emulator's bursts) or every ``batch_period_s`` (wall clock; FK
 warm-started from the previous pose); wrench estimates likewise.
-
-Targets (raw PoseStamped, so a frame_id with a NUL is seen whole): frame base or empty, finite, a unit
-quaternion; one is refused while the move sent last is pending or under way and beyond ``target_rate_hz``
-(motion.target_gate). Malformed messages on any input (states, targets, wrench estimates, /diagnostics)
-are ignored, counted on /diagnostics (``malformed <input>``) and logged rate-limited (nodes.common.MalformedInputs).
+Malformed messages on the raw inputs (states, wrench estimates, vibration/status) are ignored, counted on
+/diagnostics (``malformed <input>``) and logged rate-limited (nodes.common.MalformedInputs).
 
 Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
 forces it needs under that tissue model (motion.paths.check_path_forces: quasi-static Newton-Euler +
@@ -26,7 +30,7 @@ Force guard (stewart_vibration.motion.force_guard): during a move the external-w
 (moment) at the end of a stop commanded now would exceed ``guard_force_n`` (``guard_moment_nm``) the
 struts are stopped smoothly along the planned path (a one-point trajectory within
 guard_deceleration_scale x strut_acceleration_max), the node holds there, reports ERROR and refuses
-targets further in that direction until kinematics/reset_guard or a new limit.
+goals further in that direction (GUARD_BLOCKED) until kinematics/reset_guard or a new limit.
 The guard is asked on every batch of estimates and of states (the states move the prediction on). A
 move also stops (limit "estimates") when the newest wrench estimate is more than
 ``guard_max_estimate_age_s`` behind the newest joint state: the estimator is late, stalled or gone, the
@@ -37,33 +41,40 @@ target again, unless the load passed a limit meanwhile (then the trip is a latch
 from __future__ import annotations
 
 import time
+from typing import cast
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import PoseStamped, WrenchStamped
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseStamped, Wrench, WrenchStamped
 from nav_msgs.msg import Path
-from nav_msgs.srv import GetPlan
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from stewart_vibration_interfaces.action import MoveToPose
+from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus
+from stewart_vibration_interfaces.srv import PlanPath
+
 from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import MAX_TRAJECTORY_POINTS
-from ..emulation.vibration_status import STRUT_STOPS
-from ..errors import InvalidInputError, MalformedMessageError, StewartError
+from ..emulation.vibration_status import EMERGENCY_STOP, STRUT_STOPS
+from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError
 from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.robot_config import load_robot
-from ..kinematics.rotations import MESSAGE_QUATERNION_TOLERANCE, pose_to_position_quaternion
+from ..kinematics.rotations import pose_to_position_quaternion
 from ..kinematics.workspace import check_strut_path
 from ..messages import cdr
-from ..messages.stamped import MAX_JOINT_POSITION_M, pose_from_cdr, rows_within, wrenches_from_cdr
-from ..messages.status_values import emulator_rejections, statuses_from_cdr, vibration_report_from_cdr
+from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_cdr
+from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.move_goal import MIN_SPEED_SCALE, MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..motion.target_gate import TargetGate
@@ -78,21 +89,22 @@ from .common import (
     JointColumns,
     MalformedInputs,
     RawBatcher,
-    check_frame,
     declare_float,
     duration_msg,
     duration_seconds,
     emulator_now,
     float_param,
     int_param,
-    pose_from_msg,
     pose_stamped,
     reject,
     run_node,
     text_param,
 )
+from .move_messages import base_pose
+from .outcomes import outcome, outcome_name, outcome_of
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+FEEDBACK_PERIOD_S = 0.05  # wall time between a move goal's feedback messages (20 Hz)
 GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale", "guard_max_estimate_age_s",
                 "guard_blind_travel_m")
 
@@ -123,7 +135,7 @@ class KinematicsNode(Node):
             "trajectory_sample_period_s", 0.02, float_param("spacing of trajectory points, s", 0.001, 1.0)
         )
         self.declare_parameter(
-            "speed_scale", 0.5, float_param("fraction of strut_velocity_max used by moves", 0.01, 1.0)
+            "speed_scale", 0.5, float_param("fraction of strut_velocity_max used by moves", MIN_SPEED_SCALE, 1.0)
         )
         period = declare_float(self, "batch_period_s", 0.02, float_param(
             "queued states are solved at least this often (wall clock), s (read at start)", 0.001, 0.5,
@@ -149,8 +161,19 @@ class KinematicsNode(Node):
             "force guard: a move pauses when the newest external-wrench estimate is this far behind the newest joint "
             "state, s (the guard would be blind; 0 = off)", 0.0, 5.0))
         target_rate = declare_float(self, "target_rate_hz", 5.0, float_param(
-            "targets taken per second at most, in bursts of as many (wall clock; a target while a move is pending "
-            "or under way is refused anyway; read at start)", 0.1, 100.0, read_only=True))
+            "move goals taken per second at most, in bursts of as many (wall clock; a goal while a move is "
+            "pending or under way is refused anyway; read at start)", 0.1, 100.0, read_only=True))
+        declare_float(self, "goal_position_tolerance_m", 1e-4, float_param(
+            "a move goal succeeds when its pose estimate comes this close to the target (translation), m",
+            1e-7, 0.01))
+        declare_float(self, "goal_angle_tolerance_rad", 1e-3, float_param(
+            "... and this close in rotation angle, rad", 1e-6, 0.1))
+        declare_float(self, "goal_time_s", 2.0, float_param(
+            "a move goal that is not within its tolerance this long after the move's planned end ends TIMEOUT, s "
+            "(robot's clock)", 0.0, 60.0))
+        declare_float(self, "pause_timeout_s", 30.0, float_param(
+            "a move goal paused for late external-wrench estimates longer than this ends TIMEOUT (the robot holds), "
+            "s (robot's clock)", 1.0, 600.0))
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
@@ -179,9 +202,7 @@ class KinematicsNode(Node):
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
-        # raw: rclpy's conversion cuts a string at a NUL, so a frame_id "base\0x" would read as "base"
-        self.create_subscription(PoseStamped, "platform/target_pose", self.on_target_pose, 10, raw=True)
-        self.create_service(GetPlan, "kinematics/plan_path", self.on_plan_path)
+        self.create_service(PlanPath, "kinematics/plan_path", self.on_plan_path)
         self.wrench_decoder_errors = 0
         self.wrench_batcher = RawBatcher(self, batch_size, period, self.process_wrenches)
         # subscribed for good: a subscription made when a move starts is blind until DDS has matched it
@@ -189,14 +210,19 @@ class KinematicsNode(Node):
         self.create_subscription(WrenchStamped, "platform/external_wrench_estimate", self.wrench_batcher.add,
                                  STREAM_DEPTH, raw=True)
         self.guard_pub = self.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
-        self.emulator_rejections = 0  # the hardware emulator's count of refused commands (its /diagnostics)
-        self.stop_sent_at = None  # wall time of the last stop sent (a refusal after it means: stop again)
-        self.last_target = None  # the target pose (6,) of the latest move sent (resumed after a blind stop)
-        self.create_subscription(DiagnosticArray, "/diagnostics", self.on_diagnostics, 50, raw=True)
+        self.sent_move: np.ndarray | None = None  # the final leg lengths of the last move sent (its key)
+        self.sent_stop: tuple[np.ndarray, str, int] | None = None  # the last stop sent: lengths, by whom, attempt
+        self.last_target: MoveRequest | None = None  # the move goal's request (resumed after a blind stop)
+        self.goal: dict | None = None  # the running move goal: handle, done (Future of MoveEnd), watch, peak,
+        # start (s), duration (s)
+        self.create_subscription(LegTrajectoryStatus, "legs/trajectory_status", self.on_trajectory_status, 50)
         # the emulator's own stops (e-stop, deactivate, shutdown, physics fault) end the move: never resumed
         self.create_subscription(DiagnosticStatus, "vibration/status", self.on_vibration_status, STATUS_QOS, raw=True)
         self.robot_stop_seen: tuple | None = None  # (ramp_start, ramp_reason, fault) of the last stop acted on
         self.create_service(Trigger, "kinematics/reset_guard", self.on_reset_guard)
+        self.create_timer(FEEDBACK_PERIOD_S, self.publish_goal_feedback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.action = ActionServer(self, MoveToPose, "kinematics/move_to_pose", execute_callback=self.execute,
+                                   goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.publish_guard_status()
         self.diagnostics.set(OK, "waiting for legs/joint_states")
@@ -272,9 +298,10 @@ class KinematicsNode(Node):
         if retry is not None:
             self.get_logger().error("force guard: the struts ran past the commanded stop still on the move (it did "
                                     f"not take); stopping again over {retry.duration:.2f} s")
-            self.send_stop(retry)
+            self.send_stop(retry, "guard")
         if self.diagnostics.message == "waiting for legs/joint_states":
             self.diagnostics.set(OK, "tracking")
+        self.follow_goal()
 
     def report(self) -> None:
         self.diagnostics.values.update(self.health.values("states"))
@@ -286,7 +313,7 @@ class KinematicsNode(Node):
     # -- force guard -------------------------------------------------------
     def process_wrenches(self, messages: list, arrivals: np.ndarray) -> None:
         """Wrench estimates: the guard's input (the newest only when it watches no move)."""
-        if self.guard.move is None:
+        if self.guard.move is None and self.goal is None:
             messages = messages[-1:]
         batch = wrenches_from_cdr(messages, "external wrench estimate")
         for error in batch.errors:
@@ -295,6 +322,10 @@ class KinematicsNode(Node):
         if not len(batch.kept):
             return
         stamps, wrenches = batch.stamps, batch.values
+        if self.goal is not None:  # the goal's peak load (N, N m)
+            peak = self.goal["peak"]
+            peak[0] = max(peak[0], float(np.linalg.norm(wrenches[:, :3], axis=1).max()))
+            peak[1] = max(peak[1], float(np.linalg.norm(wrenches[:, 3:], axis=1).max()))
         was_watching = self.guard.move is not None
         trip = self.guard.observe(stamps, wrenches, self.emulator_now(stamps[-1]), self.batch_period)
         if trip is not None:
@@ -303,10 +334,18 @@ class KinematicsNode(Node):
             self.publish_guard_status()  # the stop is over: its peak load
         if self.state_time is not None and self.guard.blind_stop_over(self.state_time) and self.last_target is not None:
             if self.guard.resume_after_blind():
+                request = self.last_target
                 self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the "
-                                          f"move to {np.round(self.last_target, 5).tolist()}")
+                                          f"move to {np.round(request.target, 5).tolist()}")
                 self.publish_guard_status()
-                self.move_to(self.last_target)
+                try:
+                    end = self.move_to(request)
+                    if self.goal is not None:
+                        self.goal["watch"].moving(end)
+                except StewartError as exc:  # the goal ends with why it cannot go on
+                    self.last_target = None
+                    if self.goal is not None:
+                        self.goal["watch"].end(exc.outcome, f"the move could not resume after a pause: {exc}")
             else:  # the load passed a limit while the guard could not see it: latched, held by the blind stop
                 self.on_trip(self.guard.trip, send_stop=False)
 
@@ -315,38 +354,57 @@ class KinematicsNode(Node):
         return emulator_now(self, self.state_time, fallback)
 
     def on_trip(self, trip, send_stop: bool = True) -> None:
-        """Report a trip (ERROR, guard status) and send its stop (unless the struts are held already)."""
+        """Report a trip (ERROR, guard status), send its stop (unless the struts are held already) and tell the
+        move goal: a force or moment trip ends it GUARD_STOPPED once the struts are at rest, a trip for late
+        estimates pauses it."""
         if send_stop and trip.stop is not None:
-            self.send_stop(trip.stop)
+            self.send_stop(trip.stop, "guard")
         message = self.guard.message()
+        if self.goal is not None:
+            now = self.emulator_now()
+            end = trip.stop.receipt_time + trip.stop.duration if trip.stop is not None else \
+                (self.guard.move.end if self.guard.move is not None else now)
+            if not send_stop:  # held by the earlier stop already
+                end = now
+            why = "PAUSED" if trip.which == "estimates" else "GUARD_STOPPED"
+            self.goal["watch"].stopping(why, end, now, f"force guard {message}")
         self.get_logger().error(f"force guard {message}")
         self.diagnostics.set(ERROR, f"force guard {message}")
         self.publish_guard_status()
 
-    def on_diagnostics(self, data: bytes) -> None:
-        """A refusal by the hardware emulator right after a stop was sent: stop again (over a wider window).
-        Malformed statuses (and a malformed count in the emulator's) are counted and ignored."""
-        statuses, errors = statuses_from_cdr(data)
-        for error in errors:
-            self.malformed.refuse("/diagnostics", error)
-        for status in statuses:
-            if status.node != "hardware_emulator":
-                continue
-            try:
-                count = emulator_rejections(status)
-            except MalformedMessageError as exc:
-                self.malformed.refuse("/diagnostics", exc)
-                continue
-            if count is None or count <= self.emulator_rejections:
-                continue
-            self.emulator_rejections = count
-            if self.stop_sent_at is not None and time.monotonic() - self.stop_sent_at < 5.0 and \
-                    "rejected leg trajectory" in status.message:
-                retry = self.guard.missed_stop(self.emulator_now(), refused=True)
-                if retry is not None:
-                    self.get_logger().error(f"force guard: the emulator refused the stop ({status.message}); "
-                                            f"stopping again over {retry.duration:.2f} s")
-                    self.send_stop(retry)
+    def on_trajectory_status(self, msg: LegTrajectoryStatus) -> None:
+        """The robot's answer to a leg trajectory, matched to what this node sent by its final lengths: a
+        refused stop is planned again over a wider window (a trip's by the guard, a cancel's likewise); a
+        refused move ends the goal (ROBOT_REFUSED, or the robot's own code when it cannot move now: e-stop,
+        inactive); a taken move gives the goal the move's end."""
+        final = np.asarray(msg.final_positions, float)
+        stop, move, goal = self.sent_stop, self.sent_move, self.goal
+        if stop is not None and np.array_equal(final, stop[0]):
+            if msg.accepted:
+                return
+            lengths, by, attempt = stop
+            now = self.emulator_now()
+            retry = self.guard.missed_stop(now, refused=True) if by == "guard" else self.guard.cancel(now, attempt + 1)
+            if retry is not None:
+                self.get_logger().error(f"the robot refused the stop ({msg.outcome.message}); stopping again over "
+                                        f"{retry.duration:.2f} s")
+                self.send_stop(retry, by, attempt + 1)
+                if goal is not None and by == "cancel":
+                    goal["watch"].stopping("CANCELED", retry.receipt_time + retry.duration, now,
+                                           "cancelled: the struts stopped")
+            return
+        if move is None or not np.array_equal(final, move) or goal is None:
+            return
+        if msg.accepted:
+            if goal["watch"].phase == "moving" and np.isfinite(msg.end_time_s):
+                goal["watch"].moving(msg.end_time_s)
+            return
+        self.guard.robot_stopped()
+        self.last_target = None
+        name = outcome_name(msg.outcome.code)
+        name = name if name in ("ESTOP_LATCHED", "ROBOT_INACTIVE") else "ROBOT_REFUSED"
+        goal["watch"].end(name, f"the robot refused the move: {msg.outcome.message}")
+        self.publish_guard_status()
 
     def on_vibration_status(self, data: bytes) -> None:
         """The emulator's vibration/status (raw): a stop of the struts it made itself (STRUT_STOPS, or a latched
@@ -361,17 +419,22 @@ class KinematicsNode(Node):
             return
         self.robot_stop_seen = key
         dropped = self.guard.robot_stopped()
-        target, self.last_target = self.last_target, None
-        if dropped or target is not None:
-            why = f"physics fault: {report.fault}" if report.fault else report.ramp_reason
-            self.get_logger().warning(f"the emulator stopped the robot ({why}): the move to "
-                                      f"{None if target is None else np.round(target, 5).tolist()} is abandoned; "
-                                      "send a new target once it is back")
+        request, self.last_target = self.last_target, None
+        why = f"physics fault: {report.fault}" if report.fault else report.ramp_reason
+        if self.goal is not None:
+            name = "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED" if report.ramp_reason == EMERGENCY_STOP \
+                else "STOPPED_EARLY"
+            self.goal["watch"].end(name, f"the robot stopped the move itself ({why})")
+        if dropped or request is not None:
+            target = None if request is None else np.round(request.target, 5).tolist()
+            self.get_logger().warning(f"the emulator stopped the robot ({why}): the move to {target} is abandoned; "
+                                      "send a new goal once it is back")
             self.publish_guard_status()
 
-    def send_stop(self, stop: StopPlan) -> None:
-        """One-point leg trajectory (stamp 0 = now): the struts come to rest at ``stop.lengths``."""
-        self.stop_sent_at = time.monotonic()
+    def send_stop(self, stop: StopPlan, by: str, attempt: int = 0) -> None:
+        """One-point leg trajectory (stamp 0 = now): the struts come to rest at ``stop.lengths``. ``by``: "guard"
+        (a trip's stop) or "cancel"; ``attempt``: how many refused stops came before it."""
+        self.sent_stop = (np.array(stop.lengths, float), by, attempt)
         msg = JointTrajectory()
         msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
         msg.joint_names = list(LEG_NAMES)
@@ -393,7 +456,7 @@ class KinematicsNode(Node):
     def on_reset_guard(self, request, response):
         was = self.guard.reset()
         response.success = True
-        response.message = "force guard reset: targets in every direction accepted again" if was else \
+        response.message = "force guard reset: goals in every direction accepted again" if was else \
             "the force guard was not tripped (nothing to reset)"
         self.get_logger().info(response.message)
         self.diagnostics.set(OK, response.message)
@@ -418,50 +481,146 @@ class KinematicsNode(Node):
         self.publish_guard_status()
         return SetParametersResult(successful=True)
 
-    # -- target pose -> trajectory ----------------------------------------
-    def on_target_pose(self, data: bytes) -> None:
-        """A raw target PoseStamped: frame base (or empty), finite, a unit quaternion (within 1e-3), else refused
-        (counted as malformed, WARN with the reason)."""
+    # -- the move_to_pose action -------------------------------------------------------------
+    async def execute(self, goal_handle):
+        """One reduction move: refused with its outcome, or followed until it succeeds, is stopped or cancelled."""
         try:
-            _, target = pose_from_cdr(data, "target pose", MESSAGE_QUATERNION_TOLERANCE)
-        except MalformedMessageError as exc:
-            self.malformed.refuse("platform/target_pose", exc)
-            reject(self, self.diagnostics, "target pose", str(exc), log=False)
-            return
-        self.move_to(target)
+            self.begin_goal(goal_handle)
+        except Exception as exc:  # noqa: BLE001 - every refusal (and a defect) ends the goal with its code
+            if isinstance(exc, StewartError):
+                name, reason = exc.outcome, str(exc)
+            else:
+                name, reason = "INTERNAL_ERROR", f"{type(exc).__name__}: {exc}"
+                self.get_logger().error(f"move goal failed: {reason}")
+            reject(self, self.diagnostics, "move goal", reason)
+            goal_handle.abort()
+            result = MoveToPose.Result()
+            result.outcome = outcome(name, reason)
+            if self.pose is not None:
+                result.final_pose = pose_stamped(self.pose, self.get_clock().now().to_msg()).pose
+            return result
+        goal = cast(dict, self.goal)
+        end: MoveEnd = await goal["done"]
+        result = MoveToPose.Result(outcome=outcome(end.outcome, end.message), duration_s=goal["duration"])
+        if self.pose is not None:
+            result.final_pose = pose_stamped(self.pose, self.get_clock().now().to_msg()).pose
+            result.position_error_m, result.angle_error_rad = pose_errors(self.pose, goal["request"].target)
+        result.peak_force_n, result.peak_moment_nm = goal["peak"]
+        if end.outcome == "SUCCEEDED":
+            goal_handle.succeed()
+        elif end.outcome == "CANCELED" and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        self.get_logger().info(f"move goal ended {end.outcome}: {end.message}")
+        return result
 
-    def move_to(self, target: np.ndarray) -> None:
-        """Plan and send the checked move to ``target`` (6,) (m, rad; base); refused with the reason when the
-        pose or the path is infeasible, the guard blocks that direction, a move is pending or under way, or
-        targets come faster than target_rate_hz."""
-        try:
-            goal_lengths = check_pose(self.robot, target)
-        except StewartError as exc:
-            reject(self, self.diagnostics, "target pose", str(exc))
+    def begin_goal(self, goal_handle) -> None:
+        """Check a MoveToPose goal and send its move; RefusedError / StewartError with the outcome if not."""
+        if self.goal is not None:
+            raise RefusedError("BUSY", "another move goal is running: cancel it or wait for its result")
+        request_msg = goal_handle.request
+        target = base_pose(request_msg.target, "target pose")
+        param = self.get_parameter
+        request = move_request(target, request_msg.speed_scale, request_msg.force_limit_n, request_msg.moment_limit_nm,
+                               param("speed_scale").value, self.guard.force_limit, self.guard.moment_limit)
+        if self.pose is None:
+            check_pose(self.robot, target)  # the pose itself first: its own reason
+            raise RefusedError("NOT_READY", "no legs/joint_states received yet (is the hardware emulator running?)")
+        start_pose, now = self.pose.copy(), self.emulator_now()
+        watch = MoveWatch(start_pose, target, param("goal_position_tolerance_m").value,
+                          param("goal_angle_tolerance_rad").value, param("goal_time_s").value,
+                          param("pause_timeout_s").value)
+        end = self.move_to(request)
+        watch.moving(end)
+        self.goal = {"handle": goal_handle, "done": Future(), "watch": watch, "request": request, "peak": [0.0, 0.0],
+                     "start": now, "duration": 0.0}
+
+    def on_cancel(self, goal_handle) -> CancelResponse:
+        """Cancel = a controlled stop along the path within guard_deceleration_scale x strut_acceleration_max;
+        the goal ends CANCELED once the struts are at rest (a goal whose move ends first ends at its end)."""
+        goal = self.goal
+        if goal is None or goal["handle"] is not goal_handle:
+            return CancelResponse.ACCEPT
+        self.last_target = None  # a paused move is not resumed
+        now = self.emulator_now()
+        watch = goal["watch"]
+        stop = self.guard.cancel(now) if self.state_time is not None else None
+        if stop is not None:
+            self.send_stop(stop, "cancel")
+            watch.stopping("CANCELED", stop.receipt_time + stop.duration, now,
+                           f"cancelled: the struts stopped over {stop.duration:.2f} s")
+            self.get_logger().info(f"move goal cancelled: stopping over {stop.duration:.2f} s")
+        else:
+            end = watch.until if watch.phase == "moving" else now
+            watch.stopping("CANCELED", end, now, "cancelled: the move ended before a stop could")
+        self.publish_guard_status()
+        return CancelResponse.ACCEPT
+
+    def follow_goal(self) -> None:
+        """After each batch of states (and the feedback timer): whether the running goal has ended."""
+        goal = self.goal
+        if goal is None or self.pose is None:
             return
+        end = goal["watch"].update(self.emulator_now(), self.pose)
+        if end is not None:
+            self.finish_goal(end)
+
+    def publish_goal_feedback(self) -> None:
+        """Every FEEDBACK_PERIOD_S of wall time while a goal runs: its end if it has ended, else its feedback."""
+        self.follow_goal()
+        goal = self.goal
+        if goal is not None and self.pose is not None:
+            goal["handle"].publish_feedback(self.feedback(goal["watch"], self.emulator_now()))
+
+    def feedback(self, watch: MoveWatch, now: float) -> MoveToPose.Feedback:
+        """The goal's feedback now: progress, time left, the pose estimate, the load and the guard's state."""
+        pose = cast(np.ndarray, self.pose)
+        msg = MoveToPose.Feedback(progress=watch.progress(pose), time_remaining_s=watch.time_remaining(now))
+        msg.pose_estimate = pose_stamped(pose, self.get_clock().now().to_msg()).pose
+        w = self.guard.last_wrench
+        msg.measured_load = Wrench()
+        msg.measured_load.force.x, msg.measured_load.force.y, msg.measured_load.force.z = (float(v) for v in w[:3])
+        msg.measured_load.torque.x, msg.measured_load.torque.y, msg.measured_load.torque.z = (float(v) for v in w[3:])
+        msg.predicted_force_n, msg.predicted_moment_nm = self.guard.predicted
+        msg.guard_state = guard_state(self.guard)
+        return msg
+
+    def finish_goal(self, end: MoveEnd) -> None:
+        """End the running goal (its execute returns the result) and forget it."""
+        goal, self.goal = self.goal, None
+        if goal is None or goal["done"].done():
+            return
+        if end.outcome != "SUCCEEDED":
+            self.last_target = None
+        goal["duration"] = self.emulator_now() - goal["start"]
+        goal["done"].set_result(end)
+
+    def shutdown(self) -> None:
+        """A goal still running ends SHUTDOWN (the robot finishes or holds what it was sent)."""
+        self.finish_goal(MoveEnd("SHUTDOWN", "kinematics is shutting down"))
+
+    def move_to(self, request: MoveRequest) -> float:
+        """Plan and send the checked move of ``request`` (target (6,) m, rad; base); returns its estimated end
+        (s, robot's clock). Raises the typed refusal when the pose or the path is infeasible, the guard blocks
+        that direction, a move is pending or under way, or moves come faster than target_rate_hz."""
+        target = request.target
+        goal_lengths = check_pose(self.robot, target)
         if self.lengths is None or self.pose is None:
-            reject(self, self.diagnostics, "target pose", "no legs/joint_states received yet")
-            return
-        try:
-            self.guard.check_target(self.pose, target)
-        except StewartError as exc:
-            reject(self, self.diagnostics, "target pose", str(exc))
-            return
+            raise RefusedError("NOT_READY", "no legs/joint_states received yet")
+        self.guard.check_target(self.pose, target)
         refusal = self.target_gate.refusal(self.emulator_now(), time.monotonic())
         if refusal is not None:
-            reject(self, self.diagnostics, "target pose", refusal)
-            return
-        try:
-            trajectory = self.plan_trajectory(self.lengths, self.pose, goal_lengths, target)
-        except StewartError as exc:
-            reject(self, self.diagnostics, "target pose", f"path not feasible: {exc}")
-            return
+            raise RefusedError("BUSY", refusal)
+        trajectory = self.plan_trajectory(self.lengths, self.pose, goal_lengths, target, request.speed_scale)
+        self.sent_move = np.array(trajectory.points[-1].positions, float)
         self.traj_pub.publish(trajectory)
-        self.last_target = np.array(target, float)
+        self.last_target = request
         final = duration_seconds(trajectory.points[-1].time_from_start)
         start_time = self.emulator_now() + RECEIPT_DELAY_S
-        self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target)
-        if not np.isfinite(self.guard.newest_estimate) and (self.guard.force_limit > 0 or self.guard.moment_limit > 0):
+        self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target,
+                              request.force_limit, request.moment_limit)
+        if not np.isfinite(self.guard.newest_estimate) and (request.force_limit > 0 or request.moment_limit > 0):
             self.diagnostics.set(WARN, "trajectory sent UNGUARDED: no platform/external_wrench_estimate received yet "
                                  "(is leg_force_estimator running?)", last_target=np.round(target, 6).tolist(),
                                  last_duration_s=final)
@@ -470,13 +629,15 @@ class KinematicsNode(Node):
             self.diagnostics.set(OK, "trajectory sent", last_target=np.round(target, 6).tolist(),
                                  last_duration_s=final)
         self.get_logger().info(f"trajectory to {np.round(target, 5).tolist()} over {final:.3f} s")
+        return start_time + final
 
-    def plan_trajectory(self, start_lengths, start_pose, goal_lengths, goal_pose) -> JointTrajectory:
+    def plan_trajectory(self, start_lengths, start_pose, goal_lengths, goal_pose, speed_scale: float
+                        ) -> JointTrajectory:
         """Minimum-jerk leg trajectory (at most MAX_TRAJECTORY_POINTS points), checked along the whole move for what
         the six struts do together (``kinematics.workspace.check_strut_path``: FK, joints, conditioning, the
         emulator's check too) and, with a tissue model, for the strut forces it needs (the waypoints are the
         trajectory's samples)."""
-        speed = self.robot.limits.strut_velocity_max * self.get_parameter("speed_scale").value
+        speed = self.robot.limits.strut_velocity_max * speed_scale
         guarded = self.guard.speed_limit()  # slower while the wrench estimates lag (busy machine)
         if guarded < speed:
             self.get_logger().warning(f"force guard: the wrench estimates lag {self.guard.estimate_lag:.3f} s behind "
@@ -510,45 +671,71 @@ class KinematicsNode(Node):
         return msg
 
     # -- plan_path service --------------------------------------------------
-    def on_plan_path(self, request: GetPlan.Request, response: GetPlan.Response) -> GetPlan.Response:
-        """Checked straight SE(3) path from start to goal (both in base). An unset start (empty frame_id,
-        zero position, zero or identity orientation: what a goal-only request carries) means "from the
-        current pose estimate". With a tissue model every waypoint's predicted strut forces are checked too;
-        while the force guard is tripped a path further in the stopped direction is refused. An infeasible
-        request gets an empty path; the reason goes to the log and /diagnostics (WARN, value
-        last_plan_failure)."""
-        response.plan = Path()
-        response.plan.header.frame_id = BASE_FRAME
-        response.plan.header.stamp = self.get_clock().now().to_msg()
+    def on_plan_path(self, request: PlanPath.Request, response: PlanPath.Response) -> PlanPath.Response:
+        """A checked path through the request's waypoints (base; one waypoint: from the current pose estimate),
+        straight in SE(3) between them (1 mm / 1 deg steps), every sample checked against the workspace, the
+        strut limits and, with a tissue model, the strut forces; while the force guard is tripped a segment
+        further in the stopped direction is refused. Nothing moves. A refusal carries its code, the failing
+        waypoint (the end of the segment that fails) and the time along the path where it fails."""
+        response.path = Path()
+        response.path.header.frame_id = BASE_FRAME
+        response.path.header.stamp = self.get_clock().now().to_msg()
+        response.failing_waypoint, response.failing_time_s = -1, float("nan")
         try:
-            start_msg = request.start
-            if unset_pose(start_msg):
-                if self.pose is None:
-                    raise InvalidInputError("start pose unset and no pose estimate yet")
-                start = self.pose
-            else:
-                check_frame(start_msg.header.frame_id, "plan_path start")
-                start = pose_from_msg(start_msg.pose)
-            check_frame(request.goal.header.frame_id, "plan_path goal")
-            goal = pose_from_msg(request.goal.pose)
-            self.guard.check_target(start, goal)
-            poses = checked_path(self.robot, start, goal, tissue=self.tissue)
+            poses, offset = self.plan_waypoints(request.waypoints)
+            speed_scale = move_request(poses[-1], request.speed_scale, 0.0, 0.0, self.get_parameter(
+                "speed_scale").value, 0.0, 0.0).speed_scale
+            samples, duration = self.plan_segments(poses, offset, speed_scale, response)
         except StewartError as exc:
-            reason = f"{type(exc).__name__}: {exc}"
-            reject(self, self.diagnostics, "plan_path request (empty path returned)", reason)
-            self.diagnostics.values["last_plan_failure"] = reason
-            return response  # empty path = infeasible
-        stamp = response.plan.header.stamp
-        response.plan.poses = [pose_stamped(p, stamp) for p in poses]
-        self.diagnostics.set(OK, "path planned", last_path_waypoints=len(poses))
+            reject(self, self.diagnostics, "plan_path request", f"{exc.outcome}: {exc}")
+            response.outcome = outcome_of(exc)
+            return response
+        stamp = response.path.header.stamp
+        response.path.poses = [pose_stamped(p, stamp) for p in samples]
+        response.duration_s = duration
+        response.outcome = outcome("SUCCEEDED", f"path of {len(samples)} samples through {len(poses)} waypoints "
+                                   f"over {duration:.2f} s")
+        self.diagnostics.set(OK, "path planned", last_path_waypoints=len(samples))
         return response
 
+    def plan_waypoints(self, waypoints) -> tuple[list[np.ndarray], int]:
+        """The waypoints' poses (6,) and how many were put before them (1: the current pose estimate, when the
+        request has one waypoint)."""
+        if not waypoints:
+            raise InvalidInputError("plan_path needs at least one waypoint (one: from the current pose estimate)")
+        poses = [base_pose(msg, f"plan_path waypoint {i}") for i, msg in enumerate(waypoints)]
+        if len(poses) > 1:
+            return poses, 0
+        if self.pose is None:
+            raise RefusedError("NOT_READY", "one waypoint and no pose estimate yet to start the path from")
+        return [self.pose.copy()] + poses, 1
 
-def unset_pose(msg: PoseStamped) -> bool:
-    """True for a PoseStamped left at its defaults (no frame, zero position, zero or identity orientation)."""
-    p, q = msg.pose.position, msg.pose.orientation
-    return msg.header.frame_id == "" and (p.x, p.y, p.z) == (0.0, 0.0, 0.0) and \
-        (q.x, q.y, q.z) == (0.0, 0.0, 0.0) and q.w in (0.0, 1.0)
+    def plan_segments(self, poses, offset: int, speed_scale: float, response) -> tuple[list, float]:
+        """Every segment's checked samples and the path's duration (s: a minimum-jerk move per segment at
+        ``speed_scale``); the failing waypoint and time go into ``response`` before the refusal is raised."""
+        samples: list = []
+        duration = 0.0
+        speed = self.robot.limits.strut_velocity_max * speed_scale
+        shortest = self.get_parameter("trajectory_min_duration_s").value
+        for i in range(len(poses) - 1):
+            try:
+                self.guard.check_target(poses[i], poses[i + 1])
+                segment = checked_path(self.robot, poses[i], poses[i + 1], tissue=self.tissue)
+            except StewartError:
+                response.failing_waypoint, response.failing_time_s = i + 1 - offset, duration
+                raise
+            lengths = check_pose(self.robot, np.array([poses[i], poses[i + 1]]))
+            duration += minimum_jerk_duration(lengths[0], lengths[1], speed, shortest)
+            samples.extend(segment if i == 0 else segment[1:])
+        return samples, duration
+
+
+def guard_state(guard: ForceGuard) -> int:
+    """The ForceGuardStatus state constant of ``guard``: TRIPPED, OFF (both limits 0) or ARMED."""
+    if guard.tripped:
+        return ForceGuardStatus.TRIPPED
+    force, moment = guard.limits()
+    return ForceGuardStatus.OFF if force <= 0 and moment <= 0 else ForceGuardStatus.ARMED
 
 
 def main(args=None) -> int:

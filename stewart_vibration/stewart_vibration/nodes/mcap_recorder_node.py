@@ -16,7 +16,9 @@ record_on_start (bool, true), topics (str[], empty = the topics of docs/interfac
 /clock, /diagnostics, /rosout), qos_depth (int, 3000), chunk_size (bytes, 262144), flush_period_s (s,
 0.5), discovery_period_s (s, 0.2). A bad output_dir or file_pattern is refused with the reason: at start
 (one line, exit code 2) and by ``ros2 param set``.
-Services: ~/start, ~/stop (std_srvs/Trigger; message = file path, or why not).
+Services: ~/start (StartRecording: a new file, optionally named; the outcome and the file's path), ~/stop
+(StopRecording: the outcome, the finished file's path, its message and byte counts; NOT_RECORDING when there
+is none, RECORDING_FAILED when its write failed).
 SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
 
 Faults it reports at once on /diagnostics (ERROR, with ``fault`` = write_failed, ``fault_code`` = the
@@ -56,7 +58,8 @@ from pathlib import Path
 from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from std_srvs.srv import Trigger
+
+from stewart_vibration_interfaces.srv import StartRecording, StopRecording
 
 from ..errors import InvalidInputError
 from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
@@ -73,6 +76,8 @@ from ..mcap_log.output_paths import (
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
 from ..mcap_log.reader import bag_file_of
 from ..mcap_log.writer import McapRunWriter
+from ..messages.fields import check_text
+from ..messages.status_values import MAX_PATH
 from ..messages.stream_health import SequenceGaps
 from ..runtime.run_folders import new_run_folder
 from .common import (
@@ -86,10 +91,11 @@ from .common import (
     float_param,
     run_node,
 )
+from .outcomes import outcome
 from .ros_graph import message_class, offered_profile, rclpy_profile
 
 SUITE_TOPICS = [
-    "platform/target_pose",
+    "legs/trajectory_status",
     "legs/joint_trajectory",
     "vibration/joint_trajectory",
     "legs/joint_states",
@@ -150,8 +156,8 @@ class McapRecorderNode(Node):
         self._gaps = SequenceGaps() if os.environ.get("STEWART_EXECUTOR") == "single" else None
         self._single_publisher: set[str] = set()  # topics with one publisher (sequence numbers are per publisher)
         self._fault: tuple[str, str] | None = None  # (errno name, reason) of the last write failure
-        self.create_service(Trigger, "~/start", self._on_start)
-        self.create_service(Trigger, "~/stop", self._on_stop)
+        self.create_service(StartRecording, "~/start", self._on_start)
+        self.create_service(StopRecording, "~/stop", self._on_stop)
         self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
         # the file being written and its counters, for UIs that start after the "recording to" log line
         self.diagnostics = Diagnostics(self, "mcap recorder")
@@ -231,8 +237,10 @@ class McapRecorderNode(Node):
         check_bag_folder(self._own_folder)
         return self._own_folder
 
-    def _next_path(self, folder: Path) -> Path:
-        pattern = str(self.get_parameter("file_pattern").value)
+    def _next_path(self, folder: Path, name: str = "") -> Path:
+        """The next file in ``folder``: ``name``.mcap if given, else of file_pattern (an existing name gets _n)."""
+        pattern = f"{name}.mcap" if name else str(self.get_parameter("file_pattern").value)
+        check_file_pattern(pattern)
         index = len(self._bag_files.get(folder, [])) + 1
         name = file_name(pattern, stamp=time.strftime("%Y%m%d_%H%M%S"), node=self.get_name(), index=index)
         path = folder / name
@@ -252,8 +260,9 @@ class McapRecorderNode(Node):
                                    "file(s) stay listed in its metadata.yaml beside the new ones")
         remove_metadata_yaml(folder)
 
-    def start_recording(self) -> Path:
-        """Open a new file (if not recording) and declare every topic already subscribed.
+    def start_recording(self, name: str = "") -> Path:
+        """Open a new file (if not recording; ``name``: its stem, "" = file_pattern) and declare every topic
+        already subscribed.
 
         Raises:
             InvalidInputError: output_dir or file_pattern is refused (``mcap_log.output_paths``).
@@ -261,7 +270,7 @@ class McapRecorderNode(Node):
         """
         if self._writer is None:
             folder = self._folder()
-            path = self._next_path(folder)
+            path = self._next_path(folder, name)
             self._take_over(folder)
             writer = McapRunWriter(
                 path,
@@ -329,25 +338,36 @@ class McapRecorderNode(Node):
         """SIGINT / SIGTERM: finish the file."""
         self.stop_recording()
 
-    def _on_start(self, _req, resp):
+    def _on_start(self, request, response):
+        if self._writer is not None:
+            response.outcome = outcome("BUSY", f"already recording to {self._writer.path}: stop it first")
+            response.path = str(self._writer.path)
+            return response
         try:
-            path = self.start_recording()
+            check_text(request.name, "name", MAX_PATH)
+            path = self.start_recording(request.name)
         except (InvalidInputError, OSError) as exc:
-            resp.success, resp.message = False, f"cannot start a recording: {exc}"
-            self.get_logger().error(resp.message)
-            return resp
-        resp.success, resp.message = True, str(path)
-        return resp
+            message = f"cannot start a recording: {exc}"
+            response.outcome = outcome("INVALID_ARGUMENT" if isinstance(exc, InvalidInputError) else
+                                       "RECORDING_FAILED", message)
+            self.get_logger().error(message)
+            return response
+        response.outcome, response.path = outcome("SUCCEEDED", f"recording to {path}"), str(path)
+        return response
 
-    def _on_stop(self, _req, resp):
+    def _on_stop(self, _request, response):
         report = self.stop_recording()
         if report is None:
-            resp.success, resp.message = False, "not recording"
-        elif report["failure"]:
-            resp.success, resp.message = False, f"{report['path']}: recording failed: {report['failure']['reason']}"
+            response.outcome = outcome("NOT_RECORDING", "not recording: nothing to stop")
+            return response
+        response.path, response.messages = report["path"], int(report["written"])
+        response.bytes = Path(report["path"]).stat().st_size if Path(report["path"]).exists() else 0
+        if report["failure"]:
+            response.outcome = outcome("RECORDING_FAILED", f"{report['path']}: recording failed: "
+                                       f"{report['failure']['reason']}")
         else:
-            resp.success, resp.message = True, report["path"]
-        return resp
+            response.outcome = outcome("SUCCEEDED", f"finished {report['path']}")
+        return response
 
     # -- discovery ------------------------------------------------------------------
     def _discover(self) -> None:

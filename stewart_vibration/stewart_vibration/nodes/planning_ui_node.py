@@ -5,15 +5,16 @@ default; port 0 = any free port) behind a random access token, and logs its URL 
 (``planning UI at http://127.0.0.1:8080/?token=...``). A taken port: one line, exit code 2.
 
 It uses what any client of the suite uses, nothing private:
-pub platform/target_pose (PoseStamped, base); calls kinematics/plan_path (GetPlan; an empty path's
-reason comes from the kinematics node's /diagnostics), vibration_planner/get_parameters and
+the kinematics/move_to_pose action (a move is a goal: its feedback and result, with the outcome code, say how
+it went; nothing is read from text); calls kinematics/plan_path (PlanPath: a refusal's code and reason are in
+the answer), vibration_planner/get_parameters and
 describe_parameters (the streaming settings), the vibration_planner/vibrate action (a start is a goal, its
 refusal the result's outcome; stop cancels every vibrate goal), hardware_emulator/emergency_stop and /reset
 (Trigger); subscribes the vibrate action's feedback (any client's vibration: its plan and what the sensors
 show delivered), legs/joint_states, platform/pose_estimate (the controller's pose, FK of the
 sensed lengths: the page shows what the controller knows, never the emulator's truth),
 legs/force_estimate (raw, best effort: a slow page never holds up a publisher), vibration/status,
-/diagnostics (the recorder's status names the file it writes) and /rosout (its "recording to <path>").
+/diagnostics (the recorder's status names the file it writes in its ``path`` value).
 
 Commands from the page are checked here with the core's own checks before anything is sent (a move with
 ``kinematics.check_pose``, a start with the planner's settings check and the decomposition's limits) and
@@ -32,7 +33,6 @@ from __future__ import annotations
 
 import collections
 import math
-import re
 import secrets
 import threading
 import time
@@ -42,8 +42,6 @@ import numpy as np
 from action_msgs.srv import CancelGoal
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
-from nav_msgs.srv import GetPlan
-from rcl_interfaces.msg import Log
 from rcl_interfaces.srv import DescribeParameters, GetParameters
 from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
@@ -53,15 +51,14 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
-from stewart_vibration_interfaces.action import Vibrate
+from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+from stewart_vibration_interfaces.srv import PlanPath
 
 from ..errors import MalformedMessageError, StewartError
 from ..kinematics.robot_config import load_robot
 from ..messages import cdr
-from ..messages.fields import check_text
 from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import (
-    MAX_PATH,
     planner_settings,
     recorder_files,
     statuses_from_cdr,
@@ -73,7 +70,6 @@ from ..ui import model
 from ..ui.server import UiServer, bind
 from ..vibration.settings import STREAM_KEYS, VIBRATION_KEYS, default_settings
 from .common import (
-    BASE_FRAME,
     OK,
     Diagnostics,
     JointColumns,
@@ -86,19 +82,18 @@ from .common import (
     run_node,
     text_param,
 )
+from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
 from .vibration_goal import goal_message, plan_record, settings_of_plan
 
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-ROSOUT_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SETTLE_POSITION_M = 1e-5  # a move is settled when the pose estimate holds within 10 um / 0.01 deg for 0.5 s
 SETTLE_ANGLE_RAD = math.radians(0.01)
 SETTLE_HOLD_S = 0.5
 MOVE_TIMEOUT_S = 120.0  # a move not settled by then no longer blocks a start
 CALL_TIMEOUT_S = 10.0
 COMMAND_POLL_S = 0.01  # the page's commands are run in the executor's thread within this time
-REASON_WAIT_S = 5.0  # how long to wait for a node's reason on /diagnostics after its refusal
 LEVELS = {0: "OK", 1: "WARN", 2: "ERROR", 3: "STALE"}
 EVENTS_KEPT = 30
 STREAMS_IDLE_S = 5.0  # the 500 Hz subscriptions are dropped this long after the last page closed
@@ -143,7 +138,6 @@ class PlanningUiNode(Node):
         self.estops: list = []  # replies of e-stops from the pages not yet sent on (they go first, coalesced)
         self.estop_call = None  # the e-stop call in flight: {"future", "sent", "deadline", "replies", "again"}
         self.pending_calls: list = []  # (deadline, future, what, reply)
-        self.reason_waiters: list = []  # (deadline, prefix, since_seq, reply, result)
 
         # -- live state (executor thread only) --
         self.decoder, self.force_decoder = cdr.JointStateDecoder(), cdr.JointStateDecoder()
@@ -157,7 +151,6 @@ class PlanningUiNode(Node):
         self.plots = {"joints": [], "forces": []}  # decimated rows since the last frame
         self.vibration = None  # latest VibrationReport
         self.node_status: dict[str, dict] = {}  # /diagnostics name -> level, message, values, seen
-        self.node_history: dict[str, collections.deque] = {}  # node -> its recent (seq, message)
         self.diag_seq = 0
         self.events: collections.deque = collections.deque(maxlen=EVENTS_KEPT)
         self.event_seq = 0
@@ -172,14 +165,13 @@ class PlanningUiNode(Node):
         self.own_goal: bytes | None = None  # the id of the vibrate goal this page sent last
 
         # -- interfaces --
-        self.target_pub = self.create_publisher(PoseStamped, "platform/target_pose", 10)
+        self.move_client = ActionClient(self, MoveToPose, MOVE_ACTION)
         self.streams = []  # the 500 Hz subscriptions: only while a page is open or a move / vibration is followed
         self.unwatched_since = time.monotonic()
         self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
         self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50, raw=True)
-        self.create_subscription(Log, "/rosout", self._on_rosout, ROSOUT_QOS)
         self.clients_ = {
-            "plan_path": self.create_client(GetPlan, "kinematics/plan_path"),
+            "plan_path": self.create_client(PlanPath, "kinematics/plan_path"),
             "get": self.create_client(GetParameters, "vibration_planner/get_parameters"),
             "describe": self.create_client(DescribeParameters, "vibration_planner/describe_parameters"),
             # cancel every vibrate goal, whoever sent it (the action protocol: a zero goal id and stamp)
@@ -245,21 +237,14 @@ class PlanningUiNode(Node):
             self.node_status[status.name] = {"level": level, "message": status.message, "values": values,
                                              "seen": now, "seq": self.diag_seq}
             node = status.node
-            self.node_history.setdefault(node, collections.deque(maxlen=50)).append((self.diag_seq, status.message))
             changed = before is None or before["message"] != status.message
-            if changed and level >= 1 and status.name != self.diagnostics._name and (
-                    "rejected" in status.message or "aborted" in status.message):
+            if changed and level >= 1 and status.name != self.diagnostics._name:
                 self._event(node, status.message, LEVELS.get(level, "ERROR"))
             try:
                 if node == "mcap_recorder":  # the file being written (also for a page opened after it started)
                     self._follow_recorder(status)
             except MalformedMessageError as exc:
                 self.malformed.refuse("/diagnostics", exc)
-            move = self.move
-            if node == "kinematics" and changed and move is not None and move["status"] == "moving" and \
-                    "rejected target pose" in status.message:
-                move["status"], move["reason"] = "rejected by kinematics", status.message
-            self._resolve_waiters(node, status.message)
 
     def _follow_recorder(self, status) -> None:
         files = recorder_files(status)
@@ -269,21 +254,6 @@ class PlanningUiNode(Node):
         if current and (self.mcap is None or (self.mcap["path"], self.mcap["state"]) != (current["path"],
                                                                                           current["state"])):
             self.mcap = {**current, "seen": time.monotonic()}
-            self._list_report()
-
-    def _on_rosout(self, msg: Log) -> None:
-        if not msg.name.endswith("mcap_recorder"):
-            return
-        found = re.match(r"recording to (\S+)", msg.msg) or re.match(r"finished (\S+);", msg.msg)
-        try:
-            if found:
-                check_text(found.group(1), "path", MAX_PATH)
-        except MalformedMessageError as exc:
-            self.malformed.refuse("/rosout", exc)
-            return
-        if found:
-            self.mcap = {"path": found.group(1), "state": "recording" if msg.msg.startswith("recording") else
-                         "finished", "seen": time.monotonic()}
             self._list_report()
 
     def _event(self, source: str, text: str, level: str = "WARN") -> None:
@@ -541,19 +511,18 @@ class PlanningUiNode(Node):
 
     def _cmd_plan_path(self, args, reply) -> None:
         goal = model.pose_from_fields(args)
-        request = GetPlan.Request()
-        request.goal = pose_stamped(goal, self.get_clock().now().to_msg())  # start unset: from the estimate
+        request = PlanPath.Request(waypoints=[pose_stamped(goal, self.get_clock().now().to_msg())])  # from the estimate
 
         def done(response):
-            poses = [pose_from_msg(p.pose) for p in response.plan.poses]
-            if poses:
+            name = outcome_name(response.outcome.code)
+            if name == "SUCCEEDED":
+                poses = [pose_from_msg(p.pose) for p in response.path.poses]
                 reply({"ok": True, "message": f"path of {len(poses)} waypoints",
                        "path": model.path_margins(self.robot, np.array(poses))})
             else:
-                self._wait_reason("kinematics", "rejected plan_path request", reply,
-                                  {"ok": False, "refused_by": "kinematics", "path": {"waypoints": 0}})
+                reply({"ok": False, "refused_by": "kinematics", "outcome": name,
+                       "message": f"{name}: {response.outcome.message}", "path": {"waypoints": 0}})
 
-        self.reason_mark = self.diag_seq
         self._call("plan_path", request, done, reply)
 
     def _cmd_move(self, args, reply) -> None:
@@ -571,12 +540,36 @@ class PlanningUiNode(Node):
 
             self._cmd_plan_path(args, with_node_reason)
             return
-        msg = pose_stamped(target, self.get_clock().now().to_msg(), BASE_FRAME)
-        self.target_pub.publish(msg)
-        self.move = {"target": target, "sent": time.monotonic(), "status": "moving", "held_since": None}
+        if not self.move_client.server_is_ready():
+            reply({"ok": False, "refused_by": "planning_ui", "message": f"the {MOVE_ACTION} action is not available "
+                   "(is the kinematics node running?)"})
+            return
+        move = {"target": target, "sent": time.monotonic(), "status": "moving", "held_since": None}
+        self.move = move
+
+        def on_feedback(msg) -> None:
+            move["progress"] = float(msg.feedback.progress)
+
+        def on_result(future) -> None:
+            answer = future.result()
+            if answer is None:
+                return
+            result = move_result_record(answer.result)
+            move["outcome"], move["peak_force_n"] = result["outcome"], result["peak_force_n"]
+            if result["outcome"] != "SUCCEEDED":
+                move["status"], move["reason"] = f"ended {result['outcome']}", result["message"]
+                self._event("kinematics", f"move {result['outcome']}: {result['message']}", "WARN")
+
+        def on_goal(future) -> None:
+            if future.exception() is not None or not future.result().accepted:
+                move["status"], move["reason"] = "not taken", "kinematics did not take the goal"
+                return
+            future.result().get_result_async().add_done_callback(on_result)
+
+        self.move_client.send_goal_async(move_goal(target), feedback_callback=on_feedback).add_done_callback(on_goal)
         fields = model.pose_fields(target)
-        self._event("planning_ui", "target sent: " + ", ".join(f"{k} {v:.3f}" for k, v in fields.items()), "OK")
-        reply({"ok": True, "message": "target sent to kinematics (platform/target_pose); following the move",
+        self._event("planning_ui", "move goal sent: " + ", ".join(f"{k} {v:.3f}" for k, v in fields.items()), "OK")
+        reply({"ok": True, "message": f"move goal sent to kinematics ({MOVE_ACTION}); following the move",
                "check": check})
 
     def _vibration_settings(self, args) -> tuple[dict, dict]:
@@ -752,30 +745,8 @@ class PlanningUiNode(Node):
 
         future.add_done_callback(finished)
 
-    def _wait_reason(self, node: str, prefix: str, reply, result: dict) -> None:
-        """Reply with the reason ``node`` gave on /diagnostics (a message starting with ``prefix``) after the
-        request was sent; if it came already, at once, else when it comes (at most REASON_WAIT_S). The prefix is
-        looked for anywhere in the message: a node whose inputs are late puts "stale: ...; " before it (a CI
-        run beside a CPU hog waited in vain for a kinematics refusal)."""
-        since = getattr(self, "reason_mark", 0)
-        for seq, message in self.node_history.get(node, ()):  # a later status may have replaced it already
-            if seq > since and prefix in message:
-                reply({**result, "message": message})
-                return
-        self.reason_waiters.append((time.monotonic() + REASON_WAIT_S, node, prefix, reply, result))
-
-    def _resolve_waiters(self, node: str, message: str) -> None:
-        for waiter in list(self.reason_waiters):
-            if waiter[1] == node and waiter[2] in message:
-                self.reason_waiters.remove(waiter)
-                waiter[3]({**waiter[4], "message": message})
-
     def _expire(self) -> None:
         now = time.monotonic()
-        for waiter in [w for w in self.reason_waiters if w[0] < now]:
-            self.reason_waiters.remove(waiter)
-            waiter[3]({**waiter[4], "message": f"refused by {waiter[1]}; its reason did not arrive on /diagnostics "
-                                               f"within {REASON_WAIT_S} s"})
         for call in [c for c in self.pending_calls if c[0] < now]:
             self.pending_calls.remove(call)
             call[3]({"ok": False, "refused_by": "planning_ui", "message": f"no answer from {call[2]} within "

@@ -21,9 +21,9 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
-from std_srvs.srv import Trigger
 
-from stewart_vibration_interfaces.action import Vibrate
+from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+from stewart_vibration_interfaces.srv import StopRecording
 
 from ..messages.stamped import pose_from_cdr
 from ..messages.status_values import (
@@ -36,9 +36,10 @@ from ..motion.force_guard import LAG_MEMORY_S
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
-from ..runtime.steps import StepFailed, VibrationEnd, VibrationStart
+from ..runtime.steps import MoveResult, StepFailed, VibrationEnd, VibrationStart
 from . import ensure_ament_prefix_path
-from .common import MalformedInputs, make_executor, pose_stamped, stamp_seconds
+from .common import MalformedInputs, make_executor, stamp_seconds
+from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
 from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
 from .vibration_goal import goal_message, plan_record
@@ -85,7 +86,8 @@ class SuiteClient:
             self.node.create_subscription(kind, topic,
                                           lambda m, t=topic: self.latest.__setitem__(t, m), 1)  # type: ignore[misc]
             for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState))]
-        self.target_pub = self.node.create_publisher(PoseStamped, "platform/target_pose", 10)
+        self.move_client = ActionClient(self.node, MoveToPose, MOVE_ACTION)
+        self._move: dict = {}  # the latest move goal: handle, result (MoveResult)
         self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
         self.recorder_fault: str | None = None  # the recorder's write failure (its /diagnostics fault_reason)
@@ -216,7 +218,7 @@ class SuiteClient:
         progress("ready: kinematics (pose estimates)")
         self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
         progress("ready: leg_force_estimator (force estimates)")
-        self._ready_client(Trigger, "mcap_recorder/stop", 60)
+        self._ready_client(StopRecording, "mcap_recorder/stop", 60)
         self.spin_until(self.vibrate_client.server_is_ready, 60, "the vibration_planner/vibrate action")
         progress("ready: vibration_planner (action), mcap_recorder (services)")
 
@@ -254,12 +256,30 @@ class SuiteClient:
                      f"{ESTIMATES_CURRENT_WAIT_S:.0f} s (busy machine?); going on: the force guard slows the moves")
 
     # -- what the scenario's steps use (runtime.steps.SuiteClient) ------------------------------------------
-    def send_target(self, pose) -> None:
-        """Publish a target pose once kinematics' subscription is matched to this publisher (a message sent
-        before DDS has matched them is lost: a run once waited 120 s for a move that was never received)."""
-        self.spin_until(lambda: self.target_pub.get_subscription_count() > 0, 30.0,
-                        "kinematics to subscribe to platform/target_pose")
-        self.target_pub.publish(pose_stamped(pose, self.node.get_clock().now().to_msg()))
+    def send_move(self, pose) -> None:
+        """Send the move_to_pose goal to ``pose`` (6,) once kinematics' action server is there, and wait until
+        it was taken; its result arrives later (``move_result``)."""
+        self.spin_until(self.move_client.server_is_ready, 30.0, f"kinematics' {MOVE_ACTION} action")
+        self._move = {"result": None}
+        send = self.move_client.send_goal_async(move_goal(pose))
+        self.spin_until(send.done, 30.0, "kinematics to take the move goal")
+        handle = send.result()
+        if not handle.accepted:
+            raise StepFailed("kinematics rejected the move goal")
+        self._move["handle"] = handle
+        handle.get_result_async().add_done_callback(self._on_move_result)
+
+    def _on_move_result(self, future) -> None:
+        answer = future.result()
+        if answer is not None:
+            r = move_result_record(answer.result)
+            self._move["result"] = MoveResult(r["outcome"], r["message"], r["position_error_m"],
+                                              r["angle_error_rad"], r["peak_force_n"], r["peak_moment_nm"],
+                                              r["duration_s"])
+
+    def move_result(self) -> MoveResult | None:
+        """The latest move goal's result, None while it runs (or before any)."""
+        return self._move.get("result")
 
     def follow_poses(self, on: bool) -> None:
         """Subscribe to the 500 Hz ground truth (ground_truth/platform_pose) and the controller's pose estimates
@@ -351,12 +371,13 @@ class SuiteClient:
     def stop_recorder(self, progress):
         """Ask the recorder to finish its file; the file's path, or None (SIGINT finishes it then)."""
         try:
-            res = self.call(Trigger, "mcap_recorder/stop", Trigger.Request(), timeout=10.0)
-            progress(f"recorder: {res.message}")
-            return res.message if res.success else None
+            res = self.call(StopRecording, "mcap_recorder/stop", StopRecording.Request(), timeout=10.0)
         except (TimeoutError, RuntimeError, StepFailed) as exc:
             progress(f"recorder stop service failed ({exc}); SIGINT finishes the file")
             return None
+        name = outcome_name(res.outcome.code)
+        progress(f"recorder: {name}: {res.outcome.message} ({res.messages} messages, {res.bytes:,} bytes)")
+        return res.path if name == "SUCCEEDED" else None
 
     def close(self) -> None:
         self.executor.shutdown()

@@ -9,11 +9,10 @@ from builtin_interfaces.msg import Time as TimeMsg
 from stewart_vibration_interfaces.action import Vibrate
 from stewart_vibration_interfaces.msg import VibrationPlan, VibrationUnitsStatus
 
-from ..messages.cdr import stamp_parts
 from ..vibration.decompose import VibrationDecomposition
 from ..vibration.settings import VIBRATION_KEYS
 from ..vibration.waveform import acceleration_from_displacement
-from .common import pose_from_msg, pose_stamped, stamp_seconds
+from .common import pose_from_msg, pose_stamped, stamp_seconds, time_message
 
 UNIT_STATES = {"idle": VibrationUnitsStatus.IDLE, "pending": VibrationUnitsStatus.PENDING,
                "ramping_in": VibrationUnitsStatus.RAMPING_IN, "running": VibrationUnitsStatus.RUNNING,
@@ -36,12 +35,6 @@ def goal_settings(goal: Vibrate.Goal) -> dict:
     settings = {"direction": [float(v) for v in goal.direction], "frame": goal.frame}
     settings.update({key: float(getattr(goal, key)) for key in VIBRATION_KEYS[2:]})
     return settings
-
-
-def time_message(seconds: float) -> TimeMsg:
-    """builtin_interfaces/Time of ``seconds`` (s)."""
-    sec, nanosec = stamp_parts(seconds)
-    return TimeMsg(sec=sec, nanosec=nanosec)
 
 
 def plan_message(plan: VibrationDecomposition, settings: dict, t0: float) -> VibrationPlan:

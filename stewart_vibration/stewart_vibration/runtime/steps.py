@@ -1,8 +1,8 @@
 """The scenario's steps as the main job runs them (no rclpy): move, guarded move, vibrate.
 
 The steps drive the suite through a client (``SuiteClient``: the ROS side, ``nodes.suite_client``) and
-record what happened in a ``RunRecord``. Every wait is on something observable (the emulator's ground
-truth, vibration/status, kinematics/guard_status, the sim clock), never a fixed sleep.
+record what happened in a ``RunRecord``. Every wait is on something observable (an action's result, the
+emulator's ground truth, vibration/status, kinematics/guard_status, the sim clock), never a fixed sleep.
 """
 
 from __future__ import annotations
@@ -90,6 +90,20 @@ class VibrationEnd:
     cycles_delivered: float
 
 
+@dataclass(frozen=True)
+class MoveResult:
+    """How a move_to_pose goal ended: its outcome name and kinematics' message, the residual error of its pose
+    estimate (m, rad), the peak external load measured during it (N, N m) and its duration (s)."""
+
+    outcome: str
+    message: str
+    position_error_m: float
+    angle_error_rad: float
+    peak_force_n: float
+    peak_moment_nm: float
+    duration_s: float
+
+
 class SuiteClient(Protocol):
     """What the steps need from the running suite (``nodes.suite_client.SuiteClient`` over ROS)."""
 
@@ -103,8 +117,12 @@ class SuiteClient(Protocol):
     def wait_sim(self, seconds: float, what: str) -> None:
         """Wait ``seconds`` of sim time; StepFailed if the clock stops or a node dies meanwhile."""
 
-    def send_target(self, pose) -> None:
-        """Publish a target pose (6,) [x, y, z, roll, pitch, yaw] (m, rad), platform in the base frame."""
+    def send_move(self, pose) -> None:
+        """Send kinematics' move_to_pose goal to ``pose`` (6,) [x, y, z, roll, pitch, yaw] (m, rad; base) and wait
+        until it was taken (StepFailed if not)."""
+
+    def move_result(self) -> MoveResult | None:
+        """The latest move goal's result; None while it runs."""
 
     def ground_truth(self) -> np.ndarray | None:
         """The latest ground-truth platform pose (6,) (m, rad, base frame); None if not followed or none yet."""
@@ -162,7 +180,12 @@ class ScenarioSteps:
         user at the robot sees: the robot's own view), and the ground truth has a sample since; record the
         ground truth's error (the judged figure) and the estimate's."""
         opts, client = self.options, self.client
-        client.send_target(step.pose)
+        client.send_move(step.pose)
+        client.spin_until(lambda: client.move_result() is not None, opts.step_timeout_s,
+                          f"the move to {step.name} to end")
+        result = cast(MoveResult, client.move_result())
+        if result.outcome != "SUCCEEDED":
+            raise StepFailed(f"the move to {step.name} ended {result.outcome}: {result.message}")
         held = HeldFor(SETTLE_HOLD_S)
 
         def settled():
@@ -181,6 +204,7 @@ class ScenarioSteps:
             "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
             "estimate_error_m": float(np.abs(believed[:3]).max()),
             "estimate_error_deg": float(np.degrees(np.abs(believed[3:]).max())),
+            "outcome": result.outcome, "peak_force_n": result.peak_force_n, "move_duration_s": result.duration_s,
         })
         opts.progress(f"{label}: settled at {step.name} in {cast(float, client.clock) - start:.2f} s sim; "
                       f"ground-truth error {np.abs(err[:3]).max() * 1e6:.3f} um, "
@@ -188,24 +212,19 @@ class ScenarioSteps:
                       f"{np.abs(believed[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(believed[3:]).max()):.5f} deg")
 
     def _guarded(self, step: MoveStep, label: str, start: float) -> None:
-        """A move the force guard must stop: wait for kinematics/guard_status to report a trip during it, then
-        for the platform to come to rest short of the target (SETTLE_HOLD_S of sim time still)."""
+        """A move the force guard must stop: its goal must end GUARD_STOPPED (the struts at rest short of the
+        target); then the platform must be at rest (SETTLE_HOLD_S of sim time still)."""
         opts, client = self.options, self.client
-        client.send_target(step.pose)
-
-        def tripped():
-            guard = client.guard_status()
-            return guard is not None and guard.state == "tripped" and guard.trip_limit in ("force", "moment") and \
-                cast(float, guard.trip_time_s) >= start - 1e-6  # not a pause for late estimates
-
-        def reached():
-            pose = client.ground_truth()
-            return pose is not None and np.abs(pose[:3] - step.pose[:3]).max() < opts.settle_tolerance_m
-
-        client.spin_until(lambda: tripped() or reached(), opts.step_timeout_s, "the force guard to stop the move")
-        if not tripped():
+        client.send_move(step.pose)
+        client.spin_until(lambda: client.move_result() is not None, opts.step_timeout_s,
+                          "the force guard to stop the move")
+        result = cast(MoveResult, client.move_result())
+        if result.outcome == "SUCCEEDED":
             raise StepFailed(f"the force guard did not stop the move to {np.round(step.pose, 5).tolist()}: the "
                              "platform reached the target")
+        if result.outcome != "GUARD_STOPPED":
+            raise StepFailed(f"the guarded move to {np.round(step.pose, 5).tolist()} ended {result.outcome}: "
+                             f"{result.message}")
         still = StillFor(SETTLE_HOLD_S)
 
         def at_rest():
@@ -214,11 +233,12 @@ class ScenarioSteps:
 
         client.spin_until(at_rest, opts.step_timeout_s, "the platform to come to rest after the guard stop")
         held = cast(np.ndarray, still.anchor)  # at rest: where it came to rest
-        guard = cast(GuardStatus, client.guard_status())  # tripped (above)
-        message = guard.message
-        record = {"target": step.pose.tolist(), "time": client.clock, "guard": dict(guard.values),
-                  "stopped_pose": held.tolist(),
-                  "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3]))}
+        guard = client.guard_status()
+        record = {"target": step.pose.tolist(), "time": client.clock,
+                  "guard": dict(guard.values) if guard is not None else {}, "stopped_pose": held.tolist(),
+                  "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3])),
+                  "peak_force_n": result.peak_force_n, "peak_moment_nm": result.peak_moment_nm}
+        message = result.message
         self.record.guard_stops.append(record)
         opts.progress(f"{label}: the force guard stopped the move as expected: {message}; "
                       f"held {record['short_of_target_m'] * 1e3:.2f} mm short of the target")

@@ -280,7 +280,8 @@ function showMove(m) {
   if (!m) return;
   const settle = ui.hello ? ui.hello.settle : { position_um: 10, angle_deg: 0.01 };
   const state = m.status === "settled" ? `<span class="badge ok">settled</span> after ${fmt(m.settled_after_s, 1)} s` :
-    `<span class="badge warn">${esc(m.status)}</span> ${fmt(m.elapsed_s, 1)} s`;
+    `<span class="badge warn">${esc(m.status)}</span> ${fmt(m.elapsed_s, 1)} s` +
+    (m.progress !== undefined ? `, progress ${fmt(100 * m.progress, 0)} %` : "");
   $("move-follow").innerHTML = `move: ${state}; <span class="truth">estimated</span> error ` +
     `<b id="move-error">${fmt(m.error_um, 3)} um</b>, ${fmt(m.error_deg, 5)} deg ` +
     `(settled = within ${settle.position_um} um / ${settle.angle_deg} deg for 0.5 s) <span class="stale-label"></span>` +
