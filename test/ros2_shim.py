@@ -43,10 +43,14 @@ def message_type(name: str):
 
 def fill(msg, values: dict | None):
     """Set ``msg``'s fields from a (nested) dict, as ros2cli's set_message_fields does."""
+    types = msg.get_fields_and_field_types()
     for key, value in (values or {}).items():
         current = getattr(msg, key)  # AttributeError names an unknown field
         if isinstance(value, dict):
             fill(current, value)
+        elif isinstance(value, list) and any(isinstance(v, dict) for v in value):  # a sequence of messages
+            element = types[key].removeprefix("sequence<").split(",")[0].rstrip(">").split("[")[0]
+            setattr(msg, key, [fill(message_type(element)(), v) for v in value])
         elif isinstance(current, float) and isinstance(value, int):
             setattr(msg, key, float(value))
         elif isinstance(value, list) and len(current) and isinstance(current[0], float):  # float64[N]
