@@ -10,22 +10,25 @@ what another DDS client (or a C++ node with std::string) can put on the wire.
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.serialization import serialize_message
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration.emulation.vibration_status import VibrationReport
 from stewart_vibration.messages import cdr
+from stewart_vibration.motion.guard_status import GuardStatus
+from stewart_vibration.nodes.status_messages import guard_status_msg, vibration_status_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
+from stewart_vibration_interfaces.msg import ForceGuardStatus, VibrationUnitsStatus
 
 # text of the wrong kind for a field that holds a number, a count or a state
 BAD_TEXT = ["many", "nan", "NaN", "inf", "-inf", "", "1e999", "-1", "1.5", "\u0661\u0662", " 7", "7 ", "0x10", "1_000",
             "1,2", "\U0001f600", "x" * 70_000, "\t", "None", "[]"]
 NOT_NUMBERS = [t for t in BAD_TEXT if t not in ("", "-1", "1.5")]  # not a number in any field
-# the vibration/status values a reader takes as a number, a count or a state
-READ_AS_NUMBERS = ("state", "since_s", "time_s", "amplitude_um", "commanded_until_s", "ramp_start_s", "event_seq",
-                   "event_stamp_s", "event_time_s", "accepted_windows", "refused_windows")
 PLACEHOLDER = "PLACEHOLDERXYZ"  # replaced in serialized bytes by RAW_STRINGS of its length
 RAW_STRINGS = [b"12\0abcdefghijk", b"base\0xyzabcdef", b"\xff\xfe\xfdbad utf-8\xc3(", b"\x01\x02\x1b[31mred\x7f\x00xy"]
 # the names the suite's statuses go by on /diagnostics (node: what), for spoofs named like each publisher
@@ -74,52 +77,87 @@ def _status(name: str, values: dict, level: int = 0, message: str = "m") -> Diag
                             values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
 
+def good_vibration_status() -> VibrationUnitsStatus:
+    """A well-formed vibration/status (the units running after an accepted window), as the emulator writes it."""
+    return vibration_status_msg(VibrationReport(
+        state="running", level="ok", reason="commanded until 9.000 s", since=1.0, time=2.0,
+        amplitude=np.full(6, 2e-5), commanded_until=9.0, event_seq=4, event="accepted", event_outcome="SUCCEEDED",
+        event_reason="window accepted", event_stamp=1.0, event_time=0.8, accepted=3))
+
+
+# (field, values) a vibration/status reader must refuse: enums past their tables, times and amplitudes that are no
+# measurement
+BAD_VIBRATION_FIELDS = [("state", [7, 9, 255]), ("level", [3, 4, 255]), ("event", [4, 200]), ("ramp_cause", [7, 255]),
+                        ("since_s", [math.nan, math.inf, -math.inf]), ("commanded_until_s", [math.nan, math.inf]),
+                        ("ramp_start_s", [math.inf, -math.inf]), ("event_stamp_s", [math.inf]),
+                        ("event_time_s", [-math.inf]),
+                        ("amplitude_m", [[math.nan] * 6, [-1e-6] * 6, [2.0] * 6, [0, 0, 0, 0, 0, math.inf]])]
+RAW_STRING_FIELDS = ("reason", "ramp_reason", "fault")
+
+
 def vibration_statuses(rng, count: int = 60) -> list[bytes]:
-    """vibration/status messages named like the emulator's, each malformed in one way."""
-    good = VibrationReport(state="running", level="ok", reason="commanded until 9.000 s", since=1.0, time=2.0,
-                           amplitude=np.full(6, 2e-5), commanded_until=9.0, event_seq=4, event="accepted",
-                           event_stamp=1.0, event_time=0.8, accepted=3).as_values()
-    name = "hardware_emulator: vibration"
+    """VibrationUnitsStatus messages, each malformed in one way: an enum or outcome code outside its table, a
+    time or amplitude that is not finite or out of range, a NUL / control character / bytes that are not UTF-8 in a
+    string, bytes after the message, and mangled bytes."""
     out = []
-    keys = sorted(good)
     for i in range(count):
-        values = dict(good)
+        msg = good_vibration_status()
         kind = i % 6
-        if kind in (0, 1):  # a value of the wrong kind in a field read as a number, count or state
-            key = READ_AS_NUMBERS[int(rng.integers(len(READ_AS_NUMBERS)))] if kind else "event_seq"
-            values[key] = NOT_NUMBERS[i % len(NOT_NUMBERS)]
-            out.append(serialize_message(_status(name, values)))
-        elif kind == 2:  # a key missing
-            del values[keys[int(rng.integers(len(keys)))]]
-            out.append(serialize_message(_status(name, values)))
-        elif kind == 3:  # NUL, control characters, bytes that are not UTF-8
-            values[keys[int(rng.integers(len(keys)))]] = PLACEHOLDER
-            out.append(with_raw_string(_status(name, values), PLACEHOLDER, RAW_STRINGS[i % len(RAW_STRINGS)]))
-        elif kind == 4:  # a level beyond STALE, a duplicated key, a very long message
-            msg = _status(name, values, level=int(rng.choice([4, 7, 255])))
-            msg.values.append(KeyValue(key="state", value="idle"))
-            msg.message = "m" * 100_000 if i % 12 == 4 else msg.message
+        if kind in (0, 1):
+            name, values = BAD_VIBRATION_FIELDS[int(rng.integers(len(BAD_VIBRATION_FIELDS)))]
+            setattr(msg, name, values[i % len(values)])
             out.append(serialize_message(msg))
+        elif kind == 2:  # an event whose outcome is not in the table
+            msg.event_outcome.code = int(rng.choice([2, 99, 9999, 65535]))
+            out.append(serialize_message(msg))
+        elif kind == 3:
+            if i % 12 == 3:
+                msg.event_outcome.message = PLACEHOLDER
+            else:
+                setattr(msg, RAW_STRING_FIELDS[i % len(RAW_STRING_FIELDS)], PLACEHOLDER)
+            out.append(with_raw_string(msg, PLACEHOLDER, RAW_STRINGS[i % len(RAW_STRINGS)]))
+        elif kind == 4:  # bytes after the message: not one
+            out.append(serialize_message(msg) + bytes(rng.integers(0, 256, 8 + i % 9, dtype=np.uint8)))
         else:
-            refused = dict(good, event_seq="many")  # a flipped bit must not make a well-formed status
-            out.extend(mangled(rng, serialize_message(_status(name, refused)), 1, i))
+            msg.state = 99  # a flipped bit must not make a well-formed status
+            out.extend(mangled(rng, serialize_message(msg), 1, i))
     return out
 
 
+def good_guard_status() -> ForceGuardStatus:
+    """A well-formed kinematics/guard_status: a force trip and its stop, as kinematics writes it."""
+    status = GuardStatus("tripped", 30.0, 0.0, "tripped at 2.000 s: force", "force", 2.0, 31.0, 0.2, 33.0, 0.3,
+                         34.0, 0.4, 0.12, 0.8, tripped_goal=np.array([0.0, 0.0, 0.3, 0.0, 0.0, 0.0]),
+                         tripped_direction=np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0]), blocked_directions=1)
+    return guard_status_msg(status, Time(sec=2))
+
+
 def guard_statuses(rng, count: int = 12) -> list[bytes]:
-    """kinematics/guard_status messages with a malformed state, trip limit or trip time."""
+    """ForceGuardStatus messages with a state or trip limit outside its table, a trip without its time or limit, a
+    limit that is negative or not finite, a tripped goal that is no pose, a NUL or bad UTF-8 in the message, bytes
+    after it, and mangled bytes."""
     out = []
     for i in range(count):
-        values = {"state": "tripped", "trip_limit": "force", "trip_time_s": BAD_TEXT[i % len(BAD_TEXT)]}
-        if i % 3 == 1:
-            values = {"state": BAD_TEXT[i % len(BAD_TEXT)]}
-        if i % 3 == 2:
-            values = {"state": "tripped", "trip_limit": PLACEHOLDER, "trip_time_s": "1.0"}
-            out.append(with_raw_string(_status("kinematics: force guard", values, 2), PLACEHOLDER,
-                                       RAW_STRINGS[i % len(RAW_STRINGS)]))
+        msg = good_guard_status()
+        kind = i % 6
+        if kind == 0:
+            msg.state = int(rng.choice([3, 4, 255]))
+        elif kind == 1:
+            msg.trip_limit = int(rng.choice([4, 9, 255])) if i % 12 == 1 else ForceGuardStatus.LIMIT_NONE
+        elif kind == 2:
+            msg.trip_time_s = [math.nan, math.inf][i % 2]
+        elif kind == 3:
+            msg.force_limit_n = [-1.0, math.nan, math.inf][i % 3]
+        elif kind == 4:
+            msg.tripped_goal.orientation.w = 0.0  # a zero quaternion
+        else:
+            msg.message = PLACEHOLDER
+            out.append(with_raw_string(msg, PLACEHOLDER, RAW_STRINGS[i % len(RAW_STRINGS)]))
             continue
-        out.append(serialize_message(_status("kinematics: force guard", values, 2)))
-    return out + mangled(rng, out[0], 4)
+        out.append(serialize_message(msg))
+    refused = good_guard_status()
+    refused.state = 77
+    return out + [serialize_message(good_guard_status()) + b"\x01" * 8] + mangled(rng, serialize_message(refused), 4)
 
 
 def diagnostic_arrays(rng, count: int = 60) -> list[bytes]:

@@ -80,5 +80,6 @@ def test_a_window_beyond_the_planners_bound_is_refused_and_recorded(robot):
     with pytest.raises(VibrationLimitError) as refused:
         ctl.command_vibration(0.0, VIB_NAMES, 0.1, t, np.zeros((count, 6)), np.zeros((count, 6)))
     assert refused.value.limit_name == "max_points"
-    assert ctl.status.report.refused == 1 and str(MAX_WINDOW_POINTS) in ctl.status.report.event
+    assert ctl.status.report.refused == 1 and str(MAX_WINDOW_POINTS) in ctl.status.report.event_reason
+    assert ctl.status.report.event_outcome == "LIMIT_EXCEEDED"
     assert ctl.vibration.times.size == 0

@@ -195,8 +195,8 @@ def test_estop_during_a_move_brings_the_struts_to_rest_within_the_acceleration_l
         emu.advance(PERIOD)
         measured.append(emu.joint_state()[2][:6])
     assert np.abs(np.diff(measured, axis=0)).max() <= 5 * lim.strut_acceleration_max * PERIOD
-    estimator.apply_ramp(stop_time, EMERGENCY_STOP)
-    estimator.apply_ramp(stop_time, EMERGENCY_STOP)  # the status repeats at 10 Hz: mirrored once
+    estimator.apply_ramp(stop_time, EMERGENCY_STOP, "emergency_stop")
+    estimator.apply_ramp(stop_time, EMERGENCY_STOP, "emergency_stop")  # the status repeats at 10 Hz: mirrored once
     mirrored = estimator.struts.sample(t)
     for ours, theirs in zip(mirrored, (p, v, a)):
         assert np.abs(ours - theirs).max() < 1e-12

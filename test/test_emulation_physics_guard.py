@@ -10,6 +10,7 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 import pytest
+from rclpy.serialization import serialize_message
 
 from stewart_vibration import inverse_kinematics
 from stewart_vibration.dynamics.tissue import load_tissue
@@ -17,7 +18,9 @@ from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory, checked_command
 from stewart_vibration.errors import PhysicsFaultError
 from stewart_vibration.install import default_config_dir
+from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
+from stewart_vibration.nodes.status_messages import vibration_status_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.sim.mujoco_sim import StewartSim
@@ -61,7 +64,8 @@ def assert_held(robot, rows, held_pose):
 def assert_fault_reported(emu, words):
     report = emu.vibration_report()[0]
     assert report.state == "estopped" and report.level == "error" and words in report.fault
-    assert report.as_values()["fault"] == report.fault
+    wire = vibration_report_from_cdr(serialize_message(vibration_status_msg(report)))  # what subscribers read
+    assert wire.fault == report.fault and wire.state == "estopped" and wire.level == "error"
     with pytest.raises(PhysicsFaultError) as refused:
         emu.command_struts(LEG_NAMES, 0.0, [1.0], [emu.home_lengths])
     assert refused.value.reason == emu.fault.reason and refused.value.time == emu.fault.time

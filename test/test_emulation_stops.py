@@ -12,7 +12,7 @@ from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.safety_controller import SafetyController
 from stewart_vibration.emulation.strut_stop import STOP_RESERVE_S
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
-from stewart_vibration.emulation.vibration_status import DEACTIVATED, EMERGENCY_STOP, SHUTDOWN
+from stewart_vibration.emulation.vibration_status import CAUSE_OF, DEACTIVATED, EMERGENCY_STOP, SHUTDOWN
 from stewart_vibration.errors import ActuatorLimitError
 from stewart_vibration.estimation import ForceEstimator
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
@@ -289,7 +289,7 @@ def test_the_estimator_mirrors_the_stretched_ramps_and_the_strut_stops(robot):
         estimator.command_vibration(build_trajectory(VIB_NAMES, VIB_NAMES, 0.2, *window), now=0.0)
         at = 0.4 * duration
         ctl.halt(at, reason)
-        estimator.apply_ramp(at, reason)
+        estimator.apply_ramp(at, reason, CAUSE_OF[reason])
         t = np.arange(at - 0.01, at + 2.5, 1e-3)
         for ours, theirs in zip(estimator.struts.sample(t), ctl.struts.sample(t), strict=True):
             assert np.abs(ours - theirs).max() < 1e-12

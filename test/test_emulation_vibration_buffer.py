@@ -121,6 +121,7 @@ def test_window_ending_away_from_rest_is_ramped_out_by_the_watchdog(buffer, robo
     buffer.add(window(stamp, 0.0, 0.3), now=now)  # steady amplitude at its end: not at rest
     start, reason = buffer.ramp()
     assert start == pytest.approx(max(stamp + 0.3, now + 0.5)) and "watchdog" in reason
+    assert buffer.status(stamp + 0.1).ramp_cause == "watchdog"  # typed: readers never parse the reason
     t = np.arange(stamp, stamp + 1.0, 1e-4)
     pos, vel, _ = buffer.sample(t)
     assert np.abs(pos[t >= start + buffer.ramp_s + 1e-9]).max() == 0.0  # at rest ramp_s after the ramp start
@@ -156,7 +157,7 @@ def test_no_latch_a_new_vibration_starts_after_any_ramp_out(buffer):
     buffer.add(window(8.0, 0.0, 0.5, tail=0.4), now=7.5)  # from rest, later: accepted, no reset needed
     t = np.arange(8.0, 8.5, 1e-4)
     assert np.abs(buffer.sample(t)[0] - signal(t - 8.0, tail=0.4)[0]).max() < 1e-7 * A
-    buffer.stop(8.45, "emergency stop")  # an explicit ramp (as the e-stop), then again from rest
+    buffer.stop(8.45, "emergency stop", "emergency_stop")  # an explicit ramp (as the e-stop), then again from rest
     buffer.add(window(9.0, 0.0, 0.5, tail=0.4), now=8.8)
     assert buffer.ramp() == (None, "")
     assert np.abs(buffer.sample([9.25])[0]).max() > 0.5 * A * 0.7
@@ -164,7 +165,7 @@ def test_no_latch_a_new_vibration_starts_after_any_ramp_out(buffer):
 
 def test_window_while_a_safety_ramp_runs_is_refused(buffer):
     buffer.add(window(5.0, 0.0, 1.0, tail=0.9), now=4.9)
-    buffer.stop(5.3, "emergency stop")
+    buffer.stop(5.3, "emergency stop", "emergency_stop")
     with pytest.raises(VibrationLimitError) as err:
         buffer.add(window(5.0, 0.4, 1.5, tail=1.4), now=5.32)  # mid ramp: its full amplitude does not match
     assert err.value.limit_name == "splice"
@@ -235,9 +236,10 @@ def test_status_follows_the_vibration(buffer):
     assert long_after.state == "idle" and not long_after.amplitude.any()
     amplitude = buffer.status(stamp + 0.5).amplitude
     np.testing.assert_allclose(amplitude, A * np.abs(GAINS), rtol=0.02)
-    buffer.stop(stamp + 0.6, "emergency stop")
+    buffer.stop(stamp + 0.6, "emergency stop", "emergency_stop")
     status = buffer.status(stamp + 0.62)
     assert status.state == "ramping_out" and status.ramp_reason == "emergency stop"
+    assert status.ramp_cause == "emergency_stop"
     assert buffer.status(stamp + 0.8).state == "idle"
 
 

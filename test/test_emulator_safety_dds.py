@@ -36,11 +36,11 @@ from stewart_vibration import inverse_kinematics
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics import condition_number, joint_angles
 from stewart_vibration.messages import cdr
-from stewart_vibration.messages.status_values import vibration_report_from_values
+from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.nodes.common import pose_from_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
-from stewart_vibration_interfaces.msg import LegTrajectoryStatus, Outcome
+from stewart_vibration_interfaces.msg import LegTrajectoryStatus, Outcome, VibrationUnitsStatus
 
 pytestmark = pytest.mark.integration
 EMULATOR = "stewart_vibration.nodes.hardware_emulator_node"
@@ -64,7 +64,8 @@ class Recorder:
         self.diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
         self.answers = client.subscribe("legs/trajectory_status", LegTrajectoryStatus)  # typed, per trajectory
         self.status: list = []
-        client.node.create_subscription(DiagnosticStatus, "vibration/status", self.status.append, STATUS_QOS)
+        client.node.create_subscription(VibrationUnitsStatus, "vibration/status", self.status.append, STATUS_QOS,
+                                        raw=True)
 
     def now(self) -> float:
         c = self.clock[-1].clock if self.clock else None
@@ -314,7 +315,7 @@ def test_a_physics_divergence_latches_a_fault_reported_as_error_and_the_robot_is
         fault = fault_values()[-1]
         assert fault["physics_fault"] and float(fault["physics_fault_time_s"]) > 0
         assert client.spin_until(lambda: report(rec.status[-1]).fault == fault["physics_fault"], 10)
-        assert report(rec.status[-1]).state == "estopped" and rec.status[-1].level == DiagnosticStatus.ERROR
+        assert report(rec.status[-1]).state == "estopped" and report(rec.status[-1]).level == "error"
         held_from = rec.now()
         assert rec.wait_sim(held_from + 1.0)  # /clock goes on
         stamps, pos, vel = rec.series(float(fault["physics_fault_time_s"]) + 0.01)
@@ -349,6 +350,7 @@ def rss_bytes(pid: int) -> int:
     return 0
 
 
-def report(msg):
-    return vibration_report_from_values("ok", {kv.key: kv.value for kv in msg.values})
+def report(data: bytes):
+    """The VibrationReport of a raw vibration/status."""
+    return vibration_report_from_cdr(data)
 

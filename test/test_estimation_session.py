@@ -48,7 +48,8 @@ def arrays(states):
 def estimator(robot, run):
     est = ForceEstimator(robot)
     est.command_vibration(run["traj"], now=0.0)
-    est.apply_ramp(run["report"].ramp_start, run["report"].ramp_reason)  # as the emulator reports the e-stop
+    report = run["report"]
+    est.apply_ramp(report.ramp_start, report.ramp_reason, report.ramp_cause)  # as the emulator reports the e-stop
     return est
 
 

@@ -31,7 +31,7 @@ SUBPROTOCOL = "foxglove.sdk.v1"  # foxglove-sdk's name for Foxglove WebSocket pr
 EMULATOR_TOPICS = {
     f"{NS}/legs/joint_states": "sensor_msgs/msg/JointState",
     f"{NS}/ground_truth/platform_pose": "geometry_msgs/msg/PoseStamped",
-    f"{NS}/vibration/status": "diagnostic_msgs/msg/DiagnosticStatus",
+    f"{NS}/vibration/status": "stewart_vibration_interfaces/msg/VibrationUnitsStatus",
     f"{NS}/robot_markers": "visualization_msgs/msg/MarkerArray",
     "/clock": "rosgraph_msgs/msg/Clock",
     "/diagnostics": "diagnostic_msgs/msg/DiagnosticArray",

@@ -677,7 +677,7 @@ def check_window_on_buffer(spec):
         attempt(add_window, buffer, VIB_NAMES, *build_window(dict(prior, corrupt="none"), buffer, now), now)
         now = arrival(spec["elapsed"], now, buffer)
         if spec["stop"] is not None:
-            buffer.stop(now - spec["stop"], "emergency stop")
+            buffer.stop(now - spec["stop"], "emergency stop", "emergency_stop")
     before = buffer.sample([now])
     window = corrupt_window(spec, build_window(spec, buffer, now))
     splice, refusal = attempt(add_window, buffer, *window, now, label="window")
@@ -708,7 +708,9 @@ def test_vibration_commands_to_the_emulator_are_refused_with_a_reason_or_stay_wi
         assert not estop, "a vibration window was accepted during an emergency stop"
         assert_vibration_within_limits(emu.vibration, now, before)
     else:
-        assert emu.status.report.event == f"refused: {refusal}", "the refusal is not in the vibration status"
+        report = emu.status.report
+        got = (report.event, report.event_outcome, report.event_reason)
+        assert got == ("refused", refusal.outcome, str(refusal)), "the refusal is not in the vibration status"
 
 
 # -- 5. vibration planner parameters ---------------------------------------------------------------------------

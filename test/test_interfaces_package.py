@@ -47,6 +47,15 @@ def test_the_built_outcome_type_has_the_file_s_constants():
     assert Outcome().code == Outcome.UNDEFINED != Outcome.SUCCEEDED  # an unset code never reads as success
 
 
+def test_the_pure_outcome_table_is_the_message_s():
+    """The core's ROS-free table (messages.outcome_codes) holds exactly Outcome.msg's names and codes."""
+    from stewart_vibration.messages.outcome_codes import CODES, NAMES
+
+    constants = msg_constants(INTERFACES / "msg" / "Outcome.msg")
+    assert CODES == {n: v for n, (v, _) in constants.items()}
+    assert all(CODES[NAMES[code]] == code for code in NAMES)
+
+
 def test_every_interface_file_is_named_in_the_docs():
     text = DOC.read_text()
     files = sorted(p for kind in ("msg", "srv", "action") for p in (INTERFACES / kind).glob(f"*.{kind}"))

@@ -58,19 +58,30 @@ def stamped_state(lengths, seconds: int):
     return msg
 
 
+def publish_at_rest(states, lengths, t0_s: float, vib=None, duration_s: float = 0.3, rate_hz: float = 500.0):
+    """States still at ``lengths`` stamped from ``t0_s`` over ``duration_s`` (the robot's clock): enough for
+    kinematics to judge the struts at rest (a move is planned from rest)."""
+    for k in range(int(duration_s * rate_hz) + 1):
+        msg = joint_state(lengths, vib)
+        stamp = t0_s + k / rate_hz
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(stamp), int(round((stamp % 1.0) * 1e9)) % 1_000_000_000
+        states.publish(msg)
+
+
 def test_pose_estimate_move_goal_and_its_refusals(robot, kinematics_node):
     proc, client = kinematics_node
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)
     trajectories = client.subscribe("legs/joint_trajectory", JointTrajectory)
-    states = client.publisher("legs/joint_states", JointState)
+    states = client.publisher("legs/joint_states", JointState, depth=500)  # bursts of states at rest
     assert client.wait_for_subscribers("legs/joint_states"), proc.log_text()
 
     # leg + vib lengths of a known pose -> FK pose estimate
     pose = robot.home_pose + np.array([0.002, -0.001, 0.003, 0.02, -0.01, 0.03])
     lengths = inverse_kinematics(robot, pose)
     vib = np.array([1e-5, -2e-5, 0.0, 3e-5, 0.0, -1e-5])
-    states.publish(joint_state(lengths - vib, vib))
+    publish_at_rest(states, lengths - vib, 0.0, vib)
     assert client.spin_until(lambda: len(estimates) > 0, 20), proc.log_text()
+    client.spin_for(0.5)  # the rest of the states
     est = estimates[-1].pose
     assert math.isclose(est.position.x, pose[0], abs_tol=1e-10)
     assert math.isclose(est.position.z, pose[2], abs_tol=1e-10)
@@ -94,14 +105,16 @@ def test_pose_estimate_move_goal_and_its_refusals(robot, kinematics_node):
 
     # this test's only clock is the states' stamps: a state stamped after the move's end, at its goal, ends it
     # SUCCEEDED with the residual error of that state (0 here) against the target
-    states.publish(stamped_state(inverse_kinematics(robot, target), 10))
+    publish_at_rest(states, inverse_kinematics(robot, target), 10.0)
     name, message = move.outcome()
     assert name == "SUCCEEDED", message
     result = move.result()
     assert result.position_error_m < 1e-9 and result.angle_error_rad < 1e-9, result
     assert math.isclose(result.final_pose.position.x, target[0], abs_tol=1e-9)
     assert move.status() == 4  # action_msgs/GoalStatus SUCCEEDED
-    assert move.feedback and 0.0 <= move.feedback[-1].feedback.progress <= 1.0
+    # feedback and result travel on separate topics: the feedback sent before the result may arrive after it
+    assert client.spin_until(lambda: len(move.feedback) > 0, 10), proc.log_text()
+    assert 0.0 <= move.feedback[-1].feedback.progress <= 1.0
 
     # bad goals: each refused with its code, nothing sent
     def goal_of(msg, **values):

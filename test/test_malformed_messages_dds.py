@@ -5,8 +5,9 @@ estimator, MCAP recorder, planning UI (a page open on it, so it reads its 500 Hz
 (a client watching its scene, so it reads the ground-truth pose) -- beside the runner's own client
 (nodes.suite_client.SuiteClient) in this process. Before any node starts, a malformed vibration/status and
 kinematics/guard_status are latched on their transient-local topics. Then a seeded fuzzer publishes malformed
-versions of every message type each node subscribes to (tests/malformed_messages.py: statuses named like each
-publisher's with non-numeric values, NUL and non-UTF-8 strings, joint states, poses, wrenches and trajectories
+versions of every message type each node subscribes to (tests/malformed_messages.py: /diagnostics statuses named
+like each publisher's with non-numeric values, vibration and guard statuses with values outside their tables and
+ranges, NUL and non-UTF-8 strings, joint states, poses, wrenches and trajectories
 with NaN / inf / huge values, wrong lengths and names, garbage CDR, /clock with negative seconds) and sends the
 malformed target poses as kinematics' move_to_pose goals, and the test checks that every node is alive, still
 does its job (clock, pose and force estimates, a planned path, service answers, frames to the page and the
@@ -32,7 +33,7 @@ import pytest
 import websockets
 from action_msgs.srv import CancelGoal
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped, WrenchStamped
 from rcl_interfaces.msg import Log
 from rclpy._rclpy_pybind11 import RCLError
@@ -56,7 +57,7 @@ from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 from stewart_vibration_interfaces.action import MoveToPose
-from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, Outcome
+from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, Outcome, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import PlanPath
 
 pytestmark = [pytest.mark.integration]
@@ -101,8 +102,8 @@ class Suite:
     def __init__(self, domain: int, tmp_path):
         self.domain, self.tmp_path = domain, tmp_path
         self.client = c = RosTestClient("fuzz_client")
-        self.status_pub = c.node.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
-        self.guard_pub = c.node.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
+        self.status_pub = c.node.create_publisher(VibrationUnitsStatus, "vibration/status", STATUS_QOS)
+        self.guard_pub = c.node.create_publisher(ForceGuardStatus, "kinematics/guard_status", STATUS_QOS)
         self.procs: dict = {}
         self.diagnostics: dict[str, dict] = {}  # status name -> (wall time, values) of its latest
         c.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 200)
@@ -269,7 +270,7 @@ def test_fuzzed_messages_kill_no_node_and_are_counted(suite, robot):
     rng = np.random.default_rng(23)
     c = suite.client
     # latched before any node starts: every subscriber of these transient-local topics gets them on start
-    latched_status = bad.vibration_statuses(rng, 6)[0]  # a non-numeric event_seq, named like the emulator's
+    latched_status = bad.vibration_statuses(rng, 6)[0]  # a field outside its range
     suite.status_pub.publish(latched_status)
     suite.guard_pub.publish(bad.guard_statuses(rng)[0])
     suite.start([name for name in nodes(suite.tmp_path) if name != "emulator"])  # the emulator's own status later
@@ -513,7 +514,7 @@ def test_a_burst_of_200_emergency_stops_from_the_ui_is_answered_within_5_s(ros_d
     client = RosTestClient("estop_client")
     page = None
     try:
-        status = client.subscribe("vibration/status", DiagnosticStatus, depth=50)
+        status = client.subscribe("vibration/status", VibrationUnitsStatus, depth=50)
         assert client.spin_until(lambda: "planning UI at" in procs["ui"].log_text() and status, 90), \
             [p.log_text()[-2000:] for p in procs.values()]
         assert client.node.create_client(Trigger, "hardware_emulator/emergency_stop").wait_for_service(
@@ -529,7 +530,7 @@ def test_a_burst_of_200_emergency_stops_from_the_ui_is_answered_within_5_s(ros_d
         assert answered[-1] <= 5.0
         calls = procs["emulator"].log_text().count("emergency stop: vibration ramping to zero")
         assert 1 <= calls <= 20, calls  # coalesced: one call at a time, the rest sharing it or the next
-        assert client.spin_until(lambda: any(kv.value == "estopped" for kv in status[-1].values), 5)
+        assert client.spin_until(lambda: status[-1].state == VibrationUnitsStatus.ESTOPPED, 5)
         print(f"200 e-stops answered after {answered[0]:.3f} .. {answered[-1]:.3f} s with {calls} calls")
     finally:
         if page is not None:
@@ -540,18 +541,24 @@ def test_a_burst_of_200_emergency_stops_from_the_ui_is_answered_within_5_s(ros_d
 
 
 def wire_clean(data: bytes, decode) -> bool:
-    """Whether ``data`` decodes as its type (UTF-8 strings, right lengths) and is under 60 kB."""
+    """Whether ``data`` decodes as its type (UTF-8 strings, right lengths) and is under 60 kB: ``decode`` is a
+    messages.cdr decoder or a message class (rclpy's deserializer)."""
     try:
-        decode(data)
+        if isinstance(decode, type):
+            deserialize_message(data, decode)
+        else:
+            decode(data)
     except InvalidInputError:
+        return False
+    except Exception:  # rclpy's deserializer: not this type on the wire, or a string that is not UTF-8
         return False
     return len(data) < 60_000
 
 
 @pytest.mark.slow
 def test_the_main_job_survives_spoofed_statuses_and_prints_its_summary(ros_domain, tmp_path):
-    """`stewart-vibration run` while a spoofer publishes, all along the run, a vibration/status named like the
-    emulator's with non-numeric fields (latched: every node that starts gets it), a malformed guard status and
+    """`stewart-vibration run` while a spoofer publishes, all along the run, a vibration/status with fields outside
+    their ranges (latched: every node that starts gets it), a malformed guard status and
     /diagnostics statuses named like each node's with non-numeric counts (it ended in a traceback, no summary,
     exit 1): the run completes within its bounds (exit 0), prints its summary, and the summary lists the
     recorded statuses it could not read."""
@@ -562,15 +569,15 @@ def test_the_main_job_survives_spoofed_statuses_and_prints_its_summary(ros_domai
 
     out = tmp_path / "run"
     rng = np.random.default_rng(31)
-    # statuses of the right type whose fields are of the wrong kind, as the issue's tester sent them: well-formed
+    # statuses of the right type whose fields are out of range, as a spoofer sends them: well-formed
     # CDR with UTF-8 strings under 64 kB (garbage bytes and non-UTF-8 strings are recorded as they come and are
     # the MCAP reader's business; 100 kB messages at 5 Hz slow the whole suite through Fast DDS's fragmentation)
-    statuses = [m for m in bad.vibration_statuses(rng, 60) if wire_clean(m, cdr.decode_diagnostic_status)]
-    guards = [m for m in bad.guard_statuses(rng) if wire_clean(m, cdr.decode_diagnostic_status)]
+    statuses = [m for m in bad.vibration_statuses(rng, 60) if wire_clean(m, VibrationUnitsStatus)]
+    guards = [m for m in bad.guard_statuses(rng) if wire_clean(m, ForceGuardStatus)]
     arrays = [m for m in bad.diagnostic_arrays(rng, 28) if wire_clean(m, cdr.decode_diagnostic_array)]
     client = RosTestClient("run_spoofer")
-    status_pub = client.node.create_publisher(DiagnosticStatus, "/stewart/vibration/status", STATUS_QOS)
-    guard_pub = client.node.create_publisher(DiagnosticStatus, "/stewart/kinematics/guard_status", STATUS_QOS)
+    status_pub = client.node.create_publisher(VibrationUnitsStatus, "/stewart/vibration/status", STATUS_QOS)
+    guard_pub = client.node.create_publisher(ForceGuardStatus, "/stewart/kinematics/guard_status", STATUS_QOS)
     diag_pub = client.node.create_publisher(DiagnosticArray, "/diagnostics", 50)
     stop = threading.Event()
 

@@ -1,7 +1,8 @@
 """The readers of received messages without DDS: field checks (messages.fields), the DiagnosticStatus /
-DiagnosticArray decoders against rclpy's own serialization, the typed status readers (messages.status_values)
-against the emulator's and the force guard's writers, every malformed kind refused with its kind and field,
-the checked pose and wrench batches (messages.stamped) and the rate-limited count (messages.malformed)."""
+DiagnosticArray decoders against rclpy's own serialization, the VibrationUnitsStatus and ForceGuardStatus readers
+(messages.status_values) against the emulator's and the force guard's writers through rclpy's serializer, every
+malformed kind refused with its kind and field, the checked pose and wrench batches (messages.stamped) and the
+rate-limited count (messages.malformed)."""
 
 from __future__ import annotations
 
@@ -9,9 +10,17 @@ import math
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from malformed_messages import with_raw_string
-from rclpy.serialization import serialize_message
+from malformed_messages import (
+    BAD_VIBRATION_FIELDS,
+    good_guard_status,
+    good_vibration_status,
+    guard_statuses,
+    vibration_statuses,
+    with_raw_string,
+)
+from rclpy.serialization import deserialize_message, serialize_message
 
 from stewart_vibration.emulation.vibration_status import VibrationReport
 from stewart_vibration.errors import InvalidInputError, MalformedMessageError
@@ -33,17 +42,18 @@ from stewart_vibration.messages.status_values import (
     StatusMessage,
     checked_status,
     emulator_rejections,
-    guard_status,
+    guard_status_from_cdr,
     planner_settings,
     recorder_files,
     status_from_cdr,
     status_from_msg,
     statuses_from_cdr,
-    vibration_report,
-    vibration_report_from_values,
+    vibration_report_from_cdr,
 )
+from stewart_vibration.nodes.status_messages import guard_status_msg, vibration_status_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.vibration.settings import STREAM_KEYS, default_settings
+from stewart_vibration_interfaces.msg import ForceGuardStatus, Outcome, VibrationUnitsStatus
 
 
 def malformed(kind: str, field: str | None = None):
@@ -216,69 +226,70 @@ def test_status_level_keys_and_size():
         checked_status(0, "hardware_emulator\0: x", "m", "", [])
 
 
-# -- vibration/status ------------------------------------------------------------------------------------------
+# -- vibration/status: VibrationUnitsStatus -------------------------------------------------------------------
 REPORTS = [
     VibrationReport(state="idle", level="ok", reason="no vibration commanded yet", since=0.0, time=0.0),
     VibrationReport(state="running", level="ok", reason="commanded until 12.000 s", since=3.25, time=4.5,
                     amplitude=np.array([1e-5, 2e-5, 3e-5, 4e-5, 5e-5, 6e-5]), commanded_until=12.0, event_seq=3,
-                    event="accepted", event_stamp=3.0, event_time=2.7, accepted=2, refused=1),
+                    event="accepted", event_outcome="SUCCEEDED", event_reason="window accepted", event_stamp=3.0,
+                    event_time=2.7, accepted=2, refused=1),
+    VibrationReport(state="ramping_out", level="warn", reason="watchdog", since=5.0, time=5.1, commanded_until=5.2,
+                    ramp_start=5.0, ramp_reason="watchdog: the commands ran out", ramp_cause="watchdog", event_seq=4,
+                    event="refused", event_outcome="LIMIT_EXCEEDED", event_reason="vib_2 above velocity_max",
+                    event_stamp=4.9, event_time=4.8, accepted=2, refused=2),
     VibrationReport(state="estopped", level="error", reason="emergency stop latched", since=9.0, time=9.5,
-                    commanded_until=9.05, ramp_start=9.0, ramp_reason="emergency stop", event_seq=7,
-                    event="ramp to zero: emergency stop", event_time=9.0, accepted=5),
+                    commanded_until=9.05, ramp_start=9.0, ramp_reason="emergency stop", ramp_cause="emergency_stop",
+                    event_seq=7, event="safety_ramp", event_outcome="EMERGENCY_STOPPED",
+                    event_reason="ramp to zero: emergency stop", event_time=9.0, accepted=5, fault="diverged"),
 ]
+
+
+def same_report(a: VibrationReport, b: VibrationReport) -> bool:
+    """Field by field (the amplitudes to 1e-15 m, the time to the ns of a stamp)."""
+    fields = [f for f in a.__dataclass_fields__ if f not in ("amplitude", "time")]
+    return all(getattr(a, f) == getattr(b, f) for f in fields) and abs(a.time - b.time) < 1e-9 and \
+        np.allclose(a.amplitude, b.amplitude, atol=1e-15, rtol=0)
 
 
 @pytest.mark.parametrize("report", REPORTS, ids=[r.state for r in REPORTS])
 def test_vibration_report_reads_back_what_the_emulator_writes(report):
-    msg = status_msg(values=report.as_values(), level={"ok": 0, "warn": 1, "error": 2}[report.level])
-    back = vibration_report(status_from_cdr(serialize_message(msg)))
-    assert back.as_values() == report.as_values() and back.level == report.level
-    assert (back.ramp_start, back.event_stamp) == (report.ramp_start, report.event_stamp)
-    np.testing.assert_allclose(back.amplitude, report.amplitude, atol=1e-12)
+    """Core report -> the emulator's VibrationUnitsStatus -> rclpy's serializer -> our reader: the same report; and
+    rclpy's own deserializer agrees with the message (the enums are the .msg constants)."""
+    msg = vibration_status_msg(report)
+    data = serialize_message(msg)
+    assert same_report(vibration_report_from_cdr(data), report)
+    wire = deserialize_message(data, VibrationUnitsStatus)
+    assert wire.state == getattr(VibrationUnitsStatus, report.state.upper())
+    assert wire.event == getattr(VibrationUnitsStatus, f"EVENT_{(report.event or 'none').upper()}")
+    assert wire.ramp_cause == getattr(VibrationUnitsStatus, f"RAMP_{(report.ramp_cause or 'none').upper()}")
+    if report.event:
+        assert wire.event_outcome.code == getattr(Outcome, report.event_outcome)
 
 
-def good_values() -> dict:
-    return dict(REPORTS[1].as_values())
+def test_every_malformed_vibration_status_is_refused():
+    """Every kind the fuzzer sends (tests' malformed_messages): out-of-table enums and codes, non-finite times and
+    amplitudes, bad strings, trailing and mangled bytes -- refused, never a wrong report."""
+    statuses = vibration_statuses(np.random.default_rng(3), 120)
+    for data in statuses:
+        with pytest.raises(MalformedMessageError):
+            vibration_report_from_cdr(data)
+    assert vibration_report_from_cdr(serialize_message(good_vibration_status())).state == "running"
 
 
-@pytest.mark.parametrize("key", sorted(REPORTS[1].as_values()))
-def test_every_vibration_status_key_is_required(key):
-    values = good_values()
-    del values[key]
-    with malformed("missing", key):
-        vibration_report_from_values("ok", values)
-
-
-NUMERIC = ("since_s", "time_s", "commanded_until_s", "ramp_start_s", "event_stamp_s", "event_time_s")
-COUNTS = ("event_seq", "accepted_windows", "refused_windows")
-
-
-@pytest.mark.parametrize("key", NUMERIC + COUNTS + ("amplitude_um",))
-@pytest.mark.parametrize("value", ["many", "nan", "1,2", "\u0661", " 3"])
-def test_non_numeric_vibration_status_values_are_refused(key, value):
-    values = dict(good_values(), **{key: value})
+@pytest.mark.parametrize("field, value", [(f, v) for f, values in BAD_VIBRATION_FIELDS for v in values])
+def test_each_out_of_range_vibration_field_is_named(field, value):
+    msg = good_vibration_status()
+    setattr(msg, field, value)
     with pytest.raises(MalformedMessageError) as info:
-        vibration_report_from_values("ok", values)
-    assert info.value.field == key and info.value.kind in ("type", "length")
+        vibration_report_from_cdr(serialize_message(msg))
+    assert info.value.field == field, info.value
 
 
-@pytest.mark.parametrize("key, value, kind", [
-    ("since_s", "1e999", "not_finite"), ("event_seq", "-1", "range"), ("accepted_windows", "1.5", "type"),
-    ("amplitude_um", "1,2,3,4,5", "length"), ("amplitude_um", "1,2,3,4,5,-6", "range"),
-    ("amplitude_um", "1,2,3,4,5,1e7", "range"), ("state", "exploded", "range"), ("state", "", "range"),
-])
-def test_out_of_range_vibration_status_values_are_refused(key, value, kind):
-    with malformed(kind, key):
-        vibration_report_from_values("ok", dict(good_values(), **{key: value}))
-
-
-def test_empty_times_take_the_writers_defaults():
-    values = dict(good_values(), since_s="", commanded_until_s="", ramp_start_s="", event_stamp_s="")
-    report = vibration_report_from_values("ok", values)
-    assert (report.since, report.commanded_until, report.ramp_start, report.event_stamp) == (0.0, -math.inf, None,
-                                                                                              None)
-    with malformed("type", "event_seq"):  # a count is never empty
-        vibration_report_from_values("ok", dict(good_values(), event_seq=""))
+def test_nan_times_are_none_and_no_ramp_is_minus_inf():
+    report = vibration_report_from_cdr(serialize_message(vibration_status_msg(REPORTS[0])))
+    assert (report.commanded_until, report.ramp_start, report.event_stamp, report.event_time) == (
+        -math.inf, None, None, None)
+    assert (report.event, report.event_outcome, report.event_reason) == ("", "", "")
 
 
 # -- /diagnostics of the nodes, guard status ---------------------------------------------------------------------
@@ -299,21 +310,29 @@ def test_recorder_statuses():
 
 
 def test_guard_status_reads_what_the_force_guard_writes(robot):
+    """An armed, an off and a tripped guard (a force trip during a move, with its stop) -> ForceGuardStatus ->
+    rclpy's serializer -> our reader: the guard's own status."""
     from stewart_vibration.motion.force_guard import ForceGuard
 
     armed = ForceGuard(robot, 200.0, 15.0)
-    status = guard_status(StatusMessage(0, "kinematics: force guard", armed.message(), values=armed.status_values()))
-    assert (status.state, status.trip_limit, status.trip_time_s) == ("armed", "", None)
-    tripped = {"state": "tripped", "trip_limit": "force", "trip_time_s": "3.2500", "trip_force_n": "210.000"}
-    status = guard_status(StatusMessage(2, "kinematics: force guard", "tripped", values=tripped))
-    assert (status.state, status.trip_limit, status.trip_time_s) == ("tripped", "force", 3.25)
-    for change, kind in (({"trip_time_s": "soon"}, "type"), ({"trip_limit": "mood"}, "range"),
-                         ({"state": "asleep"}, "range")):
-        with malformed(kind):
-            guard_status(StatusMessage(2, "k", "t", values={**tripped, **change}))
-    del tripped["trip_time_s"]
-    with malformed("missing", "trip_time_s"):
-        guard_status(StatusMessage(2, "k", "t", values=tripped))
+    back = guard_status_from_cdr(serialize_message(guard_status_msg(armed.status(), Time(sec=3))))
+    assert (back.state, back.force_limit_n, back.moment_limit_nm, back.trip_limit) == ("armed", 200.0, 15.0, "")
+    assert math.isnan(back.trip_time_s) and back.message == armed.message()
+    off = guard_status_from_cdr(serialize_message(guard_status_msg(ForceGuard(robot, 0.0, 0.0).status(), Time())))
+    assert off.state == "off"
+    good = good_guard_status()
+    tripped = guard_status_from_cdr(serialize_message(good))
+    assert (tripped.state, tripped.trip_limit, tripped.trip_time_s, tripped.peak_force_n) == (
+        "tripped", "force", 2.0, 34.0)
+    np.testing.assert_allclose(tripped.tripped_goal, [0.0, 0.0, 0.3, 0.0, 0.0, 0.0], atol=1e-12)
+    assert tripped.record()["tripped_direction"] == [0.0, 0.0, 1.0, 0.0, 0.0, 0.0] and tripped.blocked_directions == 1
+    assert deserialize_message(serialize_message(good), ForceGuardStatus).state == ForceGuardStatus.TRIPPED
+
+
+def test_every_malformed_guard_status_is_refused():
+    for data in guard_statuses(np.random.default_rng(4), 24):
+        with pytest.raises(MalformedMessageError):
+            guard_status_from_cdr(data)
 
 
 # -- the planner's answers -------------------------------------------------------------------------------------
@@ -439,17 +458,20 @@ def test_malformed_counter_logs_the_first_of_each_reason_then_once_a_second():
 
 
 def test_the_run_summary_reads_recorded_statuses_through_the_same_readers():
-    """A spoofed status recorded in the MCAP (non-numeric values named like the emulator's and like kinematics')
-    is left out of the run summary's stream figures instead of raising (the run ended in a traceback)."""
+    """A spoofed status recorded in the MCAP (a vibration status with a state outside its table, a /diagnostics status
+    named like kinematics' with non-numeric values) is left out of the run summary's stream figures instead of
+    raising."""
     from stewart_vibration.analysis.run_summary import stream_summary
 
-    good = REPORTS[1].as_values()
+    good = serialize_message(vibration_status_msg(REPORTS[1]))
+    spoofed = good_vibration_status()
+    spoofed.state = 42
     signals = {"stream_counts": {"legs/joint_states": 100, "platform/pose_estimate": 100},
                "node_diagnostics": {"kinematics: kinematics": (0, "tracking", {"states_received": "many"}),
                                     "leg_force_estimator: leg force estimator": (
                                         0, "estimating", {"states_received": "100", "states_lost": "2",
                                                           "states_lag_p99_ms": "3.5"})},
-               "vibration_status": [good, dict(good, accepted_windows="lots", refused_windows="x")]}
+               "vibration_status": [good, serialize_message(spoofed)]}
     streams = stream_summary(signals)
     assert streams["windows"] == {"accepted": 2, "refused": 1, "refusals": []}
     assert list(streams["nodes"]) == ["leg_force_estimator"] and streams["lost"] == 2

@@ -116,16 +116,23 @@ def test_sequence_gaps_count_missing_numbers_per_publisher():
 
 
 def test_guard_trips_leave_out_statuses_that_cannot_be_read_and_keep_the_rest_in_time_order():
-    """A spoofed guard status in a recording (a trip time 'many', an unknown state or limit) is left out of
+    """A spoofed guard status in a recording (a trip time NaN, a state or limit outside the table) is left out of
     the trips; the readable trips come in order of their trip time, each with its last values."""
+    from malformed_messages import good_guard_status
+    from rclpy.serialization import serialize_message
+
     from stewart_vibration.analysis.run_summary import guard_trips
+    from stewart_vibration_interfaces.msg import ForceGuardStatus
 
-    def trip(time_s, peak="1"):
-        return ({"state": "tripped", "trip_limit": "force", "trip_time_s": time_s, "peak_force_n": peak}, "tripped")
+    def status(time_s=2.0, peak=1.0, **fields):
+        msg = good_guard_status()
+        msg.trip_time_s, msg.peak_force_n = time_s, peak
+        for name, value in fields.items():
+            setattr(msg, name, value)
+        return serialize_message(msg)
 
-    statuses = [trip("12.5"), ({"state": "armed"}, "armed"), trip("many"), trip("3.25"),
-                ({"state": "tripped", "trip_limit": "ghost", "trip_time_s": "4"}, "x"),
-                ({"state": "sleeping"}, "x"), trip("nan"), trip("12.5", peak="2")]
+    statuses = [status(12.5), status(state=ForceGuardStatus.ARMED), status(float("nan")), status(3.25),
+                status(4.0, trip_limit=9), status(state=7), status(12.5, peak=2.0), b"\x00\x01\x00\x00garbage"]
     trips = guard_trips({"guard_status": statuses})
-    assert [t["trip_time_s"] for t in trips] == ["3.25", "12.5"]
-    assert trips[1]["peak_force_n"] == "2"
+    assert [t.trip_time_s for t in trips] == [3.25, 12.5]
+    assert trips[1].peak_force_n == 2.0

@@ -8,7 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from stewart_vibration.messages.status_values import StatusMessage, guard_status
+from stewart_vibration.motion.guard_status import GuardStatus
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
 from stewart_vibration.runtime.steps import (
     MoveResult,
@@ -92,9 +92,9 @@ class ScriptedSuite:
 
     def guard_status(self):
         tripped = self.guard_trips and self.target is not None and self.clock > self.sent_at
-        values = {"state": "tripped", "trip_limit": "force", "trip_time_s": str(self.sent_at)} if tripped else \
-            {"state": "armed"}
-        return guard_status(StatusMessage(0, "kinematics: force guard", "tripped: force", values=values))
+        if tripped:
+            return GuardStatus("tripped", 50.0, 0.0, "tripped: force", "force", self.sent_at)
+        return GuardStatus("armed", 50.0, 0.0, "armed")
 
     def start_vibration(self, vibration):
         self.sent_parameters = dict(vibration)

@@ -27,13 +27,14 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
+from stewart_vibration.messages.status_values import guard_status_from_cdr
 from stewart_vibration.nodes.common import pose_from_msg
 from stewart_vibration.nodes.move_messages import MOVE_ACTION
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 from stewart_vibration.runtime.sim_clock import HeldFor
 from stewart_vibration_interfaces.action import MoveToPose
-from stewart_vibration_interfaces.msg import LegTrajectoryStatus, Outcome
+from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, Outcome
 
 pytestmark = pytest.mark.integration
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -70,7 +71,8 @@ def suite(tmp_path_factory, module_ros_domain):
             "trajectory_status": client.subscribe("legs/trajectory_status", LegTrajectoryStatus),
             "guard": [],
         }
-        client.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", rec["guard"].append, STATUS_QOS)
+        client.node.create_subscription(ForceGuardStatus, "kinematics/guard_status", rec["guard"].append, STATUS_QOS,
+                                        raw=True)
         poses = []
         ready = client.node.create_subscription(PoseStamped, "platform/pose_estimate", poses.append, 1)
         assert client.spin_until(lambda: rec["clock"] and rec["estimate"] and rec["applied"] and rec["guard"] and
@@ -163,8 +165,9 @@ def set_params(client, node: str, **values):
     assert all(r.successful for r in results), [r.reason for r in results]
 
 
-def guard_values(msg) -> dict:
-    return {kv.key: kv.value for kv in msg.values}
+def guard_values(data: bytes) -> dict:
+    """A raw kinematics/guard_status as plain values (motion.guard_status.GuardStatus.record)."""
+    return guard_status_from_cdr(data).record()
 
 
 def test_estimate_matches_the_applied_tissue_wrench(robot, suite):
@@ -223,20 +226,20 @@ def test_guard_stops_a_move_that_would_exceed_the_limit(robot, suite):
 
     def force_trips():
         return [guard_values(m) for m in rec["guard"][guard_before:]
-                if m.level == DiagnosticStatus.ERROR and guard_values(m).get("trip_limit") == "force"]
+                if guard_values(m)["state"] == "tripped" and guard_values(m)["trip_limit"] == "force"]
 
     assert client.spin_until(force_trips, 60), logs(procs)
     trip = force_trips()[0]
     assert trip["state"] == "tripped"
     # the stop completes and the platform holds short of the target
-    assert client.spin_until(lambda: sim_now(rec) > float(trip["trip_time_s"]) + 1.5, 30)
+    assert client.spin_until(lambda: sim_now(rec) > trip["trip_time_s"] + 1.5, 30)
     end = sim_now(rec)
     stamps, applied, estimate = paired(rec, begin, end - 0.1)
     peak_est = np.linalg.norm(estimate[:, :3], axis=1).max()
     peak_applied = np.linalg.norm(applied[:, :3], axis=1).max()
     held = pose_from_msg(rec["truth"][-1].pose)
-    print(f"guard limit {limit} N: tripped at {float(trip['trip_force_n']):.1f} N (predicted "
-          f"{float(trip['predicted_force_n']):.1f} N); peak estimated {peak_est:.1f} N, applied {peak_applied:.1f} N; "
+    print(f"guard limit {limit} N: tripped at {trip['trip_force_n']:.1f} N (predicted "
+          f"{trip['predicted_force_n']:.1f} N); peak estimated {peak_est:.1f} N, applied {peak_applied:.1f} N; "
           f"held at {(held[2] - robot.home_pose[2]) * 1e3:.3f} mm of 10 mm")
     assert peak_est <= 1.1 * limit and peak_applied <= 1.1 * limit
     # the goal ends GUARD_STOPPED (aborted) once the struts are at rest, short of the target, with its peak load
@@ -316,7 +319,7 @@ def test_a_move_pauses_while_the_estimator_is_stopped_and_then_resumes(robot, su
                                              for m in rec["guard"][guard_before:]), 10), logs(procs)
         trip = next(guard_values(m) for m in rec["guard"][guard_before:]
                     if guard_values(m).get("trip_limit") == "estimates")
-        assert client.spin_until(lambda: sim_now(rec) > float(trip["trip_time_s"]) + 1.5, 30)
+        assert client.spin_until(lambda: sim_now(rec) > trip["trip_time_s"] + 1.5, 30)
         held = pose_from_msg(rec["truth"][-1].pose)
         print(f"estimator stopped: paused at {(held[2] - robot.home_pose[2]) * 1e3:.3f} mm of 4 mm")
         assert held[2] < target[2] - 0.3e-3  # held short of the target while blind

@@ -63,6 +63,7 @@ def test_a_unit_past_its_travel_ramps_the_vibration_out_and_the_struts_hold(robo
     report, _ = emu.safety.vibration_report(emu.time)
     assert tripped_at is not None and tripped_at < t0 + 0.5, tripped_at
     assert report.state == "stopped" and report.ramp_reason.startswith(UNIT_OVER_TRAVEL), report
+    assert report.event == "safety_ramp" and report.event_outcome == "UNIT_TRAVEL_STOPPED", report
     assert re.search(r"vib_[1-6] read 1\d\d\.\d um", report.ramp_reason), report.ramp_reason
     assert TRAVEL < peak < 1.5 * TRAVEL, peak
     assert np.abs(emu.drive.unit_displacements()).max() < 1e-6

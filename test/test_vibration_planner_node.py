@@ -90,25 +90,25 @@ def samples_of(window):
                                                                               "accelerations"))
 
 
-def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason=""):
-    """A vibration/status message as the hardware emulator publishes it (its VibrationReport's values)."""
-    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-
+def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason="", event_outcome=""):
+    """A vibration/status message as the hardware emulator publishes it (of its VibrationReport)."""
     from stewart_vibration.emulation.vibration_status import VibrationReport
+    from stewart_vibration.nodes.status_messages import vibration_status_msg
 
-    values = VibrationReport(state=state, level=("ok", "warn", "error")[level], reason=reason, since=since,
-                             time=since, event_seq=event_seq, event=event, event_stamp=event_stamp).as_values()
-    return DiagnosticStatus(level=bytes([level]), name="hardware_emulator: vibration", message=state,
-                            values=[KeyValue(key=k, value=v) for k, v in values.items()])
+    return vibration_status_msg(VibrationReport(
+        state=state, level=("ok", "warn", "error")[level], reason=reason, since=since, time=since,
+        event_seq=event_seq, event=event, event_stamp=event_stamp, event_reason=reason,
+        event_outcome=event_outcome or ("SUCCEEDED" if event == "accepted" else "LIMIT_EXCEEDED" if event else "")))
 
 
 def status_publisher(client):
-    from diagnostic_msgs.msg import DiagnosticStatus
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+
+    from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
     if "status" not in client._publishers:
         qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        client._publishers["status"] = client.node.create_publisher(DiagnosticStatus, "vibration/status", qos)
+        client._publishers["status"] = client.node.create_publisher(VibrationUnitsStatus, "vibration/status", qos)
     return client._publishers["status"]
 
 
@@ -255,8 +255,8 @@ def test_the_goal_follows_the_emulators_status(robot, planner):
     goal = start(duration_s=0.0)
     t0 = plan_t0(goal.plan())
     assert client.spin_until(lambda: len(windows) >= 2, 5)
-    status.publish(emulator_status("pending", t0 - 1, event_seq=1, level=1,
-                                   event="refused: vib_3: discontinuous splice at t = 12.0 s", event_stamp=t0))
+    status.publish(emulator_status("pending", t0 - 1, event_seq=1, level=1, event="refused",
+                                   reason="vib_3: discontinuous splice at t = 12.0 s", event_stamp=t0))
     name, message = goal.outcome(5)
     assert name == "ROBOT_REFUSED" and "discontinuous splice" in message and goal.status() == 6
     count = len(windows)
@@ -280,6 +280,12 @@ def test_the_goal_follows_the_emulators_status(robot, planner):
     assert goal.plan() is not None, goal.outcome()
     goal.cancel()
     assert goal.outcome(10)[0] == "CANCELED"
+    # the robot's own safety ramp (a unit's travel protection) ends the goal with that ramp's outcome
+    goal = start(duration_s=0.0)
+    t0 = plan_t0(goal.plan())
+    status.publish(emulator_status("stopped", t0 + 0.1, event_seq=3, level=1, event="safety_ramp",
+                                   reason="ramp to zero: vib_2 read 140 um", event_outcome="UNIT_TRAVEL_STOPPED"))
+    assert goal.outcome(5)[0] == "UNIT_TRAVEL_STOPPED"
     # a robot on another clock (its status says 100 s: a sim clock) and a planner on the wall clock
     status.publish(emulator_status("idle", 100.0))
     name, message = start().outcome()

@@ -19,8 +19,9 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 
-from stewart_vibration.messages.status_values import status_from_msg, vibration_report
+from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
+from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]
 SIM = ["--ros-args", "-p", "use_sim_time:=true"]
@@ -48,7 +49,7 @@ class Suite:
         self.planner_diag = []  # (wall time, DiagnosticStatus)
         self.status = []  # (wall time, VibrationReport)
         c.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
-        c.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS)
+        c.node.create_subscription(VibrationUnitsStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
         estimates = c.subscribe("platform/pose_estimate", PoseStamped)
         assert c.spin_until(lambda: self.status and self.clock and len(estimates) > 10, 60), self.logs()
         assert c.vibrate_server_ready(30), self.logs()
@@ -58,8 +59,8 @@ class Suite:
             if s.name.startswith("vibration_planner"):
                 self.planner_diag.append((time.monotonic(), s))
 
-    def _on_status(self, msg):
-        self.status.append((time.monotonic(), vibration_report(status_from_msg(msg))))
+    def _on_status(self, data: bytes):
+        self.status.append((time.monotonic(), vibration_report_from_cdr(data)))
 
     def now(self) -> float:
         c = self.clock[-1].clock

@@ -125,9 +125,9 @@ def extract(reader: RunReader | RunFiles) -> dict:
             if len(t):
                 data[f"wrench_{key}_t"], data[f"wrench_{key}"] = (t - t0) / 1e9, wrench
     if guard := _find(reader, "kinematics/guard_status"):
-        statuses = [({kv.key: kv.value for kv in msg.values}, msg.message) for _raw, msg in reader.decoded([guard])]
-        data["guard_trips"] = [dict(v, t_s=(float(v["trip_time_s"]) * 1e9 - t0) / 1e9)
-                               for v in guard_trips({"guard_status": statuses})]
+        statuses = [raw.data for raw in reader.messages([guard])]
+        data["guard_trips"] = [dict(trip.record(), t_s=(trip.trip_time_s * 1e9 - t0) / 1e9)
+                               for trip in guard_trips({"guard_status": statuses})]
     events = []
     for topic in ("/diagnostics", "/rosout"):
         if _find(reader, topic) != topic:

@@ -23,7 +23,8 @@ from ..errors import MalformedMessageError
 from ..kinematics.rotations import wrap_angle
 from ..mcap_log.reader import RunFiles, RunReader, open_run
 from ..messages.arrays import joint_arrays, pose_array, stamp_s
-from ..messages.status_values import guard_status_from_values, integer, number, vibration_report_from_values
+from ..messages.status_values import guard_status_from_cdr, integer, number, vibration_report_from_cdr
+from ..motion.guard_status import GuardStatus
 from ..robot import LEG_NAMES, Robot
 from ..vibration.settings import VIBRATION_KEYS, plan_vibration
 from .fits import (
@@ -59,8 +60,9 @@ def load_signals(mcap_path) -> dict:
         a log without them: legs/joint_states), "sensed_joints" (legs/joint_states: what the sensors read),
         "pose_estimate" (as "pose": the controller's estimate), "force_estimate": (times [n], {...: [n, 6]}),
         "vibration_starts": distinct vib window stamps (s), "stream_counts" (``counts_in_common_span``),
-        "vibration_status": [{key: value}], "node_diagnostics" (``last_diagnostics``), "tissue_wrench" and
-        "wrench_estimate" (``wrench_array``), "guard_status": [({key: value}, message)], "clock": the /clock
+        "vibration_status" and "guard_status": the raw VibrationUnitsStatus and ForceGuardStatus messages (bytes;
+        read with messages.status_values, which counts what is malformed), "node_diagnostics"
+        (``last_diagnostics``), "tissue_wrench" and "wrench_estimate" (``wrench_array``), "clock": the /clock
         values (s) in recorded order, "stream_stamps" and "files" (``stream_stamps``)}.
 
     Raises:
@@ -69,16 +71,23 @@ def load_signals(mcap_path) -> dict:
     wanted: dict[str, list[Any]] = {
         "ground_truth/platform_pose": [], "ground_truth/joint_states": [], "legs/joint_states": [],
         "platform/pose_estimate": [], "legs/force_estimate": [], "vibration/joint_trajectory": [], "/diagnostics": [],
-        "vibration/status": [], "ground_truth/tissue_wrench": [], "platform/external_wrench_estimate": [],
-        "kinematics/guard_status": [], "/clock": [], **{old: [] for old in LEGACY_TRUTH}}
+        "ground_truth/tissue_wrench": [], "platform/external_wrench_estimate": [], "/clock": [],
+        **{old: [] for old in LEGACY_TRUTH}}
+    raw_wanted: dict[str, list[bytes]] = {"vibration/status": [], "kinematics/guard_status": []}
     reader = mcap_path if isinstance(mcap_path, (RunReader, RunFiles)) else open_run(mcap_path, allow_truncated=True)
     stamps, files = stream_stamps(reader)
     counts = counts_in_common_span(stamps)
-    topics = [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in wanted)]
-    for raw, msg in reader.decoded(topics):
+    def recorded(names):
+        return [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in names)]
+
+    for raw, msg in reader.decoded(recorded(wanted)):
         for key, bucket in wanted.items():
             if raw.topic.endswith("/" + key) or raw.topic == key:
                 bucket.append(msg)
+    for raw in reader.messages(recorded(raw_wanted)):  # read field by field: a spoofed status is counted
+        for key, raw_bucket in raw_wanted.items():
+            if raw.topic.endswith("/" + key) or raw.topic == key:
+                raw_bucket.append(raw.data)
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         wanted[new] = wanted[new] or wanted[old]
     sensed = joint_arrays(wanted["legs/joint_states"])
@@ -90,11 +99,11 @@ def load_signals(mcap_path) -> dict:
         "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=LEG_NAMES),
         "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
         "stream_counts": counts,
-        "vibration_status": [{kv.key: kv.value for kv in m.values} for m in wanted["vibration/status"]],
+        "vibration_status": raw_wanted["vibration/status"],
         "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
         "tissue_wrench": wrench_array(wanted["ground_truth/tissue_wrench"]),
         "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
-        "guard_status": [({kv.key: kv.value for kv in m.values}, m.message) for m in wanted["kinematics/guard_status"]],
+        "guard_status": raw_wanted["kinematics/guard_status"],
         "clock": np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in wanted["/clock"]]),
         "stream_stamps": stamps,
         "files": files,
@@ -300,13 +309,13 @@ def stream_summary(signals: dict) -> dict:
             except MalformedMessageError as exc:  # a status not of the node it names (recorded as it came)
                 malformed.append(f"/diagnostics {name[:60]!r}: {exc}")
     reports = []
-    for values in signals.get("vibration_status") or []:
+    for data in signals.get("vibration_status") or []:
         try:
-            reports.append(vibration_report_from_values("ok", values))
+            reports.append(vibration_report_from_cdr(data))
         except MalformedMessageError as exc:
             malformed.append(f"vibration/status: {exc}")
     windows = {"accepted": reports[-1].accepted if reports else 0, "refused": reports[-1].refused if reports else 0,
-               "refusals": sorted({r.event for r in reports if r.event.startswith("refused")})}
+               "refusals": sorted({f"{r.event_outcome}: {r.event_reason}" for r in reports if r.event == "refused"})}
     derived = [topics[t]["ratio"] for t in ("platform/pose_estimate", "legs/force_estimate",
                                             "platform/external_wrench_estimate") if t in topics]
     return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
@@ -534,24 +543,24 @@ def tissue_leg_forces(robot: Robot, signals: dict, times) -> np.ndarray | float:
     return leg_forces(robot, pose, zero, zero, external_wrench=w) - leg_forces(robot, pose, zero, zero)
 
 
-def guard_trips(signals: dict) -> list[dict]:
+def guard_trips(signals: dict) -> list[GuardStatus]:
     """Every force-guard trip in kinematics/guard_status (the last status of each trip: its final peaks).
 
     Args:
-        signals: from ``load_signals`` (guard_status: [({key: value}, message)]).
+        signals: from ``load_signals`` (guard_status: the raw ForceGuardStatus messages).
 
     Returns:
-        One dict per trip (its status values plus "message"), in order of trip_time_s. A status that cannot
-        be read (a spoofed one, say) is left out: the summary's unreadable statuses list it.
+        One motion.guard_status.GuardStatus per trip, in order of trip_time_s. A status that cannot be read (a
+        spoofed one, say) is left out.
     """
-    trips: dict[float, dict] = {}
-    for values, message in signals.get("guard_status", []):
+    trips: dict[float, GuardStatus] = {}
+    for data in signals.get("guard_status", []):
         try:
-            status = guard_status_from_values(values, message)
+            status = guard_status_from_cdr(data)
         except MalformedMessageError:
             continue
-        if status.trip_time_s is not None:
-            trips[status.trip_time_s] = dict(values, message=message)
+        if status.tripped:
+            trips[status.trip_time_s] = status
     return [trips[k] for k in sorted(trips)]
 
 
@@ -610,21 +619,19 @@ def summarize_tissue(signals: dict, vibrations=(), moment_scale_m: float = 0.1) 
                             "rms_moment_error_nm": rms(err[in_vib], slice(3, 6))}
     out["guard"] = []
     for trip in guard_trips(signals):
-        start = float(trip["trip_time_s"])
-        stop = trip.get("stop_duration_s", "0").split()[0]
-        end = start + float(stop) + 0.5
+        start = trip.trip_time_s
+        end = start + trip.stop_duration_s + 0.5
         sel = (t >= start) & (t <= end)
-        limit = float(trip.get("force_limit_n", "nan"))
+        limit = trip.force_limit_n
         peak_est = float(np.linalg.norm(estimate[sel, :3], axis=1).max()) if sel.any() else float("nan")
         peak_app = float(np.linalg.norm(applied[sel, :3], axis=1).max()) if sel.any() else float("nan")
         out["guard"].append({
-            "trip_time_s": start, "limit": trip.get("trip_limit"), "force_limit_n": limit,
-            "moment_limit_nm": float(trip.get("moment_limit_nm", "nan")),
-            "trip_force_n": float(trip.get("trip_force_n", "nan")),
-            "predicted_force_n": float(trip.get("predicted_force_n", "nan")),
+            "trip_time_s": start, "limit": trip.trip_limit, "force_limit_n": limit,
+            "moment_limit_nm": trip.moment_limit_nm, "trip_force_n": trip.trip_force_n,
+            "predicted_force_n": trip.predicted_force_n,
             "peak_estimated_force_n": peak_est, "peak_applied_force_n": peak_app,
             "overshoot": peak_est / limit - 1.0 if limit > 0 else float("nan"),
-            "stop_duration_s": float(stop), "message": trip.get("message", ""),
+            "stop_duration_s": trip.stop_duration_s, "message": trip.message,
         })
     return out
 

@@ -43,7 +43,7 @@ from .strut_trajectory import (
     check_departure,
 )
 from .vibration_buffer import VibrationBuffer
-from .vibration_status import EMERGENCY_STOP, PHYSICS_FAULT, VibrationReport, VibrationStatusTracker
+from .vibration_status import CAUSE_OF, EMERGENCY_STOP, PHYSICS_FAULT, VibrationReport, VibrationStatusTracker
 
 RESET_SPEED = 0.5  # fraction of strut_velocity_max of the move home after an e-stop
 RESET_MIN_S = 0.5  # shortest move home (s)
@@ -171,7 +171,8 @@ class SafetyController:
             traj = build_trajectory(names, VIB_NAMES, start, times, positions, velocities, accelerations)
             splice = self.vibration.add(traj, now)
         except Exception as exc:
-            self.status.refused(now, float(start) if np.isfinite(start) else 0.0, str(exc))
+            self.status.refused(now, float(start) if np.isfinite(start) else 0.0,
+                                getattr(exc, "outcome", "INTERNAL_ERROR"), str(exc))
             raise
         self.status.accepted(now, float(start))
         self.changed()
@@ -187,11 +188,12 @@ class SafetyController:
         """A safety stop at ``now`` (s) that does not latch (lifecycle deactivate, shutdown): the vibration ramps
         to zero within the unit's limits and the struts brake to rest along their commanded path within
         strut_acceleration_max (``TrajectoryFollower.brake``); a stop already under way goes on. ``reason``
-        names it in the vibration status (the estimator mirrors the strut stop for STRUT_STOPS)."""
-        self.vibration.stop(now, reason)
+        (a key of CAUSE_OF) names it in the vibration status, with its cause (the estimator mirrors the strut stop
+        for STRUT_STOP_CAUSES)."""
+        self.vibration.stop(now, reason, CAUSE_OF[reason])
         if not self.estopped:
             self.struts.brake(now, self.robot.limits.strut_acceleration_max)
-            self.status.safety_ramp(now, reason)
+            self.status.safety_ramp(now, reason, CAUSE_OF[reason])
         self.changed()
 
     def stop_vibration(self, now: float, reason: str) -> None:
@@ -200,8 +202,8 @@ class SafetyController:
         is latched (its ramp is already under way)."""
         if self.estopped:
             return
-        self.vibration.stop(now, reason)
-        self.status.safety_ramp(now, reason)
+        self.vibration.stop(now, reason, "unit_protection")
+        self.status.safety_ramp(now, reason, "unit_protection")
         self.changed()
 
     def at_rest(self, now: float) -> bool:
@@ -244,9 +246,9 @@ class SafetyController:
         if self.fault is not None:
             return
         self.fault = PhysicsFault(now, reason)
-        self.vibration.stop(now, PHYSICS_FAULT)
+        self.vibration.stop(now, PHYSICS_FAULT, CAUSE_OF[PHYSICS_FAULT])
         self.struts.hold(held_lengths)
-        self.status.safety_ramp(now, PHYSICS_FAULT)
+        self.status.safety_ramp(now, PHYSICS_FAULT, CAUSE_OF[PHYSICS_FAULT])
         self.estopped = True
         self.changed()
 

@@ -60,7 +60,8 @@ class BufferStatus:
     state: idle | pending (a window starts later) | ramping_in | running | ramping_out;
     amplitude: (6,) peak |displacement| over the last STATUS_SPAN_S (m); commanded_until: time
     after which the buffered command is at rest (s; -inf if nothing is buffered); ramp_start /
-    ramp_reason: the active or next safety ramp (None / "" if none)."""
+    ramp_reason / ramp_cause: the active or next safety ramp (None / "" if none; the cause one of
+    vibration_status.RAMP_CAUSES)."""
 
     time: float
     state: str
@@ -68,6 +69,7 @@ class BufferStatus:
     commanded_until: float
     ramp_start: float | None
     ramp_reason: str
+    ramp_cause: str = ""
 
 
 def window_arrays(traj: JointTrajectory, now: float):
@@ -121,6 +123,7 @@ class VibrationBuffer:
         self.last_receive = -np.inf
         self.stop_start: float | None = None
         self.stop_reason = ""
+        self.stop_cause = ""
         self._version += 1
 
     # -- commands -----------------------------------------------------------------------
@@ -180,7 +183,7 @@ class VibrationBuffer:
                     value=float(settle[leg]), limit=self.limits.amplitude_max)
         # the window continues what the units do at the splice (ramping out or at rest after a stop), so it
         # replaces the stop ramp: fading it too would fade the continued command twice (a step)
-        self.stop_start, self.stop_reason = None, ""
+        self.stop_start, self.stop_reason, self.stop_cause = None, "", ""
         self.times, self.positions, self.velocities, self.accelerations = new_t, new_p, new_v, new_a
         self.last_receive = now
         self._version += 1
@@ -219,10 +222,11 @@ class VibrationBuffer:
                 f"command, or start from rest when the units are at rest{late}",
                 leg=leg + 1, limit_name="splice", value=float(jump_p[leg]), limit=self.rest_position)
 
-    def stop(self, when: float, reason: str = "stop") -> None:
-        """Ramp the output to zero from ``when`` (s) over ``ramp_duration`` (unless a ramp already started earlier)."""
+    def stop(self, when: float, reason: str, cause: str) -> None:
+        """Ramp the output to zero from ``when`` (s) over ``ramp_duration`` (unless a ramp already started earlier)
+        for ``reason`` (for people) and ``cause`` (one of vibration_status.RAMP_CAUSES)."""
         if self.stop_start is None or self.stop_start > when:
-            self.stop_start, self.stop_reason = float(when), reason
+            self.stop_start, self.stop_reason, self.stop_cause = float(when), reason, cause
 
     def braking_time(self, velocity) -> np.ndarray:
         """Time constant (s) per unit of the exponential stop from ``velocity`` (m/s) past the last sample:
@@ -240,14 +244,18 @@ class VibrationBuffer:
     def ramp(self) -> tuple[float | None, str]:
         """(start s, reason) of the safety ramp in force: the explicit stop, or the watchdog's ramp when
         the buffer runs out with the units not at rest; (None, "") if none."""
-        start, reason = self.stop_start, self.stop_reason
+        return self._ramp()[:2]
+
+    def _ramp(self) -> tuple[float | None, str, str]:
+        """``ramp`` and its cause ("watchdog" for the watchdog's)."""
+        start, reason, cause = self.stop_start, self.stop_reason, self.stop_cause
         if self.times.size and not self._tail_at_rest():
             due = max(self.end, self.last_receive + self.watchdog_s)
             if start is None or due < start:
-                start = due
+                start, cause = due, "watchdog"
                 reason = (f"watchdog: the commands ran out at {self.end:.3f} s away from rest and no new window "
                           f"arrived within watchdog_s {self.watchdog_s:g} s")
-        return start, reason
+        return start, reason, cause
 
     def commanded_until(self) -> float:
         """Time (s) from which the command is at rest: the end of the buffer, or of the safety ramp."""
@@ -321,7 +329,7 @@ class VibrationBuffer:
         """Classify the output around ``now`` (s): see BufferStatus. Amplitudes are peaks of the knots (1 ms
         apart in the planner's windows: within 0.6 % of a 35 Hz sinusoid's peak), scaled by a safety ramp,
         and of the output at the window edges and the buffer's end (the braking tail)."""
-        start, reason = self.ramp()
+        start, reason, cause = self._ramp()
         until = self.commanded_until()
         span = STATUS_SPAN_S
         past = ahead = later = np.zeros(6)
@@ -351,4 +359,4 @@ class VibrationBuffer:
             state = "ramping_in"
         else:
             state = "running"
-        return BufferStatus(now, state, past, until, start, reason)
+        return BufferStatus(now, state, past, until, start, reason, cause)

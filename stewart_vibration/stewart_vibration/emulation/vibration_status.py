@@ -24,12 +24,23 @@ EMERGENCY_STOP = "emergency stop"  # the reason of the e-stop's safety ramp (ram
 DEACTIVATED = "deactivated"  # lifecycle deactivate: a safety stop without the e-stop's latch
 SHUTDOWN = "shutdown"  # the emulator stopping: the robot brakes to rest first
 PHYSICS_FAULT = "physics fault"  # the divergence detector latched (the robot is held)
-STRUT_STOPS = (EMERGENCY_STOP, DEACTIVATED, SHUTDOWN)  # safety ramps that also brake the struts to rest
+# the causes of a safety ramp (index = VibrationUnitsStatus RAMP_* constant); a reason above names its cause
+RAMP_CAUSES = ("", "watchdog", "emergency_stop", "deactivated", "shutdown", "physics_fault", "unit_protection")
+CAUSE_OF = {EMERGENCY_STOP: "emergency_stop", DEACTIVATED: "deactivated", SHUTDOWN: "shutdown",
+            PHYSICS_FAULT: "physics_fault"}
+STRUT_STOP_CAUSES = ("emergency_stop", "deactivated", "shutdown")  # safety ramps that also brake the struts
+# the outcome (Outcome.msg) of the event of a safety ramp of each cause
+RAMP_OUTCOMES = {"watchdog": "STOPPED_EARLY", "emergency_stop": "EMERGENCY_STOPPED", "deactivated": "ROBOT_INACTIVE",
+                 "shutdown": "SHUTDOWN", "physics_fault": "PHYSICS_FAULT", "unit_protection": "UNIT_TRAVEL_STOPPED"}
+STATES = ("idle", "pending", "ramping_in", "running", "ramping_out", "stopped", "estopped")  # = the msg's constants
+LEVELS = (OK, WARN, ERROR)  # = DiagnosticStatus levels 0, 1, 2
+EVENTS = ("", "accepted", "refused", "safety_ramp")  # = VibrationUnitsStatus EVENT_* constants
 
 
 @dataclass(frozen=True)
 class VibrationReport:
-    """One vibration/status message (times in s of the emulator's clock)."""
+    """One vibration/status message (times in s of the emulator's clock). ``event``: the last command event (one of
+    EVENTS), with its outcome (a name of Outcome.msg) and reason; ``ramp_cause``: one of RAMP_CAUSES."""
 
     state: str
     level: str
@@ -40,8 +51,11 @@ class VibrationReport:
     commanded_until: float = float("-inf")
     ramp_start: float | None = None
     ramp_reason: str = ""
+    ramp_cause: str = ""
     event_seq: int = 0
     event: str = ""
+    event_outcome: str = ""
+    event_reason: str = ""
     event_stamp: float | None = None
     event_time: float | None = None
     accepted: int = 0
@@ -53,19 +67,10 @@ class VibrationReport:
         """The state and, if any, its reason as one line ("state: reason")."""
         return f"{self.state}: {self.reason}" if self.reason else self.state
 
-    def as_values(self) -> dict[str, str]:
-        """Key/value strings (DiagnosticStatus values; read back by messages.status_values.vibration_report)."""
-        def num(x):
-            return "" if x is None or not np.isfinite(x) else f"{x:.6f}"
-
-        return {
-            "state": self.state, "reason": self.reason, "since_s": num(self.since), "time_s": num(self.time),
-            "amplitude_um": ",".join(f"{a * 1e6:.3f}" for a in self.amplitude),
-            "commanded_until_s": num(self.commanded_until), "ramp_start_s": num(self.ramp_start),
-            "ramp_reason": self.ramp_reason, "event_seq": str(self.event_seq), "event": self.event,
-            "event_stamp_s": num(self.event_stamp), "event_time_s": num(self.event_time),
-            "accepted_windows": str(self.accepted), "refused_windows": str(self.refused), "fault": self.fault,
-        }
+    @property
+    def event_text(self) -> str:
+        """The last event for people ("refused (LIMIT_EXCEEDED): ..."; "" before one)."""
+        return f"{self.event} ({self.event_outcome}): {self.event_reason}" if self.event else ""
 
 
 class VibrationStatusTracker:
@@ -76,24 +81,28 @@ class VibrationStatusTracker:
                                       time=0.0)
         self._stopped_reason = ""  # reason of the last safety ramp, until a new vibration starts
 
-    def _event(self, now: float, event: str, stamp: float | None = None, **counts) -> VibrationReport:
+    def _event(self, now: float, event: str, outcome: str, reason: str, stamp: float | None = None,
+               **counts) -> VibrationReport:
         r = self.report
-        self.report = replace(r, event_seq=r.event_seq + 1, event=event, event_stamp=stamp, event_time=now, **counts)
+        self.report = replace(r, event_seq=r.event_seq + 1, event=event, event_outcome=outcome, event_reason=reason,
+                              event_stamp=stamp, event_time=now, **counts)
         return self.report
 
     def accepted(self, now: float, stamp: float) -> VibrationReport:
         """Record an accepted window (start ``stamp``, s) at ``now`` (s); clears the stop reason, returns the report."""
         self._stopped_reason = ""
-        return self._event(now, "accepted", stamp, accepted=self.report.accepted + 1)
+        return self._event(now, "accepted", "SUCCEEDED", "window accepted", stamp, accepted=self.report.accepted + 1)
 
-    def refused(self, now: float, stamp: float, reason: str) -> VibrationReport:
-        """Record a refused window (start ``stamp``, s) at ``now`` (s) and its ``reason``; returns the report."""
-        return self._event(now, f"refused: {reason}", stamp, refused=self.report.refused + 1)
+    def refused(self, now: float, stamp: float, outcome: str, reason: str) -> VibrationReport:
+        """Record a refused window (start ``stamp``, s) at ``now`` (s), its ``outcome`` (a name of Outcome.msg) and
+        ``reason``; returns the report."""
+        return self._event(now, "refused", outcome, reason, stamp, refused=self.report.refused + 1)
 
-    def safety_ramp(self, now: float, reason: str) -> VibrationReport:
-        """Record a safety ramp to zero from ``now`` (s) for ``reason`` (e.g. the e-stop); returns the report."""
+    def safety_ramp(self, now: float, reason: str, cause: str) -> VibrationReport:
+        """Record a safety ramp to zero from ``now`` (s) for ``reason`` of ``cause`` (RAMP_CAUSES); returns the
+        report."""
         self._stopped_reason = reason
-        return self._event(now, f"ramp to zero: {reason}")
+        return self._event(now, "safety_ramp", RAMP_OUTCOMES[cause], f"ramp to zero: {reason}")
 
     def update(self, buffer: BufferStatus, estopped: bool, now: float,
                fault: str | None = None) -> tuple[VibrationReport, bool]:
@@ -126,5 +135,6 @@ class VibrationStatusTracker:
         since = now if changed else r.since
         self.report = replace(r, state=state, level=level, reason=reason, since=since, time=now,
                               amplitude=buffer.amplitude, commanded_until=buffer.commanded_until,
-                              ramp_start=buffer.ramp_start, ramp_reason=buffer.ramp_reason, fault=fault or "")
+                              ramp_start=buffer.ramp_start, ramp_reason=buffer.ramp_reason,
+                              ramp_cause=buffer.ramp_cause, fault=fault or "")
         return self.report, changed

@@ -24,7 +24,7 @@ from ..dynamics.newton_euler import leg_forces
 from ..emulation.command_size import LEG_TRAJECTORY, check_point_count
 from ..emulation.strut_trajectory import STEP_SPEED, JointTrajectory, TrajectoryFollower, checked_command
 from ..emulation.vibration_buffer import VibrationBuffer
-from ..emulation.vibration_status import STRUT_STOPS
+from ..emulation.vibration_status import STRUT_STOP_CAUSES
 from ..errors import InvalidInputError, VibrationLimitError
 from ..kinematics import forward_kinematics, jacobian
 from ..robot import Robot
@@ -107,13 +107,14 @@ class ForceEstimator:
                                   step_speed=STEP_SPEED * lim.strut_acceleration_max * MIRROR_STEP_S)
         self.struts.replace(running, cast(float, now))
 
-    def apply_ramp(self, start: float | None, reason: str) -> None:
-        """A safety ramp the emulator reports (e-stop, deactivate, shutdown, watchdog) from ``start`` (s); ignored
-        when it predates the newest window (a stale report about an earlier vibration). For the strut stops
-        (STRUT_STOPS) the struts brake as the emulator's do (``TrajectoryFollower.brake``)."""
+    def apply_ramp(self, start: float | None, reason: str, cause: str) -> None:
+        """A safety ramp the emulator reports (e-stop, deactivate, shutdown, watchdog) from ``start`` (s), its
+        ``reason`` and ``cause`` (emulation.vibration_status.RAMP_CAUSES); ignored when it predates the newest window
+        (a stale report about an earlier vibration). For the strut stops (STRUT_STOP_CAUSES) the struts brake as
+        the emulator's do (``TrajectoryFollower.brake``)."""
         if start is not None and start >= self.vibration.last_receive:
-            self.vibration.stop(start, reason)
-        if start is not None and reason in STRUT_STOPS and self.struts is not None and start != self._strut_stop:
+            self.vibration.stop(start, reason, cause)
+        if start is not None and cause in STRUT_STOP_CAUSES and self.struts is not None and start != self._strut_stop:
             self._strut_stop = start  # the emulator's controlled stop of the struts, as it commands it
             self.struts.brake(start, self.robot.limits.strut_acceleration_max)
 

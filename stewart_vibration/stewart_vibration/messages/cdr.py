@@ -27,6 +27,8 @@ from ..errors import InvalidInputError
 
 ENCAPSULATION = b"\x00\x01\x00\x00"  # CDR little endian
 _U32 = struct.Struct("<I")
+_U16 = struct.Struct("<H")
+_F64 = struct.Struct("<d")
 _STAMP = struct.Struct("<iI")
 _STAMP_BE = struct.Struct(">iI")  # header stamps of big-endian CDR (header_stamp_ns reads any encoding)
 _F8 = np.dtype("<f8")
@@ -47,6 +49,7 @@ class _Writer:
         self.buf = bytearray(ENCAPSULATION)
 
     def pad(self, size: int) -> None:
+        """Zero-pad to the next multiple of ``size`` (CDR alignment)."""
         self.buf += b"\x00" * (_align(len(self.buf), size) - len(self.buf))
 
     def u32(self, value: int) -> None:
@@ -80,7 +83,7 @@ class _Writer:
         return offset
 
 
-class _Reader:
+class CdrReader:
     """Sequential CDR reader with bounds checks."""
 
     def __init__(self, data, what: str):
@@ -91,14 +94,17 @@ class _Reader:
             raise InvalidInputError(f"{what}: not little-endian CDR data ({len(self.data)} bytes)")
 
     def need(self, size: int) -> None:
+        """Raise unless ``size`` more bytes are left."""
         if self.pos + size > len(self.data) or size < 0:
             raise InvalidInputError(f"{self.what}: truncated at byte {self.pos} (needs {size} more of "
                                     f"{len(self.data)})")
 
     def pad(self, size: int) -> None:
+        """Skip to the next multiple of ``size`` (CDR alignment)."""
         self.pos = _align(self.pos, size)
 
     def u32(self) -> int:
+        """A uint32."""
         self.pad(4)
         self.need(4)
         value = _U32.unpack_from(self.data, self.pos)[0]
@@ -106,12 +112,35 @@ class _Reader:
         return value
 
     def u8(self) -> int:
+        """A uint8."""
         self.need(1)
         value = self.data[self.pos]
         self.pos += 1
         return value
 
+    def u16(self) -> int:
+        """A uint16."""
+        self.pad(2)
+        self.need(2)
+        value = _U16.unpack_from(self.data, self.pos)[0]
+        self.pos += 2
+        return value
+
+    def f64(self) -> float:
+        """A float64."""
+        self.pad(8)
+        self.need(8)
+        value = _F64.unpack_from(self.data, self.pos)[0]
+        self.pos += 8
+        return value
+
+    def end(self) -> None:
+        """Raise unless every byte was read (up to the 3 bytes of padding CDR may end with)."""
+        if len(self.data) - self.pos > 3:
+            raise InvalidInputError(f"{self.what}: {len(self.data) - self.pos} bytes after the message")
+
     def stamp(self) -> tuple[int, int]:
+        """A builtin_interfaces/Time as (sec, nanosec); nanosec below 1e9."""
         self.pad(4)
         self.need(8)
         value = _STAMP.unpack_from(self.data, self.pos)
@@ -121,6 +150,7 @@ class _Reader:
         return value
 
     def string(self) -> str:
+        """A NUL-terminated UTF-8 string (any NUL inside kept)."""
         n = self.u32()
         self.need(n)
         raw = bytes(self.data[self.pos:self.pos + n])
@@ -133,12 +163,14 @@ class _Reader:
             raise InvalidInputError(f"{self.what}: string is not UTF-8 ({exc})") from None
 
     def strings(self) -> list[str]:
+        """A sequence of strings."""
         count = self.u32()
         if count > len(self.data):
             raise InvalidInputError(f"{self.what}: sequence of {count} strings cannot fit")
         return [self.string() for _ in range(count)]
 
     def doubles(self) -> np.ndarray:
+        """A sequence of float64 (a copy)."""
         n = self.u32()
         if n:
             self.pad(8)
@@ -148,6 +180,7 @@ class _Reader:
         return values
 
     def fixed_doubles(self, n: int) -> np.ndarray:
+        """An array of ``n`` float64 (a copy)."""
         self.pad(8)
         self.need(8 * n)
         values = np.frombuffer(self.data, dtype=_F8, count=n, offset=self.pos).copy()
@@ -232,7 +265,7 @@ class JointStateDecoder:
 
     def decode(self, data) -> JointStateData:
         """Decode one JointState's bytes; raises InvalidInputError on malformed data."""
-        r = _Reader(data, "JointState")
+        r = CdrReader(data, "JointState")
         sec, nanosec = r.stamp()
         frame = r.string()
         start = r.pos
@@ -328,7 +361,7 @@ def _stack_uniform(messages, first: JointStateData, counts):
     k = len(first.names)
     size = len(messages[0])
     # offsets of the arrays in the first message (the same in all)
-    r = _Reader(messages[0], "JointState")
+    r = CdrReader(messages[0], "JointState")
     r.stamp()
     r.string()
     r.strings()
@@ -394,7 +427,7 @@ class PoseStampedEncoder(_HeaderDoublesEncoder):
 
 def _decode_header_doubles(data, type_name: str, count: int) -> tuple[float, str, np.ndarray]:
     """(stamp s, frame_id, the ``count`` doubles after the header) of a message made of a Header and doubles."""
-    r = _Reader(data, type_name)
+    r = CdrReader(data, type_name)
     sec, nanosec = r.stamp()
     frame = r.string()
     return stamp_seconds(sec, nanosec), frame, r.fixed_doubles(count)
@@ -471,7 +504,7 @@ def decode_stamped_doubles(messages, count: int, what: str) -> tuple[np.ndarray,
     for size, group in by_size.items():
         start = None
         try:
-            r = _Reader(messages[group[0]], what)
+            r = CdrReader(messages[group[0]], what)
             r.stamp()
             frame = r.string()
             r.pad(8)
@@ -501,7 +534,7 @@ def decode_stamped_doubles(messages, count: int, what: str) -> tuple[np.ndarray,
             group = [group[j] for j in np.flatnonzero(~uniform)]
         for i in group:  # the rest one by one
             try:
-                r = _Reader(messages[i], what)
+                r = CdrReader(messages[i], what)
                 sec, nanosec = r.stamp()
                 frame_i = r.string()
                 row = r.fixed_doubles(count)
@@ -633,7 +666,7 @@ def encode_joint_trajectory(names, stamp_s: float, times, positions, velocities=
 
 def decode_joint_trajectory(data) -> TrajectoryData:
     """Decode JointTrajectory bytes (uniform points vectorised, mixed points one by one)."""
-    r = _Reader(data, "JointTrajectory")
+    r = CdrReader(data, "JointTrajectory")
     sec, nanosec = r.stamp()
     frame = r.string()
     names = tuple(r.strings())
@@ -710,7 +743,7 @@ class DiagnosticStatusData:
     values: tuple
 
 
-def _diagnostic_status(r: _Reader) -> DiagnosticStatusData:
+def _diagnostic_status(r: CdrReader) -> DiagnosticStatusData:
     level = r.u8()
     name, message, hardware_id = r.string(), r.string(), r.string()
     count = r.u32()
@@ -722,12 +755,12 @@ def _diagnostic_status(r: _Reader) -> DiagnosticStatusData:
 
 def decode_diagnostic_status(data) -> DiagnosticStatusData:
     """Decode DiagnosticStatus bytes (InvalidInputError on malformed data)."""
-    return _diagnostic_status(_Reader(data, "DiagnosticStatus"))
+    return _diagnostic_status(CdrReader(data, "DiagnosticStatus"))
 
 
 def decode_diagnostic_array(data) -> tuple[float, str, list[DiagnosticStatusData]]:
     """(stamp s, frame_id, statuses) of DiagnosticArray bytes (InvalidInputError on malformed data)."""
-    r = _Reader(data, "DiagnosticArray")
+    r = CdrReader(data, "DiagnosticArray")
     sec, nanosec = r.stamp()
     frame = r.string()
     count = r.u32()

@@ -1,39 +1,45 @@
-"""Readers of the suite's status messages (pure): DiagnosticStatus on vibration/status,
-kinematics/guard_status and /diagnostics, and the planner's start answer.
+"""Readers of the suite's status messages (pure): VibrationUnitsStatus on vibration/status and ForceGuardStatus on
+kinematics/guard_status (raw CDR, every field checked), DiagnosticStatus on /diagnostics, and the planner's
+streaming parameters.
 
-The one place where a status's text becomes typed values: a reader gets a ``StatusMessage`` (checked
-as a whole: level 0..3, every string clean, keys unique, bounded sizes) and asks it for what it needs
-through typed accessors (``number``, ``integer``, ``choice``, ``numbers``) or one of the typed readers
-(``vibration_report``, ``guard_status``, ``recorder_files``, ``emulator_rejections``,
-``planner_settings``). Each returns a value or raises
-``MalformedMessageError``; a caller counts and ignores what raised (``MalformedCounter``) and goes on
-with its last good state. When the status topics become typed messages, this module is what changes.
+A /diagnostics reader gets a ``StatusMessage`` (checked as a whole: level 0..3, every string clean, keys
+unique, bounded sizes) and asks it for what it needs through typed accessors (``number``, ``integer``,
+``choice``, ``numbers``) or one of the typed readers (``recorder_files``, ``emulator_rejections``). The two
+status topics decode to their core values (``vibration_report_from_cdr``: an emulation.vibration_status
+VibrationReport; ``guard_status_from_cdr``: a motion.guard_status GuardStatus). Each returns a value or raises
+``MalformedMessageError``; a caller counts and ignores what raised (``MalformedCounter``) and goes on with its
+last good state.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
+from typing import TypeVar
 
 import numpy as np
 
-from ..emulation.vibration_status import VibrationReport
+from ..emulation.vibration_status import EVENTS, LEVELS, RAMP_CAUSES, STATES, VibrationReport
 from ..errors import InvalidInputError, MalformedMessageError
+from ..kinematics.rotations import pose_from_position_quaternion
+from ..motion.guard_status import GUARD_STATES, TRIP_LIMITS, GuardStatus
 from ..vibration.settings import STREAM_KEYS
-from .cdr import DiagnosticStatusData, decode_diagnostic_array, decode_diagnostic_status
+from .cdr import CdrReader, DiagnosticStatusData, decode_diagnostic_array, decode_diagnostic_status
 from .fields import check_number, check_text, parse_integer, parse_number
+from .outcome_codes import NAMES as OUTCOME_NAMES
 
 MAX_VALUES = 512  # key/values of one status (the suite's largest has ~30)
 MAX_STATUSES = 1024  # statuses of one DiagnosticArray
 LEVEL_NAMES = ("ok", "warn", "error", "stale")  # DiagnosticStatus.OK .. STALE
 MAX_PATH = 4096  # characters of a file path in a status (PATH_MAX)
-# states of the vibration units (emulation.vibration_status)
-VIBRATION_STATES = frozenset({"idle", "pending", "ramping_in", "running", "ramping_out", "stopped", "estopped"})
-MAX_AMPLITUDE_UM = 1e6  # a reported unit amplitude beyond 1 m is no measurement
+MAX_AMPLITUDE_M = 1.0  # a reported unit amplitude beyond 1 m is no measurement
+MAX_LOAD = 1e9  # N or N m: a guard limit or load beyond this is no measurement
+QUATERNION_TOLERANCE = 1e-3  # |q| - 1 of a reported pose (kinematics writes unit quaternions)
 _REQUIRED = object()
+_T = TypeVar("_T")
 
 
 @dataclass(frozen=True)
@@ -178,43 +184,76 @@ def numbers(values: Mapping[str, str], key: str, count: int, low: float = -math.
     return np.array([parse_number(p, key, low, high) for p in parts])
 
 
-# -- vibration/status (hardware emulator) --------------------------------------------------------------------
-def vibration_report(status: StatusMessage) -> VibrationReport:
-    """The emulator's VibrationReport of a vibration/status (the inverse of ``VibrationReport.as_values``)."""
-    return vibration_report_from_values(status.level_name, status.values)
+# -- vibration/status (hardware emulator): VibrationUnitsStatus ------------------------------------------------
+def _enum(value: int, names: tuple, what: str) -> str:
+    if value >= len(names):
+        raise MalformedMessageError(f"{what} {value} is not one of 0..{len(names) - 1}", field=what, kind="range")
+    return names[value]
+
+
+def _time(value: float, what: str, nan=_REQUIRED, minus_inf=False):
+    """A finite time (s); NaN gives ``nan`` when given, -inf passes when ``minus_inf``."""
+    if math.isnan(value) and nan is not _REQUIRED:
+        return nan
+    if math.isfinite(value) or (minus_inf and value == -math.inf):
+        return value
+    raise MalformedMessageError(f"{what} {value} is not a finite time", field=what, kind="range")
+
+
+def _outcome_name(code: int, what: str) -> str:
+    if code not in OUTCOME_NAMES:
+        raise MalformedMessageError(f"{what} code {code} is not in the outcome table", field=what, kind="range")
+    return OUTCOME_NAMES[code]
+
+
+def _decoded(data, what: str, read: Callable[[CdrReader], _T]) -> _T:
+    """``read`` of a CdrReader over ``data`` (``what`` names the type); bytes that are no CDR of it (too short,
+    truncated, a bad string) raise MalformedMessageError."""
+    try:
+        return read(CdrReader(data, what))
+    except MalformedMessageError:
+        raise
+    except InvalidInputError as exc:
+        raise MalformedMessageError(str(exc)) from None
 
 
 def vibration_report_from_cdr(data) -> VibrationReport:
-    """The VibrationReport of a raw vibration/status (what its subscribers read)."""
-    return vibration_report(status_from_cdr(data))
+    """The VibrationReport of raw VibrationUnitsStatus bytes (what vibration/status's subscribers read): the
+    amplitude (6,) in m, times in s (NaN ramp / event times as None), the enums as their names and the event's
+    outcome code as its name. MalformedMessageError for bytes that are no such message, an enum or code out of
+    its table, a string that is not clean text, a time that is not finite (commanded_until may be -inf), an
+    amplitude outside [0, MAX_AMPLITUDE_M]."""
+    return _decoded(data, "VibrationUnitsStatus", _vibration_report)
 
 
-def vibration_report_from_values(level: str, values: Mapping[str, str]) -> VibrationReport:
-    """The VibrationReport of a vibration/status's key/values (as ``VibrationReport.as_values`` writes them:
-    every key present; the times that value writes empty when unknown may be empty).
-
-    Args:
-        level: the status level ("ok", "warn", "error" or "stale").
-        values: the key/value strings (amplitude_um: 6 values in um, >= 0; times in s; counts >= 0).
-
-    Returns:
-        The VibrationReport (amplitude [6] in m, times in s; an empty since / time is 0, an empty
-        commanded_until -inf, an empty ramp_start / event_stamp / event_time None).
-
-    Raises:
-        MalformedMessageError: a key is missing, a state unknown, a number not a finite number, a count
-            not a non-negative integer, an amplitude not 6 values in [0, MAX_AMPLITUDE_UM].
-    """
+def _vibration_report(r: CdrReader) -> VibrationReport:
+    sec, nanosec = r.stamp()
+    check_text(r.string(), "frame_id")
+    state, level = _enum(r.u8(), STATES, "state"), _enum(r.u8(), LEVELS, "level")
+    reason = check_text(r.string(), "reason")
+    since = _time(r.f64(), "since_s")
+    amplitude = r.fixed_doubles(6)
+    if not (np.isfinite(amplitude).all() and (amplitude >= 0).all() and (amplitude <= MAX_AMPLITUDE_M).all()):
+        raise MalformedMessageError(f"amplitude_m {amplitude.tolist()} is not 6 amplitudes in [0, "
+                                    f"{MAX_AMPLITUDE_M:g}] m", field="amplitude_m", kind="range")
+    commanded_until = _time(r.f64(), "commanded_until_s", minus_inf=True)
+    ramp_start = _time(r.f64(), "ramp_start_s", nan=None)
+    ramp_cause = _enum(r.u8(), RAMP_CAUSES, "ramp_cause")
+    ramp_reason = check_text(r.string(), "ramp_reason")
+    event_seq = r.u32()
+    event = _enum(r.u8(), EVENTS, "event")
+    code, event_reason = r.u16(), check_text(r.string(), "event_outcome.message")
+    event_outcome = _outcome_name(code, "event_outcome") if event else ""
+    event_stamp = _time(r.f64(), "event_stamp_s", nan=None)
+    event_time = _time(r.f64(), "event_time_s", nan=None)
+    accepted, refused = r.u32(), r.u32()
+    fault = check_text(r.string(), "fault")
+    r.end()
     return VibrationReport(
-        state=choice(values, "state", VIBRATION_STATES), level=level, reason=_get(values, "reason"),
-        since=number(values, "since_s", empty=0.0), time=number(values, "time_s", empty=0.0),
-        amplitude=numbers(values, "amplitude_um", 6, 0.0, MAX_AMPLITUDE_UM) * 1e-6,
-        commanded_until=number(values, "commanded_until_s", empty=-math.inf),
-        ramp_start=number(values, "ramp_start_s", empty=None), ramp_reason=_get(values, "ramp_reason"),
-        event_seq=integer(values, "event_seq"), event=_get(values, "event"),
-        event_stamp=number(values, "event_stamp_s", empty=None), event_time=number(values, "event_time_s", empty=None),
-        accepted=integer(values, "accepted_windows"), refused=integer(values, "refused_windows"),
-        fault=_get(values, "fault"))
+        state=state, level=level, reason=reason, since=since, time=sec + nanosec * 1e-9, amplitude=amplitude,
+        commanded_until=commanded_until, ramp_start=ramp_start, ramp_reason=ramp_reason, ramp_cause=ramp_cause,
+        event_seq=event_seq, event=event, event_outcome=event_outcome, event_reason=event_reason if event else "",
+        event_stamp=event_stamp, event_time=event_time, accepted=accepted, refused=refused, fault=fault)
 
 
 # -- /diagnostics of the suite's nodes ----------------------------------------------------------------------
@@ -241,37 +280,52 @@ def recorder_files(status: StatusMessage) -> RecorderFiles:
     return RecorderFiles(path, last)
 
 
-# -- kinematics/guard_status ---------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class GuardStatus:
-    """kinematics/guard_status: state ("armed" | "tripped"), the trip's limit ("force", "moment",
-    "estimates"; "" when armed) and time (s; None when armed), the message and every value (strings)."""
-
-    state: str
-    trip_limit: str
-    trip_time_s: float | None
-    message: str
-    values: Mapping[str, str]
+# -- kinematics/guard_status: ForceGuardStatus -------------------------------------------------------------
+def _load(value: float, what: str, nan_ok: bool) -> float:
+    if (math.isnan(value) and nan_ok) or (math.isfinite(value) and abs(value) <= MAX_LOAD):
+        return value
+    raise MalformedMessageError(f"{what} {value} is not a load within {MAX_LOAD:g}", field=what, kind="range")
 
 
 def guard_status_from_cdr(data) -> GuardStatus:
-    """The GuardStatus of a raw kinematics/guard_status."""
-    return guard_status(status_from_cdr(data))
+    """The GuardStatus of raw ForceGuardStatus bytes (what kinematics/guard_status's subscribers read).
+    MalformedMessageError for bytes that are no such message, a state or limit out of its table, limits that are
+    not finite and >= 0, a tripped status without a finite trip time and a limit or with a tripped goal that is
+    no pose, a message that is not clean text."""
+    return _decoded(data, "ForceGuardStatus", _guard_status)
 
 
-def guard_status(status: StatusMessage) -> GuardStatus:
-    """The GuardStatus of a kinematics/guard_status (motion.ForceGuard.status_values)."""
-    return guard_status_from_values(status.values, status.message)
-
-
-def guard_status_from_values(values: Mapping[str, str], message: str = "") -> GuardStatus:
-    """The GuardStatus of a kinematics/guard_status's key/values (e.g. as recorded); raises
-    MalformedMessageError for an unknown state or trip limit or a trip time that is not a finite number."""
-    state = choice(values, "state", ("armed", "tripped"))
-    if state == "armed":
-        return GuardStatus(state, "", None, message, values)
-    return GuardStatus(state, choice(values, "trip_limit", ("force", "moment", "estimates")),
-                       number(values, "trip_time_s"), message, values)
+def _guard_status(r: CdrReader) -> GuardStatus:
+    r.stamp()
+    check_text(r.string(), "frame_id")
+    state = _enum(r.u8(), GUARD_STATES, "state")
+    force_limit, moment_limit = r.f64(), r.f64()
+    for name, value in (("force_limit_n", force_limit), ("moment_limit_nm", moment_limit)):
+        if not (math.isfinite(value) and 0 <= value <= MAX_LOAD):
+            raise MalformedMessageError(f"{name} {value} is not a limit >= 0", field=name, kind="range")
+    trip_time = r.f64()
+    trip_limit = _enum(r.u8(), TRIP_LIMITS, "trip_limit")
+    tripped = state == "tripped"
+    loads = {name: _load(r.f64(), name, not tripped) for name in (
+        "trip_force_n", "trip_moment_nm", "predicted_force_n", "predicted_moment_nm", "peak_force_n",
+        "peak_moment_nm", "stop_duration_s", "stop_progress")}
+    goal, direction = r.fixed_doubles(7), r.fixed_doubles(6)
+    blocked = r.u32()
+    message = check_text(r.string(), "message")
+    r.end()
+    if not tripped:
+        return GuardStatus(state, force_limit, moment_limit, message, blocked_directions=blocked)
+    if not math.isfinite(trip_time) or not trip_limit:
+        raise MalformedMessageError(f"a tripped status needs a finite trip_time_s and a trip_limit (got {trip_time}, "
+                                    f"{trip_limit!r})", field="trip_time_s", kind="missing")
+    try:
+        goal_pose = pose_from_position_quaternion(goal[:3], goal[3:], unit_tolerance=QUATERNION_TOLERANCE)
+    except InvalidInputError as exc:
+        raise MalformedMessageError(f"tripped_goal: {exc}", field="tripped_goal", kind="range") from None
+    if not np.isfinite(direction).all():
+        raise MalformedMessageError("tripped_direction is not finite", field="tripped_direction", kind="range")
+    return GuardStatus(state, force_limit, moment_limit, message, trip_limit, trip_time, tripped_goal=goal_pose,
+                       tripped_direction=direction, blocked_directions=blocked, **loads)
 
 
 # -- the vibration planner's start answer ---------------------------------------------------------------------

@@ -61,6 +61,7 @@ from ..errors import GuardBlockedError
 from ..kinematics.rotations import rotation_from_rpy, so3_log
 from ..robot import Robot
 from ..splines import quintic_hermite, smoothstep
+from .guard_status import GuardStatus
 
 RECEIPT_DELAY_S = 0.02  # expected emulator time between the node's estimate of "now" and its command arriving
 RECEIPT_WINDOW_S = 0.15  # the stop stays within the limits for any arrival within this (at least) after "now"
@@ -659,25 +660,21 @@ class ForceGuard:
         return abs(measured_rate - planned_rate) <= max(ON_MOVE_RATE_TOL * abs(planned_rate), floor)
 
     # -- report ---------------------------------------------------------------------------------------
-    def status_values(self) -> dict:
-        """Key/values for a status message (strings)."""
-        values = {"state": "tripped" if self.trip else "armed", "force_limit_n": f"{self.force_limit:g}",
-                  "moment_limit_nm": f"{self.moment_limit:g}"}
+    def status(self) -> GuardStatus:
+        """The guard's status (motion.guard_status.GuardStatus): armed (with the limits that watch the current move),
+        off (both 0) or the trip with its stop and peaks."""
+        force, moment = self.limits()
         trip = self.trip
-        if trip is not None:
-            values.update({
-                "trip_time_s": f"{trip.time:.4f}", "trip_limit": trip.which,
-                "trip_force_n": f"{trip.force:.3f}", "trip_moment_nm": f"{trip.moment:.4f}",
-                "predicted_force_n": f"{trip.predicted_force:.3f}",
-                "predicted_moment_nm": f"{trip.predicted_moment:.4f}",
-                "peak_force_n": f"{self.peak[0]:.3f}", "peak_moment_nm": f"{self.peak[1]:.4f}",
-                "stop_duration_s": f"{trip.stop.duration:.3f}" if trip.stop else "0 (the move ended first)",
-                "stop_progress": f"{trip.stop.progress:.4f}" if trip.stop else "1",
-                "tripped_goal": str(np.round(trip.goal_pose, 6).tolist()),
-                "tripped_direction": str(np.round(trip.direction, 6).tolist()),
-                "blocked_directions": str(len(self.blocked)),
-            })
-        return values
+        if trip is None:
+            return GuardStatus("off" if force <= 0 and moment <= 0 else "armed", force, moment, self.message())
+        return GuardStatus(
+            "tripped", force, moment, self.message(), trip_limit=trip.which, trip_time_s=trip.time,
+            trip_force_n=trip.force, trip_moment_nm=trip.moment, predicted_force_n=trip.predicted_force,
+            predicted_moment_nm=trip.predicted_moment, peak_force_n=self.peak[0], peak_moment_nm=self.peak[1],
+            stop_duration_s=trip.stop.duration if trip.stop else 0.0,
+            stop_progress=trip.stop.progress if trip.stop else 1.0,
+            tripped_goal=np.array(trip.goal_pose, float), tripped_direction=np.array(trip.direction, float),
+            blocked_directions=len(self.blocked))
 
     def message(self) -> str:
         """One line for the log and /diagnostics: armed with its limits, or the trip, its stop and the latch."""

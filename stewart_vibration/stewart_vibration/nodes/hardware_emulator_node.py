@@ -8,8 +8,9 @@ force N: the sensors -- encoders, unit sensors, load cells), platform/imu (senso
 (PoseStamped in `base`, the optical tracker's frames, stamped at capture), the truth for judging runs
 (no controller reads it): ground_truth/joint_states (as legs/joint_states, true strut lengths, unit
 displacements and axial forces), ground_truth/platform_pose (PoseStamped in `base`),
-vibration/status (diagnostic_msgs/DiagnosticStatus, reliable + transient local:
-what the vibration units really do, see emulation.vibration_status),
+vibration/status (stewart_vibration_interfaces/VibrationUnitsStatus, reliable + transient local:
+what the vibration units really do, see emulation.vibration_status), legs/trajectory_status
+(LegTrajectoryStatus: the answer to each leg trajectory),
 robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics; with a
 ``tissue_config`` also ground_truth/tissue_wrench (WrenchStamped in `base`, one per
 state: the soft-tissue wrench the emulator applies from that instant, force N
@@ -34,7 +35,6 @@ from typing import cast
 
 import mujoco
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
 from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock as RosClock
@@ -47,7 +47,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import Marker, MarkerArray
 
-from stewart_vibration_interfaces.msg import LegTrajectoryStatus
+from stewart_vibration_interfaces.msg import LegTrajectoryStatus, VibrationUnitsStatus
 
 from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_command_refusal
@@ -56,8 +56,6 @@ from ..emulation.emulator import HardwareEmulator
 from ..emulation.physics_guard import PhysicsFault
 from ..emulation.plant import load_plant_option
 from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
-from ..emulation.vibration_status import ERROR as STATUS_ERROR
-from ..emulation.vibration_status import WARN as STATUS_WARN
 from ..errors import RefusedError, StewartError
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_quaternion
@@ -82,6 +80,7 @@ from .common import (
     time_message,
 )
 from .outcomes import outcome, outcome_of
+from .status_messages import vibration_status_msg
 
 CLOCK_DEPTH = 100
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -89,7 +88,6 @@ STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events a
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
 # what the emulator waits for above real time: the force guard's input and kinematics' own output (one per state)
 PACED_BY = {"platform/external_wrench_estimate": WrenchStamped, "platform/pose_estimate": PoseStamped}
-LEVELS = {"ok": DiagnosticStatus.OK, STATUS_WARN: DiagnosticStatus.WARN, STATUS_ERROR: DiagnosticStatus.ERROR}
 STOP_WAIT_S = 3.0  # wall time the emulator waits at shutdown for the robot to brake to rest (the bring-up's grace: 5 s)
 
 
@@ -242,7 +240,7 @@ class HardwareEmulatorNode(LifecycleNode):
         # stalls longer than the history loses them
         self.clock_pub = self.create_publisher(Clock, "/clock", CLOCK_DEPTH)
         self.marker_pub = self.create_publisher(MarkerArray, "robot_markers", 5)
-        self.status_pub = self.create_publisher(DiagnosticStatus, "vibration/status", STATUS_QOS)
+        self.status_pub = self.create_publisher(VibrationUnitsStatus, "vibration/status", STATUS_QOS)
         self.tissue_pub = None
         if tissue is not None:
             self.tissue_pub = self.create_publisher(WrenchStamped, "ground_truth/tissue_wrench", STREAM_DEPTH)
@@ -487,11 +485,7 @@ class HardwareEmulatorNode(LifecycleNode):
 
     # -- vibration status -------------------------------------------------------------------
     def publish_status(self, report) -> None:
-        values = report.as_values()
-        msg = DiagnosticStatus(level=LEVELS[report.level], name="hardware_emulator: vibration",
-                               message=report.message, hardware_id="stewart_vibration",
-                               values=[KeyValue(key=k, value=v) for k, v in values.items()])
-        self.status_pub.publish(msg)
+        self.status_pub.publish(vibration_status_msg(report))
         self._status_sent = (report.state, report.event_seq, time.monotonic())
 
     def repeat_status(self) -> None:

@@ -5,14 +5,16 @@ Topics (relative): sub legs/joint_states (JointState), platform/external_wrench_
 guard's input), legs/trajectory_status (LegTrajectoryStatus: the robot's answer to each leg trajectory),
 vibration/status; pub legs/joint_trajectory (JointTrajectory, leg_* absolute lengths, m),
 platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per state with its stamp),
-kinematics/guard_status (diagnostic_msgs/DiagnosticStatus, reliable + transient local: the force
+kinematics/guard_status (stewart_vibration_interfaces/ForceGuardStatus, reliable + transient local: the force
 guard armed or tripped, with its limits, the trip's figures and the peak load since).
 Action kinematics/move_to_pose (MoveToPose): the goal is the target (frame base or empty, finite, a unit
 quaternion), a speed scale and the guard's limits for this move (a goal may only lower them); feedback at
 20 Hz (progress, time left, pose estimate, measured and predicted load, guard state); the result has the
 outcome code, the residual pose error, the peak load and the duration (motion.move_goal decides the end).
 Cancel = a controlled stop along the path (ForceGuard.cancel). A goal is refused with its code (BUSY while
-one runs or a move is under way, beyond ``target_rate_hz``: motion.target_gate).
+one runs or a move is under way, beyond ``target_rate_hz``: motion.target_gate). A goal that arrives while
+the struts move on their own (the way home after an e-stop reset, motion.strut_rest) waits for them to stop
+before it is planned (STRUTS_NOT_AT_REST if they do not within REST_WAIT_S).
 Services: kinematics/plan_path (PlanPath: a checked path through waypoints, nothing moves), kinematics/reset_guard
 (std_srvs/Trigger).
 Diagnostics on /diagnostics, with the state stream's health (received, lost,
@@ -44,7 +46,6 @@ import time
 from typing import cast
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped, Wrench, WrenchStamped
 from nav_msgs.msg import Path
 from rcl_interfaces.msg import SetParametersResult
@@ -58,12 +59,12 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration_interfaces.action import MoveToPose
-from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus
+from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import PlanPath
 
 from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import MAX_TRAJECTORY_POINTS
-from ..emulation.vibration_status import EMERGENCY_STOP, STRUT_STOPS
+from ..emulation.vibration_status import STRUT_STOP_CAUSES
 from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError
 from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.robot_config import load_robot
@@ -74,9 +75,11 @@ from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.guard_status import GUARD_STATES
 from ..motion.move_goal import MIN_SPEED_SCALE, MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
+from ..motion.strut_rest import StrutRest
 from ..motion.target_gate import TargetGate
 from .common import (
     BASE_FRAME,
@@ -102,9 +105,12 @@ from .common import (
 )
 from .move_messages import base_pose
 from .outcomes import outcome, outcome_name, outcome_of
+from .status_messages import guard_status_msg
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 FEEDBACK_PERIOD_S = 0.05  # wall time between a move goal's feedback messages (20 Hz)
+REST_WAIT_S = 60.0  # a goal waits this long (robot's clock) for struts moving on their own to stop
+REST_WAIT_WALL_S = 120.0  # ... and at most this long on the wall clock (no states: the robot is gone)
 GUARD_PARAMS = ("guard_force_n", "guard_moment_nm", "guard_deceleration_scale", "guard_max_estimate_age_s",
                 "guard_blind_travel_m")
 
@@ -188,6 +194,9 @@ class KinematicsNode(Node):
         self.malformed = MalformedInputs(self, self.diagnostics)
         self.target_gate = TargetGate(self.guard, target_rate)
         self.lengths = None  # latest leg_* (strut) lengths, m
+        self.rest = StrutRest()
+        self.rest_wait: tuple | None = None  # a goal waiting for the struts to stop: handle, Future, sim and wall
+        # deadlines (s)
         self.pose = None  # latest pose estimate
         self.fk_failures = 0
         self.health = StreamHealth()
@@ -209,7 +218,7 @@ class KinematicsNode(Node):
         # (seconds on a busy machine: a guarded move once ran to its target unwatched)
         self.create_subscription(WrenchStamped, "platform/external_wrench_estimate", self.wrench_batcher.add,
                                  STREAM_DEPTH, raw=True)
-        self.guard_pub = self.create_publisher(DiagnosticStatus, "kinematics/guard_status", STATUS_QOS)
+        self.guard_pub = self.create_publisher(ForceGuardStatus, "kinematics/guard_status", STATUS_QOS)
         self.sent_move: np.ndarray | None = None  # the final leg lengths of the last move sent (its key)
         self.sent_stop: tuple[np.ndarray, str, int] | None = None  # the last stop sent: lengths, by whom, attempt
         self.last_target: MoveRequest | None = None  # the move goal's request (resumed after a blind stop)
@@ -217,8 +226,9 @@ class KinematicsNode(Node):
         # start (s), duration (s)
         self.create_subscription(LegTrajectoryStatus, "legs/trajectory_status", self.on_trajectory_status, 50)
         # the emulator's own stops (e-stop, deactivate, shutdown, physics fault) end the move: never resumed
-        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_vibration_status, STATUS_QOS, raw=True)
-        self.robot_stop_seen: tuple | None = None  # (ramp_start, ramp_reason, fault) of the last stop acted on
+        self.create_subscription(VibrationUnitsStatus, "vibration/status", self.on_vibration_status, STATUS_QOS,
+                                 raw=True)
+        self.robot_stop_seen: tuple | None = None  # (ramp_start, ramp_cause, fault) of the last stop acted on
         self.create_service(Trigger, "kinematics/reset_guard", self.on_reset_guard)
         self.create_timer(FEEDBACK_PERIOD_S, self.publish_goal_feedback, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.action = ActionServer(self, MoveToPose, "kinematics/move_to_pose", execute_callback=self.execute,
@@ -226,6 +236,7 @@ class KinematicsNode(Node):
         self.add_on_set_parameters_callback(self.on_set_parameters)
         self.publish_guard_status()
         self.diagnostics.set(OK, "waiting for legs/joint_states")
+        self.waiting_for_states = True  # until the first state: then "tracking", unless a warning was set meanwhile
         self.get_logger().info(f"kinematics ready (robot {self.robot.source}, tissue "
                                f"{self.tissue.source if self.tissue else 'none'}; {self.guard.message()})")
 
@@ -285,6 +296,8 @@ class KinematicsNode(Node):
         self.health.done(arrivals[ok], time.monotonic())
         self.lengths, self.pose = legs[ok][-1], poses[-1]
         self.state_time = float(stamps[-1])
+        self.rest.observe(stamps[ok], legs[ok])
+        self.settle_rest_wait()
         self.guard.observe_states(stamps, legs)
         # estimates already queued here are newer news than their absence: after a stall of this node the
         # states are taken first, and judging the guard blind before reading them would stop for nothing
@@ -299,8 +312,10 @@ class KinematicsNode(Node):
             self.get_logger().error("force guard: the struts ran past the commanded stop still on the move (it did "
                                     f"not take); stopping again over {retry.duration:.2f} s")
             self.send_stop(retry, "guard")
-        if self.diagnostics.message == "waiting for legs/joint_states":
-            self.diagnostics.set(OK, "tracking")
+        if self.waiting_for_states:
+            self.waiting_for_states = False
+            if self.diagnostics.level == OK:
+                self.diagnostics.set(OK, "tracking")
         self.follow_goal()
 
     def report(self) -> None:
@@ -407,14 +422,14 @@ class KinematicsNode(Node):
         self.publish_guard_status()
 
     def on_vibration_status(self, data: bytes) -> None:
-        """The emulator's vibration/status (raw): a stop of the struts it made itself (STRUT_STOPS, or a latched
+        """The emulator's vibration/status (raw): a stop of the struts it made itself (STRUT_STOP_CAUSES, or a latched
         physics fault) ends kinematics' move -- the guard drops it and the target is not resumed after a pause;
         a new target is needed once the robot is back (reset). A malformed status is counted and ignored."""
         report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
         if report is None:
             return
-        stopped = report.fault or (report.ramp_start is not None and report.ramp_reason in STRUT_STOPS)
-        key = (report.ramp_start, report.ramp_reason, report.fault)
+        stopped = report.fault or (report.ramp_start is not None and report.ramp_cause in STRUT_STOP_CAUSES)
+        key = (report.ramp_start, report.ramp_cause, report.fault)
         if not stopped or key == self.robot_stop_seen:
             return
         self.robot_stop_seen = key
@@ -422,7 +437,7 @@ class KinematicsNode(Node):
         request, self.last_target = self.last_target, None
         why = f"physics fault: {report.fault}" if report.fault else report.ramp_reason
         if self.goal is not None:
-            name = "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED" if report.ramp_reason == EMERGENCY_STOP \
+            name = "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED" if report.ramp_cause == "emergency_stop" \
                 else "STOPPED_EARLY"
             self.goal["watch"].end(name, f"the robot stopped the move itself ({why})")
         if dropped or request is not None:
@@ -447,11 +462,7 @@ class KinematicsNode(Node):
         self.traj_pub.publish(msg)
 
     def publish_guard_status(self) -> None:
-        guard = self.guard
-        level = DiagnosticStatus.ERROR if guard.tripped else DiagnosticStatus.OK
-        self.guard_pub.publish(DiagnosticStatus(
-            level=level, name="kinematics: force guard", message=guard.message(), hardware_id="stewart_vibration",
-            values=[KeyValue(key=k, value=v) for k, v in guard.status_values().items()]))
+        self.guard_pub.publish(guard_status_msg(self.guard.status(), self.get_clock().now().to_msg()))
 
     def on_reset_guard(self, request, response):
         was = self.guard.reset()
@@ -485,7 +496,13 @@ class KinematicsNode(Node):
     async def execute(self, goal_handle):
         """One reduction move: refused with its outcome, or followed until it succeeds, is stopped or cancelled."""
         try:
-            self.begin_goal(goal_handle)
+            request = self.check_goal(goal_handle)
+            if self.pose is not None and not self.rest.at_rest():
+                await self.wait_for_rest(goal_handle)
+            if goal_handle.is_cancel_requested:
+                goal_handle.canceled()
+                return MoveToPose.Result(outcome=outcome("CANCELED", "cancelled before the move started"))
+            self.begin_goal(goal_handle, request)
         except Exception as exc:  # noqa: BLE001 - every refusal (and a defect) ends the goal with its code
             if isinstance(exc, StewartError):
                 name, reason = exc.outcome, str(exc)
@@ -515,18 +532,53 @@ class KinematicsNode(Node):
         self.get_logger().info(f"move goal ended {end.outcome}: {end.message}")
         return result
 
-    def begin_goal(self, goal_handle) -> None:
-        """Check a MoveToPose goal and send its move; RefusedError / StewartError with the outcome if not."""
-        if self.goal is not None:
+    def check_goal(self, goal_handle) -> MoveRequest:
+        """The MoveToPose goal's request, checked on its own (frame, values, the pose); RefusedError /
+        StewartError with the outcome if not (BUSY while another goal runs or waits)."""
+        if self.goal is not None or self.rest_wait is not None:
             raise RefusedError("BUSY", "another move goal is running: cancel it or wait for its result")
         request_msg = goal_handle.request
         target = base_pose(request_msg.target, "target pose")
         param = self.get_parameter
         request = move_request(target, request_msg.speed_scale, request_msg.force_limit_n, request_msg.moment_limit_nm,
                                param("speed_scale").value, self.guard.force_limit, self.guard.moment_limit)
+        check_pose(self.robot, target)
+        return request
+
+    async def wait_for_rest(self, goal_handle) -> None:
+        """Until the struts are at rest (motion.strut_rest), the goal is cancelled or REST_WAIT_S passed; raises
+        RefusedError STRUTS_NOT_AT_REST in the last case."""
+        done = Future()
+        self.rest_wait = (goal_handle, done, self.emulator_now() + REST_WAIT_S, time.monotonic() + REST_WAIT_WALL_S)
+        self.get_logger().info("move goal: the struts are still moving on their own; it starts once they stop")
+        try:
+            rested = await done
+        finally:
+            self.rest_wait = None
+        if rested is False:
+            speed = self.rest.speed()
+            drift = "" if speed is None else f" (the fastest drifts at {speed * 1e3:.3f} mm/s)"
+            raise RefusedError("STRUTS_NOT_AT_REST", f"the struts did not come to rest within {REST_WAIT_S:g} s"
+                               f"{drift}: a move is planned from rest; send it again once the robot has stopped")
+
+    def settle_rest_wait(self, ending: bool = False) -> None:
+        """End the wait of a goal for the struts: True at rest or cancelled, False past a deadline or ``ending``."""
+        if self.rest_wait is None:
+            return
+        handle, done, sim_deadline, wall_deadline = self.rest_wait
+        if done.done():
+            return
+        if self.rest.at_rest() or handle.is_cancel_requested:
+            done.set_result(True)
+        elif ending or self.emulator_now() > sim_deadline or time.monotonic() > wall_deadline:
+            done.set_result(False)
+
+    def begin_goal(self, goal_handle, request: MoveRequest) -> None:
+        """Send the checked move of a MoveToPose goal; RefusedError / StewartError with the outcome if not."""
         if self.pose is None:
-            check_pose(self.robot, target)  # the pose itself first: its own reason
             raise RefusedError("NOT_READY", "no legs/joint_states received yet (is the hardware emulator running?)")
+        param = self.get_parameter
+        target = request.target
         start_pose, now = self.pose.copy(), self.emulator_now()
         watch = MoveWatch(start_pose, target, param("goal_position_tolerance_m").value,
                           param("goal_angle_tolerance_rad").value, param("goal_time_s").value,
@@ -535,13 +587,16 @@ class KinematicsNode(Node):
         watch.moving(end)
         self.goal = {"handle": goal_handle, "done": Future(), "watch": watch, "request": request, "peak": [0.0, 0.0],
                      "start": now, "duration": 0.0}
+        # the first feedback goes out with the move, so a client sees one even for a move that ends within the
+        # feedback period
+        goal_handle.publish_feedback(self.feedback(watch, now))
 
     def on_cancel(self, goal_handle) -> CancelResponse:
         """Cancel = a controlled stop along the path within guard_deceleration_scale x strut_acceleration_max;
         the goal ends CANCELED once the struts are at rest (a goal whose move ends first ends at its end)."""
         goal = self.goal
         if goal is None or goal["handle"] is not goal_handle:
-            return CancelResponse.ACCEPT
+            return CancelResponse.ACCEPT  # a goal still waiting for the struts to stop ends at the next check
         self.last_target = None  # a paused move is not resumed
         now = self.emulator_now()
         watch = goal["watch"]
@@ -568,6 +623,7 @@ class KinematicsNode(Node):
 
     def publish_goal_feedback(self) -> None:
         """Every FEEDBACK_PERIOD_S of wall time while a goal runs: its end if it has ended, else its feedback."""
+        self.settle_rest_wait()
         self.follow_goal()
         goal = self.goal
         if goal is not None and self.pose is not None:
@@ -583,7 +639,7 @@ class KinematicsNode(Node):
         msg.measured_load.force.x, msg.measured_load.force.y, msg.measured_load.force.z = (float(v) for v in w[:3])
         msg.measured_load.torque.x, msg.measured_load.torque.y, msg.measured_load.torque.z = (float(v) for v in w[3:])
         msg.predicted_force_n, msg.predicted_moment_nm = self.guard.predicted
-        msg.guard_state = guard_state(self.guard)
+        msg.guard_state = GUARD_STATES.index(self.guard.status().state)
         return msg
 
     def finish_goal(self, end: MoveEnd) -> None:
@@ -598,6 +654,7 @@ class KinematicsNode(Node):
 
     def shutdown(self) -> None:
         """A goal still running ends SHUTDOWN (the robot finishes or holds what it was sent)."""
+        self.settle_rest_wait(ending=True)
         self.finish_goal(MoveEnd("SHUTDOWN", "kinematics is shutting down"))
 
     def move_to(self, request: MoveRequest) -> float:
@@ -728,14 +785,6 @@ class KinematicsNode(Node):
             duration += minimum_jerk_duration(lengths[0], lengths[1], speed, shortest)
             samples.extend(segment if i == 0 else segment[1:])
         return samples, duration
-
-
-def guard_state(guard: ForceGuard) -> int:
-    """The ForceGuardStatus state constant of ``guard``: TRIPPED, OFF (both limits 0) or ARMED."""
-    if guard.tripped:
-        return ForceGuardStatus.TRIPPED
-    force, moment = guard.limits()
-    return ForceGuardStatus.OFF if force <= 0 and moment <= 0 else ForceGuardStatus.ARMED
 
 
 def main(args=None) -> int:

@@ -23,13 +23,14 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import WrenchStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
+
+from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 from ..emulation.strut_trajectory import build_trajectory
 from ..errors import MalformedMessageError, StewartError
@@ -94,10 +95,11 @@ class LegForceEstimatorNode(Node):
         self.create_subscription(JointState, "legs/joint_states", self.batcher.add, STREAM_DEPTH, raw=True)
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 10, raw=True)
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
-        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
+        self.create_subscription(VibrationUnitsStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.create_timer(1.0, self.report, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("legs/joint_states", 1.0, "from hardware_emulator")
         self.diagnostics.set(OK, "waiting for legs/joint_states")
+        self.waiting_for_states = True  # until the first processed state: then "estimating" unless a warning came
         self.get_logger().info(f"leg force estimator ready (robot {self.robot.source})")
 
     def _malformed(self, error: MalformedMessageError, count: int = 1) -> None:
@@ -150,7 +152,7 @@ class LegForceEstimatorNode(Node):
         report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
         if report is None:
             return
-        self.estimator.apply_ramp(report.ramp_start, report.ramp_reason)
+        self.estimator.apply_ramp(report.ramp_start, report.ramp_reason, report.ramp_cause)
 
     # -- batches --------------------------------------------------------------------------
     def process(self, messages: list, arrivals: np.ndarray) -> None:
@@ -214,8 +216,10 @@ class LegForceEstimatorNode(Node):
         if self.health.behind:
             p99 = self.health.lag_percentiles_ms()[1]
             self.diagnostics.set(WARN, f"falling behind: {self.health.lost} states lost, lag p99 {p99:.1f} ms")
-        elif self.health.processed and self.diagnostics.message in ("waiting for legs/joint_states",):
-            self.diagnostics.set(OK, "estimating")  # a rejection (WARN) stays visible with its reason
+        elif self.health.processed and self.waiting_for_states:
+            self.waiting_for_states = False
+            if self.diagnostics.level == OK:  # a rejection (WARN) stays visible with its reason
+                self.diagnostics.set(OK, "estimating")
         self.diagnostics.publish()
 
 

@@ -6,10 +6,9 @@ from __future__ import annotations
 from stewart_vibration_interfaces.msg import Outcome
 
 from ..errors import StewartError
+from ..messages.outcome_codes import CODES, NAMES, outcome_name
 
-CODES = {name: getattr(Outcome, name) for name in dir(Outcome)
-         if name.isupper() and not name.startswith("_") and isinstance(getattr(Outcome, name), int)}
-NAMES = {code: name for name, code in CODES.items()}
+__all__ = ["CODES", "NAMES", "outcome", "outcome_name", "outcome_of"]
 
 
 def outcome(name: str, message: str = "") -> Outcome:
@@ -23,8 +22,3 @@ def outcome(name: str, message: str = "") -> Outcome:
 def outcome_of(exc: StewartError) -> Outcome:
     """The Outcome of a core error: its class's (or a RefusedError's own) outcome and its text."""
     return outcome(exc.outcome, str(exc))
-
-
-def outcome_name(code: int) -> str:
-    """The table's name of ``code`` ("code N" for a code outside the table)."""
-    return NAMES.get(code, f"code {code}")

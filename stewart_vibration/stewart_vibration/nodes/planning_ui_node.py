@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 from action_msgs.srv import CancelGoal
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.srv import DescribeParameters, GetParameters
 from rclpy.action import ActionClient
@@ -52,6 +52,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import PlanPath
 
 from ..errors import MalformedMessageError, StewartError
@@ -168,7 +169,7 @@ class PlanningUiNode(Node):
         self.move_client = ActionClient(self, MoveToPose, MOVE_ACTION)
         self.streams = []  # the 500 Hz subscriptions: only while a page is open or a move / vibration is followed
         self.unwatched_since = time.monotonic()
-        self.create_subscription(DiagnosticStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
+        self.create_subscription(VibrationUnitsStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
         self.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50, raw=True)
         self.clients_ = {
             "plan_path": self.create_client(PlanPath, "kinematics/plan_path"),
@@ -208,9 +209,9 @@ class PlanningUiNode(Node):
             return
         previous, self.vibration = self.vibration, report
         self.seen["vibration/status"] = time.monotonic()
-        if previous is not None and report.event_seq != previous.event_seq and report.event.startswith(
-                ("refused", "ramp to zero")):
-            self._event("hardware_emulator", f"vibration units: {report.event}", "WARN")
+        if previous is not None and report.event_seq != previous.event_seq and report.event in ("refused",
+                                                                                               "safety_ramp"):
+            self._event("hardware_emulator", f"vibration units: {report.event_text}", "WARN")
         if previous is not None and report.state != previous.state and report.state in ("estopped", "stopped"):
             self._event("hardware_emulator", f"vibration units {report.message}",
                         "ERROR" if report.state == "estopped" else "WARN")
@@ -407,7 +408,8 @@ class PlanningUiNode(Node):
             return None
         planner = self.node_status.get("vibration_planner: vibration planner", {})
         return {"state": r.state, "level": r.level, "reason": r.reason, "since_s": r.since, "time_s": r.time,
-                "amplitude_um": (r.amplitude * 1e6).tolist(), "event": r.event, "accepted": r.accepted,
+                "amplitude_um": (r.amplitude * 1e6).tolist(), "event": r.event_text,
+                "event_outcome": r.event_outcome, "accepted": r.accepted,
                 "refused": r.refused, "estopped": r.state == "estopped",
                 "planner": planner.get("values", {}).get("state"), "planner_message": planner.get("message"),
                 "delivered": self._delivered_view()}

@@ -11,7 +11,7 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, cast
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
@@ -23,16 +23,13 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+from stewart_vibration_interfaces.msg import ForceGuardStatus, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import StopRecording
 
 from ..messages.stamped import pose_from_cdr
-from ..messages.status_values import (
-    GuardStatus,
-    guard_status_from_cdr,
-    statuses_from_cdr,
-    vibration_report_from_cdr,
-)
+from ..messages.status_values import guard_status_from_cdr, statuses_from_cdr, vibration_report_from_cdr
 from ..motion.force_guard import LAG_MEMORY_S
+from ..motion.guard_status import GuardStatus
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
@@ -93,11 +90,11 @@ class SuiteClient:
         self.recorder_fault: str | None = None  # the recorder's write failure (its /diagnostics fault_reason)
         self.stopping = False  # set for the safe stop after a failure: waits then go on despite the fault
         self.recorder_ready_clock: float | None = None  # /clock when the recorder was seen recording the states
-        self.node.create_subscription(DiagnosticStatus, "vibration/status", self._on_vibration_status, STATUS_QOS,
+        self.node.create_subscription(VibrationUnitsStatus, "vibration/status", self._on_vibration_status, STATUS_QOS,
                                       raw=True)
         self.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diagnostics, 50, raw=True)
         self._guard: GuardStatus | None = None  # latest well-formed kinematics/guard_status
-        self.node.create_subscription(DiagnosticStatus, "kinematics/guard_status", self._on_guard_status, STATUS_QOS,
+        self.node.create_subscription(ForceGuardStatus, "kinematics/guard_status", self._on_guard_status, STATUS_QOS,
                                       raw=True)
         self._pose_subs: list[Subscription] = []  # the followed poses' subscriptions (follow_poses)
         self._raw_poses: dict[str, bytes] = {}  # topic -> its newest raw message while followed

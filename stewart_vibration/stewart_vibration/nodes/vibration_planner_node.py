@@ -10,7 +10,7 @@ the active time and the cycles delivered. Cancel = a ramp-out over ramp_s. One v
 while one runs ends at once with BUSY.
 
 Topics (relative): sub platform/pose_estimate (PoseStamped, base; while a vibration runs its last 128 are kept
-for the delivered figures, the legs' phases from the lengths they imply), vibration/status (DiagnosticStatus
+for the delivered figures, the legs' phases from the lengths they imply), vibration/status (VibrationUnitsStatus
 from the hardware emulator: what the units really do; a malformed one is counted on /diagnostics and ignored,
 see messages.status_values); pub vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m,
 velocities m/s, accelerations m/s^2; header.stamp = the vibration's common start time t0, time_from_start
@@ -29,7 +29,9 @@ t0 = the goal's arrival (sim clock, at least the fresh pose estimate's stamp) + 
 (wall seconds: scaled to sim seconds by the sim clock's rate when it runs faster than real time). The planner
 aborts -- stops streaming, says why on /diagnostics (ERROR for an e-stop, WARN otherwise), in its state and in
 the goal's outcome -- when the emulator refuses one of its windows (ROBOT_REFUSED), e-stops
-(EMERGENCY_STOPPED, PHYSICS_FAULT), reports the units stopped or idle before the planned end (STOPPED_EARLY),
+(EMERGENCY_STOPPED, PHYSICS_FAULT), reports the units stopped or idle before the planned end (STOPPED_EARLY, or
+the outcome of the robot's own safety ramp: ROBOT_INACTIVE for a deactivate, UNIT_TRAVEL_STOPPED for a unit's
+protection),
 or when it was itself held up past the buffered look-ahead (HELD_UP: the units have begun their ramp-out;
 judged on the first tick after the stall by the wall clock at the measured sim rate, since the sim clock is
 stale until the /clock sent meanwhile is taken).
@@ -42,7 +44,6 @@ from collections import deque
 from typing import cast
 
 import numpy as np
-from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import PoseStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
@@ -53,6 +54,7 @@ from rclpy.task import Future
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration_interfaces.action import Vibrate
+from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 from ..analysis.delivered import delivered_vibration
 from ..errors import MalformedMessageError, RefusedError, StewartError
@@ -128,7 +130,7 @@ class VibrationPlannerNode(Node):
         self._last_rate_sample = 0.0
         self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
-        self.create_subscription(DiagnosticStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
+        self.create_subscription(VibrationUnitsStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.action = ActionServer(self, Vibrate, "vibration_planner/vibrate", execute_callback=self.execute,
                                    goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
         self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
@@ -188,15 +190,17 @@ class VibrationPlannerNode(Node):
         t0 = self.run["t0"]
         new_event = report.event_seq != self.seen_event
         self.seen_event = report.event_seq
-        if new_event and report.event.startswith("refused") and report.event_stamp is not None \
+        if new_event and report.event == "refused" and report.event_stamp is not None \
                 and abs(report.event_stamp - t0) < 1e-6:
-            self.abort(f"the hardware emulator refused a window of this vibration ({report.event})", WARN,
-                       "ROBOT_REFUSED")
+            self.abort(f"the hardware emulator refused a window of this vibration ({report.event_outcome}: "
+                       f"{report.event_reason})", WARN, "ROBOT_REFUSED")
         elif report.state == "estopped":
             self.abort("emergency stop on the hardware emulator (call hardware_emulator/reset)", ERROR,
                        "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED")
         elif report.state == "stopped" and report.since >= t0:
-            self.abort(f"the vibration units stopped: {report.reason}", WARN, "STOPPED_EARLY")
+            # a safety ramp the robot made (deactivate, a unit's travel protection) names its outcome
+            self.abort(f"the vibration units stopped: {report.reason}", WARN,
+                       report.event_outcome if report.event == "safety_ramp" else "STOPPED_EARLY")
         elif report.state == "idle" and report.since > t0:
             end = cast(VibrationStream, self.stream).planned_end  # running or stopping: a stream is set
             if self.state == "running" and (end is None or report.since < t0 + end - 0.05):

@@ -13,7 +13,7 @@ from typing import Any, Protocol, cast
 
 import numpy as np
 
-from ..messages.status_values import GuardStatus
+from ..motion.guard_status import GuardStatus
 from .scenario import MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
@@ -134,7 +134,7 @@ class SuiteClient(Protocol):
         """Subscribe to the 500 Hz ground truth and pose estimates (``on``; only while a move settles) or stop."""
 
     def guard_status(self) -> GuardStatus | None:
-        """The latest well-formed kinematics/guard_status (messages.status_values.GuardStatus); None before one."""
+        """The latest well-formed kinematics/guard_status (motion.guard_status.GuardStatus); None before one."""
 
     def start_vibration(self, vibration: dict) -> VibrationStart:
         """Send the planner's vibrate goal of ``vibration`` (every key of VIBRATION_KEYS) and wait until it began
@@ -235,7 +235,7 @@ class ScenarioSteps:
         held = cast(np.ndarray, still.anchor)  # at rest: where it came to rest
         guard = client.guard_status()
         record = {"target": step.pose.tolist(), "time": client.clock,
-                  "guard": dict(guard.values) if guard is not None else {}, "stopped_pose": held.tolist(),
+                  "guard": guard.record() if guard is not None else {}, "stopped_pose": held.tolist(),
                   "short_of_target_m": float(np.linalg.norm(step.pose[:3] - held[:3])),
                   "peak_force_n": result.peak_force_n, "peak_moment_nm": result.peak_moment_nm}
         message = result.message
@@ -272,9 +272,9 @@ class ScenarioSteps:
                 return f"the planner ended the vibration ({ended.outcome}): {ended.message}"
             if report is not None and report.state in ("estopped", "stopped") and report.since >= t0 - 1e-6:
                 return f"the vibration units {report.message}"
-            if report is not None and report.event.startswith("refused") and report.event_stamp is not None and \
+            if report is not None and report.event == "refused" and report.event_stamp is not None and \
                     abs(report.event_stamp - t0) < 1e-6:
-                return f"the hardware emulator {report.event}"
+                return f"the hardware emulator {report.event_text}"
             return None
 
         def fail(reason: str):
