@@ -13,7 +13,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_v
 TOP = {"errors", "install", "input_checks", "safe_yaml", "config_values", "robot", "paper", "parallel", "splines",
        "rate_limit"}
 LAYERS = ["<top>", "kinematics", "vibration", "sim", "dynamics", "motion", "emulation", "estimation", "messages",
-          "mcap_log", "analysis", "runtime", "visualization", "ui"]
+          "mcap_log", "analysis", "runtime", "visualization", "ui", "parameters"]
 APPLICATIONS = {"nodes", "cli", "__init__", "__main__"}  # may use every layer
 ROS = ("rclpy", "launch", "launch_ros", "rcl_interfaces", "std_srvs", "geometry_msgs", "sensor_msgs",
        "stewart_vibration_interfaces", "action_msgs", "builtin_interfaces")

@@ -11,7 +11,6 @@ from stewart_vibration.paper import paper_pose
 from stewart_vibration.vibration.feasibility import check_command_limits
 from stewart_vibration.vibration.settings import (
     SETTINGS,
-    STREAM_KEYS,
     default_settings,
     duration_reason,
     parameters,
@@ -84,16 +83,3 @@ def test_each_settings_rule_refuses_just_beyond_its_boundary(robot, change, word
                                     {"sample_period_s": 0.1 / 35.0 * 0.999}, {"direction": [0.0, 1e-3, 0.0]}])
 def test_each_settings_rule_accepts_its_boundary(robot, change):
     assert settings_reason(robot, dict(default_settings(robot), **change)) is None
-
-
-def test_readme_documents_the_planner_defaults(robot):
-    """The README's parameter table gives the default of every parameter the planner declares (its streaming
-    timing; one source of truth: a default changed in the code and not in the README, or back, fails here)."""
-    import re
-    from pathlib import Path
-
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    (row,) = [line for line in readme.splitlines() if line.startswith("| vibration_planner | the streaming")]
-    documented = {name: float(value) for name, value in re.findall(r"`(\w+)` \((-?[0-9.]+(?:e-?[0-9]+)?)", row)}
-    declared = {name: spec.default for name, spec in parameters(robot).items() if name in STREAM_KEYS}
-    assert documented == pytest.approx(declared), (documented, declared)

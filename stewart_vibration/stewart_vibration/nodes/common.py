@@ -13,7 +13,7 @@ from builtin_interfaces.msg import Duration as DurationMsg
 from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import PoseStamped
-from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, ParameterType, SetParametersResult
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
@@ -29,6 +29,7 @@ from ..kinematics.rotations import (
 from ..messages.cdr import stamp_parts
 from ..messages.fields import BASE_FRAME, check_frame, check_time
 from ..messages.malformed import MalformedCounter
+from ..parameters.spec import ParameterSpec
 from ..rate_limit import RepeatedLine
 from ..robot import LEG_NAMES, VIB_NAMES
 from ..safe_yaml import load_yaml
@@ -186,64 +187,72 @@ def init_rclpy(args=None, prefix: str = "[FATAL] cannot start:") -> bool:
     return True
 
 
-def float_param(description: str, low: float, high: float, step: float = 0.0,
-                read_only: bool = False) -> ParameterDescriptor:
-    """Descriptor of a floating-point parameter with an inclusive range."""
-    return ParameterDescriptor(
-        description=description, read_only=read_only,
-        floating_point_range=[FloatingPointRange(from_value=float(low), to_value=float(high), step=float(step))],
-    )
+PARAMETER_TYPES = {"double": ParameterType.PARAMETER_DOUBLE, "integer": ParameterType.PARAMETER_INTEGER,
+                   "string": ParameterType.PARAMETER_STRING, "bool": ParameterType.PARAMETER_BOOL,
+                   "string_array": ParameterType.PARAMETER_STRING_ARRAY}
 
 
-def int_param(description: str, low: int, high: int, read_only: bool = False) -> ParameterDescriptor:
-    """Descriptor of an integer parameter with an inclusive range (step 1)."""
-    return ParameterDescriptor(
-        description=description, read_only=read_only,
-        integer_range=[IntegerRange(from_value=low, to_value=high, step=1)]
-    )
+def descriptor_of(spec: ParameterSpec) -> ParameterDescriptor:
+    """The rclpy descriptor of a parameter spec: its type, description (with the unit), read-only flag and
+    range (what ``ros2 param describe`` shows and rclpy enforces on a set)."""
+    description = f"{spec.description} [{spec.unit}]" if spec.unit else spec.description
+    descriptor = ParameterDescriptor(name=spec.name, type=PARAMETER_TYPES[spec.kind], description=description,
+                                     read_only=spec.read_only)
+    low, high = spec.bounds
+    if spec.kind == "double" and (spec.low is not None or spec.high is not None):
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(low), to_value=float(high), step=0.0)]
+    elif spec.kind == "integer":
+        descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high), step=1)]
+    return descriptor
 
 
-def declare_float(node, name: str, default: float, descriptor: ParameterDescriptor) -> float:
-    """Declare a double parameter with its range and return its value (the one way the nodes declare numbers).
+def declare_spec(node, spec: ParameterSpec):
+    """Declare one parameter from its spec and return its value.
 
-    An integer override (``-p rate:=0``, a params file with ``0``) is taken as the same number instead of
-    failing the parameter's type check; an override that is not a number, or one outside the descriptor's
-    range, fails with a reason that names the parameter (the node then exits with that line).
-
-    Args:
-        node: the rclpy node.
-        name: the parameter's name.
-        default: its value when nothing overrides it.
-        descriptor: from ``float_param`` (description, inclusive range, read-only or not).
-
-    Returns:
-        The parameter's value.
-
-    Raises:
-        ValueError: the override is not a number or lies outside the descriptor's range.
-    """
-    overrides = node._parameter_overrides  # rclpy's command-line / params-file values, before declaration
-    given = overrides.get(name)
-    if given is not None and given.type_ == Parameter.Type.INTEGER:
-        overrides[name] = Parameter(name, Parameter.Type.DOUBLE, float(given.value))
-    elif given is not None and given.type_ != Parameter.Type.DOUBLE:
-        raise ValueError(f"parameter {name!r} must be a number, got {given.value!r}")
-    value = float(overrides[name].value) if given is not None else float(default)
-    for bounds in descriptor.floating_point_range:
-        if not bounds.from_value <= value <= bounds.to_value:  # also refuses nan
-            raise ValueError(f"parameter {name!r} = {value:g} is outside [{bounds.from_value:g}, "
-                             f"{bounds.to_value:g}] ({descriptor.description})")
-    return node.declare_parameter(name, float(default), descriptor).value
+    The value given at start (``-p name:=value``, a params file) is read through rclpy's public API: a first,
+    dynamically typed declaration takes whatever was given; it is checked against the spec (an integer for a
+    double is that number) and then declared with the spec's descriptor, overrides ignored, so rclpy's own
+    type check never refuses a value the spec accepts. ValueError naming the parameter for a value of the
+    wrong kind or out of range (the node then exits with that line)."""
+    loose = ParameterDescriptor(description=spec.description, dynamic_typing=True)
+    given = node.declare_parameter(spec.name, spec.default, loose).value
+    node.undeclare_parameter(spec.name)
+    try:
+        value = spec.checked(given)
+    except InvalidInputError as exc:
+        raise ValueError(str(exc)) from None
+    if spec.kind == "string_array" and not value:
+        value = [""]  # rclpy cannot type an empty list; the nodes drop empty names
+    return node.declare_parameter(spec.name, value, descriptor_of(spec), ignore_override=True).value
 
 
-def declare_read_only(node, name: str, default, description: str):
-    """Declare a parameter read once at start (``read_only``: ``ros2 param set`` is refused); its value."""
-    return node.declare_parameter(name, default, ParameterDescriptor(description=description, read_only=True)).value
+def declare_table(node, specs) -> dict:
+    """Declare every parameter of a node's table (parameters.tables) and check every later set against the
+    same specs (an on-set callback: a refused value's reason names the parameter); an integer set on a double
+    (``ros2 param set ... real_time_factor 0``) is taken as that number (a pre-set callback). Returns
+    {name: value}."""
+    values = {spec.name: declare_spec(node, spec) for spec in specs}
+    by_name = {spec.name: spec for spec in specs}
+    doubles = {spec.name for spec in specs if spec.kind == "double"}
 
+    def integers_as_doubles(params) -> list:
+        return [Parameter(p.name, Parameter.Type.DOUBLE, float(p.value))
+                if p.name in doubles and p.type_ == Parameter.Type.INTEGER else p for p in params]
 
-def text_param(description: str, read_only: bool = False) -> ParameterDescriptor:
-    """Descriptor of a parameter without a range (strings, lists, bools): its description, read-only or not."""
-    return ParameterDescriptor(description=description, read_only=read_only)
+    def check_sets(params) -> SetParametersResult:
+        for param in params:
+            spec = by_name.get(param.name)
+            if spec is None:
+                continue
+            try:
+                spec.checked(param.value)
+            except InvalidInputError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    node.add_pre_set_parameters_callback(integers_as_doubles)
+    node.add_on_set_parameters_callback(check_sets)
+    return values
 
 
 class Diagnostics:
@@ -493,13 +502,12 @@ __all__ = [
     "RawBatcher",
     "duration_msg",
     "duration_seconds",
-    "declare_float",
-    "declare_read_only",
+    "declare_spec",
+    "declare_table",
+    "descriptor_of",
     "make_executor",
     "spin_until_stopped",
     "StopFlag",
-    "float_param",
-    "int_param",
     "named_values",
     "pose_from_msg",
     "pose_stamped",
@@ -507,5 +515,4 @@ __all__ = [
     "init_rclpy",
     "run_node",
     "stamp_seconds",
-    "text_param",
 ]

@@ -58,6 +58,7 @@ from ..messages import cdr
 from ..messages.cdr import header_stamp_ns
 from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
+from ..parameters.tables import FOXGLOVE_BRIDGE
 from ..visualization import scene as scene_model
 from ..visualization.foxglove_schemas import foxglove_entities, foxglove_timestamp, foxglove_transforms
 from .common import (
@@ -65,12 +66,8 @@ from .common import (
     VIB_NAMES,
     Diagnostics,
     MalformedInputs,
-    declare_float,
-    declare_read_only,
-    float_param,
-    int_param,
+    declare_table,
     run_node,
-    text_param,
 )
 from .mcap_recorder_node import SUITE_TOPICS
 from .ros_graph import message_class, offered_profile, rclpy_profile
@@ -106,14 +103,9 @@ class FoxgloveBridgeNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("foxglove_bridge", **kwargs)
-        port = self.declare_parameter("port", 8765, int_param(
-            "WebSocket port (0 = any free port; read at start)", 0, 65535, read_only=True)).value
-        host = self.declare_parameter("host", "127.0.0.1", text_param(
-            "address to listen on (127.0.0.1 = this machine only; read at start)", read_only=True)).value
-        rate = declare_float(self, "scene_rate_hz", 30.0, float_param(
-            "3D scene rate (Hz, wall time; 0 = no scene; read at start)", 0.0, 100.0, read_only=True))
-        names = [t for t in declare_read_only(self, "topics", [""], "topics to forward (empty = the suite's)") if t]
-        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
+        params = declare_table(self, FOXGLOVE_BRIDGE)
+        port, host, rate = params["port"], params["host"], params["scene_rate_hz"]
+        names = [t for t in params["topics"] if t]
         self.scene_builder = scene_model.SceneBuilder(load_robot(self.get_parameter("robot_config").value or None))
 
         self.diagnostics = Diagnostics(self, "foxglove bridge")

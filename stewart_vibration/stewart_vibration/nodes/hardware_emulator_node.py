@@ -36,7 +36,6 @@ from typing import cast
 import mujoco
 import numpy as np
 from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
-from rcl_interfaces.msg import ParameterDescriptor, SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -51,7 +50,7 @@ from stewart_vibration_interfaces.msg import LegTrajectoryStatus, VibrationUnits
 
 from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_command_refusal
-from ..emulation.consumer_pace import MAX_WAIT_S, ConsumerPace, paces_consumers
+from ..emulation.consumer_pace import ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator
 from ..emulation.physics_guard import PhysicsFault
 from ..emulation.plant import load_plant_option
@@ -61,8 +60,8 @@ from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
 from ..messages.fields import PLATFORM_FRAME
+from ..parameters.tables import HARDWARE_EMULATOR
 from ..robot import LEG_NAMES, VIB_NAMES
-from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
 from ..sim.mjcf import load_simulation_settings
 from .common import (
     BASE_FRAME,
@@ -72,11 +71,8 @@ from .common import (
     WARN,
     Diagnostics,
     MalformedInputs,
-    declare_float,
-    float_param,
-    int_param,
+    declare_table,
     run_node,
-    text_param,
     time_message,
 )
 from .outcomes import outcome, outcome_of
@@ -111,59 +107,9 @@ class HardwareEmulatorNode(LifecycleNode):
     the bring-up and the launch file set it false and drive the transitions themselves.
     """
 
-    LIVE = ("real_time_factor", "watchdog_s", "vibration_ramp_s", "max_lookahead_s", "max_consumer_lag_s", "lockstep")
-
     def __init__(self):
         super().__init__("hardware_emulator")
-        ro = True
-        self.declare_parameter("robot_config", "", text_param("robot YAML ('' = config/robot.yaml)", ro))
-        self.declare_parameter("simulation_config", "", text_param(
-            "simulation YAML ('' = config/simulation.yaml)", ro))
-        self.declare_parameter("tissue_config", "", text_param(
-            "soft-tissue YAML applied to the platform (e.g. tissue.yaml: a name is looked up in config/; '' = no "
-            "tissue; read at configure)", ro))
-        self.declare_parameter("plant_config", "", text_param(
-            "the robot as built: '' or 'ideal' = the drawing (robot.yaml), 'realistic' = "
-            "config/plant_realistic.yaml (resonant vibration units, strut servos on encoders, geometry errors, "
-            "sensor noise), or a plant YAML path (read at configure)", ro))
-        self.declare_parameter("plant_seed", -1, int_param(
-            "seed of the plant's drawn errors; -1 = the plant file's own (read at configure)", -1, 2**31 - 1,
-            read_only=ro))
-        self.declare_parameter("autostart", True, ParameterDescriptor(
-            description="configure and activate at start (false: wait for the lifecycle transitions)", read_only=ro))
-        declare_float(self, "physics_rate_hz", 2000.0, float_param(
-            "physics steps per simulated second (read at configure)", 200, 20000, read_only=ro))
-        declare_float(self, "state_rate_hz", 500.0, float_param(
-            "joint state / pose rate, sim time (read at configure)", 10, 5000, read_only=ro))
-        declare_float(self, "clock_rate_hz", 100.0, float_param(
-            "/clock rate, sim time; every sim-time node wakes for each tick (read at configure)", 10, 5000,
-            read_only=ro))
-        declare_float(self, "real_time_factor", 1.0, float_param(
-            "sim seconds per wall second; 0 = as fast as possible (live)", 0.0, REAL_TIME_FACTOR_MAX))
-        declare_float(self, "max_consumer_lag_s", 0.1, float_param(
-            "above real time (real_time_factor > 1 or 0), or in lockstep, physics waits while "
-            + " or ".join(PACED_BY) + f" lag more than this behind sim time (at most {MAX_WAIT_S:g} s per wait, then "
-            "runs on without the late node); at or below real time it waits only in lockstep; 0 = never, s (live)",
-            0.0, 10.0))
-        self.declare_parameter("lockstep", False, ParameterDescriptor(
-            description="wait for late consumers (max_consumer_lag_s) at any real_time_factor, real time too: a busy "
-                        "machine then slows sim time instead of leaving the estimates behind (live)"))
-        declare_float(self, "watchdog_s", 0.5, float_param(
-            "a vibration command that ends away from rest is ramped out this long after the last window, s (live)",
-            0.02, 10.0))
-        declare_float(self, "vibration_ramp_s", 0.05, float_param(
-            "shortest safety ramp-out of the vibration units (watchdog, e-stop, deactivate), s; longer where the "
-            "unit's velocity and acceleration limits need it (live)", 0.005, 0.1))
-        declare_float(self, "max_lookahead_s", 30.0, float_param(
-            "a vibration window may reach at most this far ahead of now, s (live)", 0.1, 600.0))
-        self.declare_parameter("drive_gain_interval", 10, int_param(
-            "state periods between refreshes of the strut servos' force-to-acceleration map (read at configure)",
-            1, 1000, read_only=ro))
-        declare_float(self, "pace_period_s", 0.02, float_param(
-            "wall time between wake-ups of the physics thread at real_time_factor > 0; the state periods in "
-            "between run back to back (read at configure)", 0.0, 0.1, read_only=ro))
-        declare_float(self, "marker_rate_hz", 10.0, float_param(
-            "MarkerArray rate, sim time; 0 = none (read at configure)", 0.0, 100.0, read_only=ro))
+        declare_table(self, HARDWARE_EMULATOR)
         self.real_time_factor = self.get_parameter("real_time_factor").value
         self.pace = ConsumerPace(self.get_parameter("max_consumer_lag_s").value)
         self.lockstep = bool(self.get_parameter("lockstep").value)
@@ -197,7 +143,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
         self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
         self.create_service(Trigger, "hardware_emulator/emergency_stop", self.on_emergency_stop)
-        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
         self.create_timer(STATUS_REPEAT_S, self.repeat_status, clock=RosClock(clock_type=ClockType.STEADY_TIME))
         if self.get_parameter("autostart").value:
             if self.trigger_configure() != TransitionCallbackReturn.SUCCESS:
@@ -328,8 +274,9 @@ class HardwareEmulatorNode(LifecycleNode):
         return None
 
     # -- parameters -------------------------------------------------------------------
-    def on_set_parameters(self, params) -> SetParametersResult:
-        """Live parameters take effect at once; read-only ones are refused by rclpy with the reason."""
+    def on_parameters_set(self, params) -> None:
+        """After a set (validated by the table's check; read-only ones refused by rclpy with the reason): live
+        parameters take effect at once."""
         with self.lock:
             for p in params:
                 if p.name == "max_consumer_lag_s":  # held by the node, not the emulator: also before configure
@@ -352,7 +299,6 @@ class HardwareEmulatorNode(LifecycleNode):
                     cast(HardwareEmulator, self.emulator).vibration.ramp_s = float(p.value)
                 elif p.name == "max_lookahead_s":
                     cast(HardwareEmulator, self.emulator).vibration.max_lookahead_s = float(p.value)
-        return SetParametersResult(successful=True)
 
     def _update_pacing(self, wanted: bool | None = None) -> None:
         """Subscribe to the consumers' outputs while physics paces itself by them (above real time, or in

@@ -48,7 +48,6 @@ from typing import cast
 import numpy as np
 from geometry_msgs.msg import PoseStamped, Wrench, WrenchStamped
 from nav_msgs.msg import Path
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -74,13 +73,14 @@ from ..messages import cdr
 from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
-from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S, RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
 from ..motion.guard_status import GUARD_STATES
-from ..motion.move_goal import MIN_SPEED_SCALE, MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
+from ..motion.move_goal import MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..motion.strut_rest import StrutRest
 from ..motion.target_gate import TargetGate
+from ..parameters.tables import KINEMATICS
 from .common import (
     BASE_FRAME,
     ERROR,
@@ -92,16 +92,13 @@ from .common import (
     JointColumns,
     MalformedInputs,
     RawBatcher,
-    declare_float,
+    declare_table,
     duration_msg,
     duration_seconds,
     emulator_now,
-    float_param,
-    int_param,
     pose_stamped,
     reject,
     run_node,
-    text_param,
 )
 from .move_messages import base_pose
 from .outcomes import outcome, outcome_name, outcome_of
@@ -133,53 +130,8 @@ class KinematicsNode(Node):
 
     def __init__(self):
         super().__init__("kinematics")
-        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
-        self.declare_parameter(
-            "trajectory_min_duration_s", 0.5, float_param("shortest point-to-point move, s", 0.05, 120.0)
-        )
-        self.declare_parameter(
-            "trajectory_sample_period_s", 0.02, float_param("spacing of trajectory points, s", 0.001, 1.0)
-        )
-        self.declare_parameter(
-            "speed_scale", 0.5, float_param("fraction of strut_velocity_max used by moves", MIN_SPEED_SCALE, 1.0)
-        )
-        period = declare_float(self, "batch_period_s", 0.02, float_param(
-            "queued states are solved at least this often (wall clock), s (read at start)", 0.001, 0.5,
-            read_only=True))
-        batch_size = self.declare_parameter("batch_size", 10, int_param(
-            "states solved together as soon as this many have queued (read at start)", 1, 1000,
-            read_only=True)).value
-        self.declare_parameter("tissue_config", "", text_param(
-            "soft-tissue YAML whose load targets and plan_path are checked against (strut_force_max_n; a name is "
-            "looked up in config/; '' = none; read at start)", True))
-        declare_float(self, "guard_force_n", 200.0, float_param(
-            "force guard: a move is stopped before the estimated external force exceeds this, N (0 = off; example "
-            "value, not a clinical limit; a change clears a trip)", 0.0, 5000.0))
-        declare_float(self, "guard_moment_nm", 15.0, float_param(
-            "force guard: likewise for the moment about the platform origin, N m (0 = off; example value; a change "
-            "clears a trip)", 0.0, 500.0))
-        declare_float(self, "guard_deceleration_scale", 0.8, float_param(
-            "force guard: fraction of strut_acceleration_max a stop may use", 0.1, 1.0))
-        declare_float(self, "guard_blind_travel_m", BLIND_TRAVEL_M, float_param(
-            "force guard: moves are slowed so that the struts cover at most this in the time the external-wrench "
-            "estimates lag behind the states (largest lag over the last 3 s), m (0 = never slowed)", 0.0, 0.05))
-        declare_float(self, "guard_max_estimate_age_s", MAX_ESTIMATE_AGE_S, float_param(
-            "force guard: a move pauses when the newest external-wrench estimate is this far behind the newest joint "
-            "state, s (the guard would be blind; 0 = off)", 0.0, 5.0))
-        target_rate = declare_float(self, "target_rate_hz", 5.0, float_param(
-            "move goals taken per second at most, in bursts of as many (wall clock; a goal while a move is "
-            "pending or under way is refused anyway; read at start)", 0.1, 100.0, read_only=True))
-        declare_float(self, "goal_position_tolerance_m", 1e-4, float_param(
-            "a move goal succeeds when its pose estimate comes this close to the target (translation), m",
-            1e-7, 0.01))
-        declare_float(self, "goal_angle_tolerance_rad", 1e-3, float_param(
-            "... and this close in rotation angle, rad", 1e-6, 0.1))
-        declare_float(self, "goal_time_s", 2.0, float_param(
-            "a move goal that is not within its tolerance this long after the move's planned end ends TIMEOUT, s "
-            "(robot's clock)", 0.0, 60.0))
-        declare_float(self, "pause_timeout_s", 30.0, float_param(
-            "a move goal paused for late external-wrench estimates longer than this ends TIMEOUT (the robot holds), "
-            "s (robot's clock)", 1.0, 600.0))
+        params = declare_table(self, KINEMATICS)
+        period, batch_size, target_rate = params["batch_period_s"], params["batch_size"], params["target_rate_hz"]
         path = self.get_parameter("robot_config").value
         self.robot = load_robot(path or None)
         self.tissue = load_tissue_option(self.get_parameter("tissue_config").value, self.robot)
@@ -233,7 +185,7 @@ class KinematicsNode(Node):
         self.create_timer(FEEDBACK_PERIOD_S, self.publish_goal_feedback, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.action = ActionServer(self, MoveToPose, "kinematics/move_to_pose", execute_callback=self.execute,
                                    goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
-        self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.on_parameters_set)
         self.publish_guard_status()
         self.diagnostics.set(OK, "waiting for legs/joint_states")
         self.waiting_for_states = True  # until the first state: then "tracking", unless a warning was set meanwhile
@@ -474,11 +426,12 @@ class KinematicsNode(Node):
         self.publish_guard_status()
         return response
 
-    def on_set_parameters(self, params) -> SetParametersResult:
-        """guard_* take effect at once; a changed limit clears a trip (the operator's decision)."""
+    def on_parameters_set(self, params) -> None:
+        """After a set (validated by the table's check): guard_* take effect at once; a changed limit clears a
+        trip (the operator's decision)."""
         values = {p.name: float(p.value) for p in params if p.name in GUARD_PARAMS}
         if not values:
-            return SetParametersResult(successful=True)
+            return
         if "guard_blind_travel_m" in values:
             self.guard.blind_travel = values["guard_blind_travel_m"]
         if "guard_max_estimate_age_s" in values:
@@ -490,7 +443,6 @@ class KinematicsNode(Node):
             self.get_logger().info("force guard: new limit, trip cleared")
             self.diagnostics.set(OK, "force guard: new limit, trip cleared")
         self.publish_guard_status()
-        return SetParametersResult(successful=True)
 
     # -- the move_to_pose action -------------------------------------------------------------
     async def execute(self, goal_handle):

@@ -40,6 +40,7 @@ from ..messages import cdr
 from ..messages.stamped import MAX_JOINT_POSITION_M, MAX_JOINT_SPEED_M_S, rows_within
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
+from ..parameters.tables import LEG_FORCE_ESTIMATOR
 from .common import (
     BASE_FRAME,
     LEG_NAMES,
@@ -51,13 +52,10 @@ from .common import (
     JointColumns,
     MalformedInputs,
     RawBatcher,
-    declare_float,
+    declare_table,
     emulator_now,
-    float_param,
-    int_param,
     reject,
     run_node,
-    text_param,
 )
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -68,15 +66,8 @@ class LegForceEstimatorNode(Node):
 
     def __init__(self):
         super().__init__("leg_force_estimator")
-        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
-        window = declare_float(self, "rms_window_s", 1.0, float_param(
-            "window of the running RMS force error, s (read at start)", 0.01, 60.0, read_only=True))
-        period = declare_float(self, "batch_period_s", 0.02, float_param(
-            "queued states are processed at least this often (wall clock), s (read at start)", 0.001, 0.5,
-            read_only=True))
-        batch_size = self.declare_parameter("batch_size", 10, int_param(
-            "states processed together as soon as this many have queued (read at start)", 1, 1000,
-            read_only=True)).value
+        params = declare_table(self, LEG_FORCE_ESTIMATOR)
+        window, period, batch_size = params["rms_window_s"], params["batch_period_s"], params["batch_size"]
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         self.estimator = ForceEstimator(self.robot, rms_window_s=window)
         self.diagnostics = Diagnostics(self, "leg force estimator")

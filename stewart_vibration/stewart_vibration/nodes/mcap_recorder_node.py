@@ -13,7 +13,7 @@ runs/latest pointing at it; else the bag folder: relative paths under the workin
 "run_{stamp}.mcap": a plain file name ending in .mcap whose only placeholders {stamp} (local time
 YYYYmmdd_HHMMSS), {node} and {index} (the file's number in the bag, from 1) are replaced as text),
 record_on_start (bool, true), topics (str[], empty = the topics of docs/interfaces.md relative to the namespace plus
-/clock, /diagnostics, /rosout), qos_depth (int, 3000), chunk_size (bytes, 262144), flush_period_s (s,
+/clock, /diagnostics, /rosout), qos_depth (int, 3000, 1..1000000), chunk_size (bytes, 262144), flush_period_s (s,
 0.5), discovery_period_s (s, 0.2). A bad output_dir or file_pattern is refused with the reason: at start
 (one line, exit code 2) and by ``ros2 param set``.
 Services: ~/start (StartRecording: a new file, optionally named; the outcome and the file's path), ~/stop
@@ -55,7 +55,7 @@ import sys
 import time
 from pathlib import Path
 
-from rcl_interfaces.msg import IntegerRange, ParameterDescriptor, SetParametersResult
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 
@@ -79,16 +79,14 @@ from ..mcap_log.writer import McapRunWriter
 from ..messages.fields import check_text
 from ..messages.status_values import MAX_PATH
 from ..messages.stream_health import SequenceGaps
+from ..parameters.tables import MCAP_RECORDER
 from ..runtime.run_folders import new_run_folder
 from .common import (
     ERROR,
     OK,
-    STREAM_DEPTH,
     WARN,
     Diagnostics,
-    declare_float,
-    declare_read_only,
-    float_param,
+    declare_table,
     run_node,
 )
 from .outcomes import outcome
@@ -125,21 +123,7 @@ class McapRecorderNode(Node):
         super().__init__("mcap_recorder", **kwargs)
         # output_dir, file_pattern, chunk_size and flush_period_s apply to the next file (live); the others
         # are read once at start (read-only: ros2 param set says so)
-        self.declare_parameter("output_dir", "", ParameterDescriptor(
-            description="bag folder of the next file ('' = a new runs/run_<stamp>/ under the working directory; "
-                        "relative: under the working directory, no '..'; absolute: an existing directory)"))
-        self.declare_parameter("file_pattern", "run_{stamp}.mcap", ParameterDescriptor(
-            description="name of the next file, ending in .mcap ({stamp}: local time, {node}, {index})"))
-        declare_read_only(self, "record_on_start", True, "open a file at start (else on ~/start)")
-        declare_read_only(self, "topics", [""], "topics to record (empty = the suite's)")
-        declare_read_only(self, "qos_depth", STREAM_DEPTH, "history depth of the recording subscriptions (6 s, 500 Hz)")
-        self.declare_parameter("chunk_size", 256 * 1024, ParameterDescriptor(
-            description="MCAP chunk size of the next file, bytes", integer_range=[
-                IntegerRange(from_value=1024, to_value=64 * 1024 * 1024, step=1)]))
-        declare_float(self, "flush_period_s", 0.5, float_param(
-            "a chunk is written at least this often (crash safety), s; next file", 0.01, 60.0))
-        declare_float(self, "discovery_period_s", 0.2, float_param(
-            "topic discovery period, s (read at start)", 0.01, 10.0, read_only=True))
+        declare_table(self, MCAP_RECORDER)
         self._cwd = Path.cwd()
         check_file_pattern(str(self.get_parameter("file_pattern").value))
         self._check_output_dir(str(self.get_parameter("output_dir").value))

@@ -41,7 +41,14 @@ from ..errors import StewartError
 from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
 from ..mcap_log.reader import open_run
 from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
-from .common import StopFlag, declare_float, declare_read_only, float_param, guard_sim_clock, init_rclpy, make_executor
+from ..parameters.tables import MCAP_REPLAY
+from .common import (
+    StopFlag,
+    declare_table,
+    guard_sim_clock,
+    init_rclpy,
+    make_executor,
+)
 from .ros_graph import message_class, rclpy_profile
 
 DEFAULT_CLOCK_RATE_HZ = 100.0
@@ -59,21 +66,13 @@ class McapReplayNode(Node):
 
     def __init__(self, **kwargs):
         super().__init__("mcap_replay", **kwargs)
-        path = declare_read_only(self, "path", "", "the .mcap (or run folder) to replay")
-        rate = declare_float(self, "rate", 1.0, float_param(
-            "replay speed: 2.0 = twice as fast", 1e-3, 1e3, read_only=True))
-        offset = declare_float(self, "start_offset_s", 0.0, float_param(
-            "skip this much of the run (s)", 0.0, 1e9, read_only=True))
-        self.loop = declare_read_only(self, "loop", False, "start again at the end")
-        self.publish_clock = declare_read_only(
-            self, "publish_clock", False, "publish /clock at clock_rate_hz (the recorded /clock is then not replayed)")
-        clock_rate = declare_float(self, "clock_rate_hz", DEFAULT_CLOCK_RATE_HZ, float_param(
-            "wall rate of the published /clock (0 = the recorded /clock's rate)", 0.0, 10_000.0, read_only=True))
-        include = [t for t in declare_read_only(self, "topics", [""], "topics to replay (empty = all)") if t]
-        exclude = [t for t in declare_read_only(self, "exclude_topics", [""], "topics not to replay") if t]
-        self.wait_s = declare_float(self, "wait_for_subscribers_s", 0.0, float_param(
-            "wait up to this long for subscribers before starting (s)", 0.0, 3600.0, read_only=True))
-        self.exit_when_done = declare_read_only(self, "exit_when_done", True, "exit after the last message")
+        params = declare_table(self, MCAP_REPLAY)
+        path, rate, offset = params["path"], params["rate"], params["start_offset_s"]
+        self.loop, self.publish_clock = params["loop"], params["publish_clock"]
+        clock_rate = params["clock_rate_hz"]
+        include = [t for t in params["topics"] if t]
+        exclude = [t for t in params["exclude_topics"] if t]
+        self.wait_s, self.exit_when_done = params["wait_for_subscribers_s"], params["exit_when_done"]
         if not path:
             raise ValueError("parameter 'path' (the .mcap or run folder to replay) is required")
         self.reader = open_run(path)

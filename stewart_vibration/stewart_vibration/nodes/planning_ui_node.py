@@ -66,6 +66,7 @@ from ..messages.status_values import (
     vibration_report_from_cdr,
 )
 from ..paper import paper_pose
+from ..parameters.tables import PLANNING_UI
 from ..robot import STANDARD_GRAVITY
 from ..ui import model
 from ..ui.server import UiServer, bind
@@ -75,13 +76,10 @@ from .common import (
     Diagnostics,
     JointColumns,
     MalformedInputs,
-    declare_float,
-    float_param,
-    int_param,
+    declare_table,
     pose_from_msg,
     pose_stamped,
     run_node,
-    text_param,
 )
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
@@ -108,23 +106,11 @@ class PlanningUiNode(Node):
 
     def __init__(self):
         super().__init__("planning_ui")
-        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
-        host = self.declare_parameter("host", "127.0.0.1", text_param(
-            "address the page is served on (127.0.0.1: this machine only; read at start)", True)).value
-        port = self.declare_parameter("port", 8080, int_param(
-            "TCP port of the page (0 = any free port; read at start)", 0, 65535, read_only=True)).value
-        self.frame_rate = declare_float(self, "frame_rate_hz", 10.0, float_param(
-            "live frames sent to the page per second (read at start)", 1.0, 30.0, read_only=True))
-        self.plot_rate = declare_float(self, "plot_rate_hz", 250.0, float_param(
-            "samples per second of the 500 Hz streams sent to the page (decimated; read at start)", 10.0, 500.0,
-            read_only=True))
-        self.stale_after = declare_float(self, "stale_after_s", 1.0, float_param(
-            "data older than this (wall s) is shown greyed as stale", 0.1, 60.0))
-        command_rate = declare_float(self, "command_rate_hz", 5.0, float_param(
-            "commands accepted per second from the pages, bursts of twice that (stop and e-stop are never "
-            "limited; read at start)", 0.1, 100.0, read_only=True))
-        keep = declare_float(self, "summary_buffer_s", 60.0, float_param(
-            "full-rate streams kept for the run summary, s (read at start)", 5.0, 600.0, read_only=True))
+        params = declare_table(self, PLANNING_UI)
+        host, port = params["host"], params["port"]
+        self.frame_rate, self.plot_rate = params["frame_rate_hz"], params["plot_rate_hz"]
+        self.stale_after, command_rate = params["stale_after_s"], params["command_rate_hz"]
+        keep = params["summary_buffer_s"]
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         if host not in ("127.0.0.1", "::1", "localhost"):
             self.get_logger().warning(f"serving on {host}: the page (and the robot) can be reached from other "

@@ -63,8 +63,9 @@ from ..kinematics.robot_config import load_robot
 from ..messages import cdr
 from ..messages.stamped import pose_from_cdr, poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
+from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
-from ..vibration.settings import STREAM_KEYS, default_settings, parameters, settings_reason, start_check, start_refusal
+from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
 from ..vibration.start_gate import check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
 from ..vibration.waveform import envelope, fade_out
@@ -75,11 +76,9 @@ from .common import (
     WARN,
     Diagnostics,
     MalformedInputs,
-    declare_float,
-    float_param,
+    declare_table,
     reject,
     run_node,
-    text_param,
 )
 from .outcomes import outcome
 from .vibration_goal import UNIT_STATES, goal_settings, plan_message
@@ -98,11 +97,8 @@ class VibrationPlannerNode(Node):
 
     def __init__(self):
         super().__init__("vibration_planner")
-        self.declare_parameter("robot_config", "", text_param("robot YAML path ('' = config/robot.yaml)", True))
+        declare_table(self, VIBRATION_PLANNER)
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
-        for name, spec in parameters(self.robot).items():
-            if name in STREAM_KEYS:
-                declare_float(self, name, spec.default, float_param(spec.description, spec.low, spec.high))
         self.add_on_set_parameters_callback(self.on_set_parameters)
         reason = settings_reason(self.robot, self.settings_with({}))
         if reason:

@@ -39,6 +39,24 @@ class Parameter:
     description: str
 
 
+# the streaming's timing: the planner node's own parameters (robot-independent; parameters.tables declares them)
+STREAM_PARAMETERS = {
+    "lookahead_s": Parameter(2.0, 0.05, 60.0, "vibration carried by each streamed window before its ramp-out "
+                             "tail, s"),
+    "window_period_s": Parameter(0.5, 0.01, 30.0, "period between streamed windows, s (< lookahead_s)"),
+    "sample_period_s": Parameter(0.001, 1e-4, 0.05, "sample spacing in a window, s"),
+    "lead_s": Parameter(0.3, 0.0, 2.0, "streamed windows start this far ahead of now, s of wall time (more "
+                        "sim seconds when the sim clock runs faster than real time)"),
+    "start_lead_s": Parameter(1.0, 0.0, 5.0, "the vibration starts (t0) this far after the start call, s of "
+                              "wall time (>= lead_s; more sim seconds when the sim clock runs faster than real "
+                              "time)"),
+    "max_lookahead_s": Parameter(5.0, 0.1, 30.0, "a finite vibration ending within this time is sent whole in "
+                                 "one window, s (the emulator accepts windows reaching up to 30 s ahead)"),
+    "pose_timeout_s": Parameter(1.0, 0.01, 60.0, "start needs a pose estimate received within this time, s "
+                                "of wall time"),
+}
+
+
 def parameters(robot: Robot) -> dict[str, Parameter]:
     """The planner's numeric settings with their defaults and declared ranges (the frequency range is the
     vibration unit's band of ``robot``).
@@ -60,19 +78,7 @@ def parameters(robot: Robot) -> dict[str, Parameter]:
         "duration_s": Parameter(0.0, 0.0, 86400.0, "vibration duration incl. ramps, s (0 = until stop; else "
                                 "at least two ramps)"),
         "ramp_s": Parameter(0.2, 0.01, 10.0, "ramp-in / ramp-out time, s"),
-        "lookahead_s": Parameter(2.0, 0.05, 60.0, "vibration carried by each streamed window before its ramp-out "
-                                 "tail, s"),
-        "window_period_s": Parameter(0.5, 0.01, 30.0, "period between streamed windows, s (< lookahead_s)"),
-        "sample_period_s": Parameter(0.001, 1e-4, 0.05, "sample spacing in a window, s"),
-        "lead_s": Parameter(0.3, 0.0, 2.0, "streamed windows start this far ahead of now, s of wall time (more "
-                            "sim seconds when the sim clock runs faster than real time)"),
-        "start_lead_s": Parameter(1.0, 0.0, 5.0, "the vibration starts (t0) this far after the start call, s of "
-                                  "wall time (>= lead_s; more sim seconds when the sim clock runs faster than real "
-                                  "time)"),
-        "max_lookahead_s": Parameter(5.0, 0.1, 30.0, "a finite vibration ending within this time is sent whole in "
-                                     "one window, s (the emulator accepts windows reaching up to 30 s ahead)"),
-        "pose_timeout_s": Parameter(1.0, 0.01, 60.0, "start needs a pose estimate received within this time, s "
-                                    "of wall time"),
+        **STREAM_PARAMETERS,
     }
 
 
