@@ -200,3 +200,40 @@ def test_estop_during_a_move_brings_the_struts_to_rest_within_the_acceleration_l
     mirrored = estimator.struts.sample(t)
     for ours, theirs in zip(mirrored, (p, v, a)):
         assert np.abs(ours - theirs).max() < 1e-12
+
+
+@pytest.mark.parametrize("plant", ["", "realistic"])
+def test_a_robot_built_again_within_a_run_goes_on_from_the_run_clock(robot, plant):
+    """start_time (a lifecycle cleanup + configure within a run): the same move and vibration, commanded
+    relative to now, give the same motion shifted in time -- nothing in the robot counts from 0."""
+    from stewart_vibration.emulation.plant import load_plant_option
+
+    settings = load_simulation_settings(timestep=1 / 2000)
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, paper_pose(robot))
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 40, duration, 40)
+    runs = []
+    built = load_plant_option(plant, robot, 1)
+    for t_start in (0.0, 123.456):
+        emu = HardwareEmulator(robot, settings, plant=built, start_time=t_start)
+        assert emu.time == t_start
+        emu.command_struts(LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))  # 0 = now
+        rows = []
+        while emu.time < t_start + duration + 0.1:
+            emu.advance(PERIOD)
+            rows.append(emu.joint_state()[1])
+        _, t0 = start_tibia_vibration(emu, robot, paper_pose(robot), duration_s=0.6)
+        assert t0 == pytest.approx(emu.time + 0.3)
+        while emu.time < t0 + 0.35:  # ramped in (0.2 s), before the ramp-out
+            emu.advance(PERIOD)
+            rows.append(emu.joint_state()[1])
+        assert emu.vibration_report()[0].state == "running" and emu.fault is None
+        runs.append(np.array(rows))
+    assert runs[0].shape == runs[1].shape
+    assert np.abs(runs[1][:, 6:]).max() > 1e-5  # the units did vibrate
+    if built is None:
+        assert np.abs(runs[1] - runs[0]).max() < 1e-9
+    else:  # the times' rounding may flip an encoder count at its boundary, and the servo then acts a count apart
+        step = built.sensors.encoder_quantization_m
+        assert np.abs(runs[1][:, :6] - runs[0][:, :6]).max() <= 1.01 * step
+        assert np.abs(runs[1][:, 6:] - runs[0][:, 6:]).max() < 1e-3 * np.abs(runs[0][:, 6:]).max()

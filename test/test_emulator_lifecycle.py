@@ -88,3 +88,47 @@ def test_bad_configuration_fails_the_configure_transition(ros_domain, tmp_path):
         assert not change(client, Transition.TRANSITION_CONFIGURE)
         assert state(client) == "unconfigured" and proc.alive()
         assert "configure failed" in proc.log_text()
+
+
+def set_parameter(client, name: str, value):
+    """The emulator's answer to a set_parameters request of one parameter (SetParametersResult)."""
+    from rcl_interfaces.srv import SetParameters
+    from rclpy.parameter import Parameter
+
+    request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
+    return client.call(SetParameters, "hardware_emulator/set_parameters", request).results[0]
+
+
+def last_diagnostic_value(diagnostics, key: str):
+    values = [kv.value for a in diagnostics for s in a.status if s.name.startswith("hardware_emulator")
+              for kv in s.values if kv.key == key]
+    return values[-1] if values else None
+
+
+def test_reconfigure_applies_a_parameter_read_at_configure_and_the_clock_goes_on(robot, ros_domain, tmp_path):
+    """cleanup -> set physics_rate_hz -> configure -> activate runs the new rate (a set while configured is
+    refused, saying how); sim time goes on from where it was: /clock never goes back within the run."""
+    with node_under_test("emulator", "stewart_vibration.nodes.hardware_emulator_node", ros_domain, tmp_path,
+                         ARGS) as (proc, client):
+        clock = client.subscribe("/clock", Clock, depth=100000)
+        diagnostics = client.subscribe("/diagnostics", DiagnosticArray)
+        assert set_parameter(client, "physics_rate_hz", 1500.0).successful  # unconfigured: taken
+        assert change(client, Transition.TRANSITION_CONFIGURE) and change(client, Transition.TRANSITION_ACTIVATE)
+        assert client.spin_until(lambda: clock and clock[-1].clock.sec >= 1, 30), proc.log_text()
+        assert client.spin_until(lambda: last_diagnostic_value(diagnostics, "physics_rate_hz") == "1500.0", 10)
+
+        refused = set_parameter(client, "physics_rate_hz", 1000.0)  # configured: refused with how to do it
+        assert not refused.successful and "read at configure" in refused.reason and "cleanup" in refused.reason
+        assert set_parameter(client, "watchdog_s", 0.4).successful  # a live one is taken
+        assert not set_parameter(client, "autostart", True).successful  # read at start: read only
+
+        assert change(client, Transition.TRANSITION_DEACTIVATE) and change(client, Transition.TRANSITION_CLEANUP)
+        before = clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9
+        assert set_parameter(client, "physics_rate_hz", 1000.0).successful
+        assert change(client, Transition.TRANSITION_CONFIGURE) and change(client, Transition.TRANSITION_ACTIVATE)
+        assert client.spin_until(lambda: last_diagnostic_value(diagnostics, "physics_rate_hz") == "1000.0", 10)
+        assert client.spin_until(lambda: clock[-1].clock.sec + clock[-1].clock.nanosec * 1e-9 > before + 1.0, 30)
+        times = np.array([c.clock.sec + c.clock.nanosec * 1e-9 for c in clock])
+        assert (np.diff(times) >= 0).all(), "the clock went back"
+        assert times[0] < 0.5 and before >= 1.0  # one run: it started near 0 and went on past the reconfigure
+        assert proc.alive()

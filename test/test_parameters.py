@@ -53,6 +53,9 @@ def test_a_spec_refuses_a_default_outside_its_own_range_and_a_range_on_a_string(
         ParameterSpec("x", "string", "", "x", "", 0.0, 1.0)
     with pytest.raises(ValueError, match="kind"):
         ParameterSpec("x", "float", 0.0, "x")
+    with pytest.raises(ValueError, match="not both"):
+        ParameterSpec("x", "double", 0.0, "x", read_only=True, at_configure=True)
+    assert ParameterSpec("x", "double", 0.0, "x", at_configure=True).settable == "while unconfigured"
 
 
 def test_every_table_names_each_parameter_once_with_a_description():

@@ -60,8 +60,8 @@ class HardwareEmulator:
 
     The commands and every safety rule live in ``safety``, a ``SafetyController`` (the robot's own safety
     layer); this class adds the physics: the MuJoCo model, the strut servos and the divergence detector
-    (``physics_guard``). Time is simulation time (s, starts at 0, never goes back). Commands take effect from
-    the next block.
+    (``physics_guard``). Time is simulation time (s, starts at ``start_time``, 0 unless the robot is built
+    again within a run, and never goes back). Commands take effect from the next block.
     """
 
     _refs: tuple[int, float, tuple[np.ndarray, ...]] | None
@@ -70,7 +70,8 @@ class HardwareEmulator:
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
                  vibration_ramp_s: float = 0.05, gain_interval: int = 10, max_lookahead_s: float = 30.0,
                  reference_horizon_s: float = 0.05, max_start_delay_s: float = MAX_START_DELAY_S,
-                 tissue: TissueModel | None = None, plant: Plant | None = None, sensor_rate_hz: float = 500.0):
+                 tissue: TissueModel | None = None, plant: Plant | None = None, sensor_rate_hz: float = 500.0,
+                 start_time: float = 0.0):
         self.robot = robot
         self.plant = plant if plant is not None and plant.kind == "realistic" else None
         physics = replace(settings, integrator=settings.emulator_integrator)
@@ -89,6 +90,9 @@ class HardwareEmulator:
                                     gain_interval, load_body=self._platform_body if tissue is not None else None)
         else:
             self._build_plant(self.plant, physics)
+        # a robot built again within a run (lifecycle cleanup + configure) goes on from the run's clock: sim time
+        # never goes back for the nodes, the logs and the replay
+        self.sim.data.time = float(start_time)
         self.guard = PhysicsGuard(self.sim.model, self.sim.data, self.sim.slide_qpos, self.sim.slide_dof)
         self.safety = SafetyController(robot, self.dt, watchdog_s, vibration_ramp_s, max_lookahead_s,
                                        max_start_delay_s)

@@ -36,6 +36,7 @@ from typing import cast
 import mujoco
 import numpy as np
 from geometry_msgs.msg import Point, PoseStamped, WrenchStamped
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
@@ -79,6 +80,7 @@ from .outcomes import outcome, outcome_of
 from .status_messages import vibration_status_msg
 
 CLOCK_DEPTH = 100
+AT_CONFIGURE = frozenset(spec.name for spec in HARDWARE_EMULATOR if spec.at_configure)
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events are published at once)
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
@@ -91,8 +93,10 @@ class HardwareEmulatorNode(LifecycleNode):
     """Thin adapter over stewart_vibration.emulation.HardwareEmulator, as a managed (lifecycle) node -- the
     interface a real hardware driver replaces it with:
 
-    - configure: read the robot and simulation configs, build the model (a bad config fails the transition
-      with the reason); create the publishers.
+    - configure: read the robot and simulation configs and the parameters read at configure (settable while
+      unconfigured, refused with the reason while configured), build the model (a bad config fails the
+      transition with the reason); create the publishers. Sim time goes on from where the last robot of this
+      node left it: /clock never goes back within a run.
     - activate: start the physics thread (and /clock); commands are accepted.
     - deactivate: the robot is brought to a safe stop -- the vibration ramps out and the struts brake to rest
       along their commanded path within their acceleration limit, physics and /clock go on -- and commands are
@@ -110,6 +114,8 @@ class HardwareEmulatorNode(LifecycleNode):
     def __init__(self):
         super().__init__("hardware_emulator")
         declare_table(self, HARDWARE_EMULATOR)
+        self.add_on_set_parameters_callback(self.refuse_configure_parameters_while_configured)
+        self.run_clock = 0.0  # sim time (s) a robot built again at configure starts from: the run's clock goes on
         self.real_time_factor = self.get_parameter("real_time_factor").value
         self.pace = ConsumerPace(self.get_parameter("max_consumer_lag_s").value)
         self.lockstep = bool(self.get_parameter("lockstep").value)
@@ -162,7 +168,8 @@ class HardwareEmulatorNode(LifecycleNode):
             plant = load_plant_option(param("plant_config").value, robot, seed if seed >= 0 else None)
             emulator = HardwareEmulator(robot, settings, param("watchdog_s").value, param("vibration_ramp_s").value,
                                         param("drive_gain_interval").value, param("max_lookahead_s").value,
-                                        tissue=tissue, plant=plant, sensor_rate_hz=param("state_rate_hz").value)
+                                        tissue=tissue, plant=plant, sensor_rate_hz=param("state_rate_hz").value,
+                                        start_time=self.run_clock)
         except (StewartError, ValueError, OSError) as exc:
             self.get_logger().error(f"configure failed: {type(exc).__name__}: {exc}")
             self.diagnostics.set(ERROR, f"configure failed: {exc}")
@@ -230,8 +237,9 @@ class HardwareEmulatorNode(LifecycleNode):
             if pub is not None:
                 self.destroy_publisher(pub)
         with self.lock:
+            self.run_clock = cast(HardwareEmulator, self.emulator).time
             self.emulator = None
-        self.diagnostics.set(WARN, "unconfigured (cleaned up)")
+        self.diagnostics.set(WARN, "unconfigured (cleaned up; a configure goes on from the run's clock)")
         return TransitionCallbackReturn.SUCCESS
 
     def on_shutdown(self, state: LifecycleState) -> TransitionCallbackReturn:
@@ -274,6 +282,16 @@ class HardwareEmulatorNode(LifecycleNode):
         return None
 
     # -- parameters -------------------------------------------------------------------
+    def refuse_configure_parameters_while_configured(self, params) -> SetParametersResult:
+        """A parameter read at configure is set while the node is unconfigured (applied at the next configure);
+        while it is configured the set is refused, saying how."""
+        late = [p.name for p in params if p.name in AT_CONFIGURE]
+        if late and self.emulator is not None:
+            return SetParametersResult(successful=False, reason=(
+                f"{', '.join(late)}: read at configure and the emulator is configured; deactivate and clean it up "
+                f"(ros2 lifecycle set {self.get_fully_qualified_name()} cleanup), set it, then configure again"))
+        return SetParametersResult(successful=True)
+
     def on_parameters_set(self, params) -> None:
         """After a set (validated by the table's check; read-only ones refused by rclpy with the reason): live
         parameters take effect at once."""

@@ -21,9 +21,10 @@ declared) by `python -m stewart_vibration.parameters.docs > docs/parameters.md`;
 Every node declares these with their type, range and description (`ros2 param describe` shows them) and
 validates every value against the same spec at start and on every `ros2 param set`: a value of the wrong
 type or outside its range is refused with a reason naming the parameter (an integer is accepted for a
-double, e.g. `-p real_time_factor:=0`). "read only" parameters are read once at start (the emulator's at
-configure): `ros2 param set` says so instead of silently ignoring a value. `config/suite_params.yaml`, the
-suite's parameter file, is checked against these tables by a test.
+double, e.g. `-p real_time_factor:=0`). "read only" parameters are read once at start: `ros2 param set` says
+so instead of silently ignoring a value. The hardware emulator's "while unconfigured" parameters are read at
+configure: set them after `cleanup` and before `configure` (a set while it is configured is refused, saying
+so). `config/suite_params.yaml`, the suite's parameter file, is checked against these tables by a test.
 """
 
 
@@ -50,7 +51,7 @@ def node_table(node: str, specs) -> str:
              "|---|---|---|---|---|---|---|"]
     for spec in specs:
         lines.append(f"| `{spec.name}` | {spec.kind} | `{_cell(spec.shown_default)}` | {range_text(spec)} | "
-                     f"{spec.unit} | {'read only' if spec.read_only else 'yes'} | {_cell(spec.description)} |")
+                     f"{spec.unit} | {spec.settable} | {_cell(spec.description)} |")
     return "\n".join(lines) + "\n"
 
 

@@ -20,8 +20,10 @@ INTEGER_LIMIT = 2**63 - 1  # a ROS integer parameter is an int64
 @dataclass(frozen=True)
 class ParameterSpec:
     """A node parameter: ``kind`` one of KINDS; ``low`` / ``high`` the inclusive range of a number (None: no
-    bound below / above); ``unit`` its SI unit ("" for none); ``read_only``: read once at start (or at
-    configure), ``ros2 param set`` is refused; ``description`` for people (``ros2 param describe``)."""
+    bound below / above); ``unit`` its SI unit ("" for none); ``read_only``: read once at start, ``ros2 param
+    set`` is refused; ``at_configure``: a lifecycle node's parameter read at configure, settable only while the
+    node is unconfigured (the node refuses a set otherwise, saying so); ``description`` for people (``ros2 param
+    describe``)."""
 
     name: str
     kind: str
@@ -31,12 +33,15 @@ class ParameterSpec:
     low: float | None = None
     high: float | None = None
     read_only: bool = False
+    at_configure: bool = False
 
     def __post_init__(self):
         if self.kind not in KINDS:
             raise ValueError(f"parameter {self.name!r}: kind {self.kind!r} is not one of {KINDS}")
         if self.kind not in ("double", "integer") and (self.low is not None or self.high is not None):
             raise ValueError(f"parameter {self.name!r}: only numbers have a range")
+        if self.read_only and self.at_configure:
+            raise ValueError(f"parameter {self.name!r}: read at start or at configure, not both")
         self.checked(self.default)  # a table whose default is outside its own range fails at import
 
     @property
@@ -76,6 +81,11 @@ class ParameterSpec:
             raise InvalidInputError(f"parameter {self.name!r} = {value:g} is outside [{low:g}, {high:g}]"
                                     f"{f' {self.unit}' if self.unit else ''} ({self.description})")
         return value
+
+    @property
+    def settable(self) -> str:
+        """When a set is taken: "yes" (while the node runs), "read only" or "while unconfigured"."""
+        return "read only" if self.read_only else "while unconfigured" if self.at_configure else "yes"
 
     @property
     def shown_default(self) -> str:

@@ -2,7 +2,8 @@
 them (nodes.common.declare_table), docs/parameters.md is generated (parameters.docs) and
 config/suite_params.yaml is checked (its tests).
 
-Units are SI; "read at start" / "read at configure" parameters are read only.
+Units are SI; "read at start" parameters are read only, the emulator's "read at configure" ones settable while
+it is unconfigured.
 """
 
 from __future__ import annotations
@@ -24,23 +25,24 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
     P(name, "double", p.default, p.description, "s", p.low, p.high) for name, p in STREAM_PARAMETERS.items())
 
 HARDWARE_EMULATOR = (
-    P("robot_config", "string", "", "robot YAML ('' = config/robot.yaml)", read_only=True),
-    P("simulation_config", "string", "", "simulation YAML ('' = config/simulation.yaml)", read_only=True),
+    P("robot_config", "string", "", "robot YAML ('' = config/robot.yaml; read at configure)", at_configure=True),
+    P("simulation_config", "string", "", "simulation YAML ('' = config/simulation.yaml; read at configure)",
+      at_configure=True),
     P("tissue_config", "string", "", "soft-tissue YAML applied to the platform (e.g. tissue.yaml: a name is looked "
-      "up in config/; '' = no tissue; read at configure)", read_only=True),
+      "up in config/; '' = no tissue; read at configure)", at_configure=True),
     P("plant_config", "string", "", "the robot as built: '' or 'ideal' = the drawing (robot.yaml), 'realistic' = "
       "config/plant_realistic.yaml (resonant vibration units, strut servos on encoders, geometry errors, sensor "
-      "noise), or a plant YAML path (read at configure)", read_only=True),
+      "noise), or a plant YAML path (read at configure)", at_configure=True),
     P("plant_seed", "integer", -1, "seed of the plant's drawn errors; -1 = the plant file's own (read at configure)",
-      "", -1, 2**31 - 1, read_only=True),
+      "", -1, 2**31 - 1, at_configure=True),
     P("autostart", "bool", True, "configure and activate at start (false: wait for the lifecycle transitions)",
       read_only=True),
     P("physics_rate_hz", "double", 2000.0, "physics steps per simulated second (read at configure)", "Hz", 200,
-      20000, read_only=True),
+      20000, at_configure=True),
     P("state_rate_hz", "double", 500.0, "joint state / pose rate, sim time (read at configure)", "Hz", 10, 5000,
-      read_only=True),
+      at_configure=True),
     P("clock_rate_hz", "double", 100.0, "/clock rate, sim time; every sim-time node wakes for each tick (read at "
-      "configure)", "Hz", 10, 5000, read_only=True),
+      "configure)", "Hz", 10, 5000, at_configure=True),
     P("real_time_factor", "double", 1.0, "sim seconds per wall second; 0 = as fast as possible (live)", "", 0.0,
       REAL_TIME_FACTOR_MAX),
     P("max_consumer_lag_s", "double", 0.1, "above real time (real_time_factor > 1 or 0), or in lockstep, physics "
@@ -56,11 +58,11 @@ HARDWARE_EMULATOR = (
     P("max_lookahead_s", "double", 30.0, "a vibration window may reach at most this far ahead of now (live)", "s",
       0.1, 600.0),
     P("drive_gain_interval", "integer", 10, "state periods between refreshes of the strut servos' "
-      "force-to-acceleration map (read at configure)", "", 1, 1000, read_only=True),
+      "force-to-acceleration map (read at configure)", "", 1, 1000, at_configure=True),
     P("pace_period_s", "double", 0.02, "wall time between wake-ups of the physics thread at real_time_factor > 0; "
-      "the state periods in between run back to back (read at configure)", "s", 0.0, 0.1, read_only=True),
+      "the state periods in between run back to back (read at configure)", "s", 0.0, 0.1, at_configure=True),
     P("marker_rate_hz", "double", 10.0, "MarkerArray rate, sim time; 0 = none (read at configure)", "Hz", 0.0, 100.0,
-      read_only=True),
+      at_configure=True),
 )
 
 KINEMATICS = (
