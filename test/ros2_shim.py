@@ -9,7 +9,7 @@ It implements the verbs the README uses, with ros2cli's arguments and output sha
   ros2 param set NODE NAME VALUE            VALUE parsed as YAML, as ros2cli does ("0.3" double, "[..]" array)
   ros2 action send_goal [-f] ACTION TYPE YAML  sends the goal, prints the feedback (-f / --feedback), the
                                             result and ``Goal finished with status: ...``; Ctrl-C cancels it
-  ros2 run PACKAGE EXECUTABLE [ARGS...]     executes <prefix>/lib/PACKAGE/EXECUTABLE from AMENT_PREFIX_PATH
+  ros2 run PACKAGE EXECUTABLE [ARGS...]     executes <prefix>/lib/PACKAGE/EXECUTABLE, prefix from the ament index
 
 Stricter than ros2cli in one way: a refused ``param set``, an unsuccessful Trigger or a goal that did not
 succeed exits 1, so a test sees it. Sturdier in one: a query (``param set``, ``get_state``, ...) whose answer
@@ -214,12 +214,19 @@ def action_send_goal(node, args: list[str]) -> int:
 
 
 def run(args: list[str]) -> int:
+    """As ros2cli's run verb: the package's prefix from the ament index (not any prefix that happens to hold
+    the file), then its lib/<package>/<executable>."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
     package, executable, rest = args[0], args[1], args[2:]
-    for prefix in filter(None, os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)):
-        path = Path(prefix) / "lib" / package / executable
-        if path.is_file() and os.access(path, os.X_OK):
-            os.execv(str(path), [str(path), *rest])
-    raise SystemExit(f"No executable found: {package} {executable}")
+    try:
+        prefix = get_package_prefix(package)
+    except PackageNotFoundError:
+        raise SystemExit(f"Package '{package}' not found") from None
+    path = Path(prefix) / "lib" / package / executable
+    if path.is_file() and os.access(path, os.X_OK):
+        os.execv(str(path), [str(path), *rest])
+    raise SystemExit("No executable found")
 
 
 VERBS = {("topic", "pub"): topic_pub, ("topic", "echo"): topic_echo, ("service", "call"): service_call,

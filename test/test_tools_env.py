@@ -67,3 +67,31 @@ print('goal', Vibrate.Goal().frame == '', MoveToPose.Result().outcome.code == Mo
     share = next(x for x in out.stdout.splitlines() if x.startswith("share "))
     assert (Path(share.split(" ", 1)[1]) / "action" / "Vibrate.action").is_file()
     assert "goal True True" in out.stdout
+
+
+def test_the_venv_registers_the_package_as_ros2_run_and_launch_look_it_up():
+    """After `source tools/env.sh` the ament index knows stewart_vibration (the lookup ros2cli's run, pkg and
+    launch verbs do): its prefix holds lib/stewart_vibration/<node executables> and its share folder the
+    package.xml, the launch file and the config; the test shim's `ros2 run` goes through the same lookup and
+    says "Package ... not found" like ros2cli for a package the index does not know."""
+    script = f"""
+    source "{REPO}/tools/env.sh" >/dev/null 2>&1 || exit 3
+    python -c "
+from ament_index_python.packages import get_package_prefix, get_package_share_directory
+print('prefix', get_package_prefix('stewart_vibration'))
+print('share', get_package_share_directory('stewart_vibration'))
+"
+    python "{REPO}/test/ros2_shim.py" run no_such_package some_node; echo "status=$?"
+    python "{REPO}/test/ros2_shim.py" run stewart_vibration stewart-vibration --help | head -1
+    """
+    out = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600)
+    lines = out.stdout.splitlines()
+    prefix = Path(next(x for x in lines if x.startswith("prefix ")).split(" ", 1)[1])
+    share = Path(next(x for x in lines if x.startswith("share ")).split(" ", 1)[1])
+    for exe in ("hardware_emulator_node", "kinematics_node", "vibration_planner_node", "leg_force_estimator_node",
+                "mcap_recorder", "mcap_replay", "planning_ui", "foxglove_bridge"):
+        assert (prefix / "lib" / "stewart_vibration" / exe).is_file(), exe
+    assert (share / "package.xml").is_file() and (share / "launch" / "stewart_vibration.launch.py").is_file()
+    assert (share / "config" / "suite_params.yaml").is_file()
+    assert "Package 'no_such_package' not found" in out.stderr and "status=1" in out.stdout
+    assert any(x.startswith("usage: stewart-vibration") for x in lines), out.stdout + out.stderr

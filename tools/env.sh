@@ -42,6 +42,21 @@ _stewart_interfaces() {
     echo "$want" > "$stamp"
   ) 9>"$venv/.interfaces.lock"
 }
+# The package's ament index entry in the venv, as colcon gives it on a ROS install: the index marker, and
+# share/stewart_vibration/{package.xml,launch,config} linked to the checkout (the editable install puts the
+# executables in lib/stewart_vibration already), so `ros2 run`, `ros2 pkg` and `ros2 launch` of a real
+# ros2cli find the package.
+_stewart_ament_entry() {
+  local repo="$1" venv="$2" share="$2/share/stewart_vibration" marker
+  marker="$venv/share/ament_index/resource_index/packages/stewart_vibration"
+  # a checkout that borrows another one's venv leaves that venv's entry pointing at its owner
+  if [ "${STEWART_VENV_NO_INSTALL:-0}" = 1 ] && [ -f "$marker" ]; then return 0; fi
+  mkdir -p "$(dirname "$marker")" "$share" || return 1
+  : > "$marker"
+  ln -sfn "$repo/stewart_vibration/package.xml" "$share/package.xml" &&
+    ln -sfn "$repo/stewart_vibration/launch" "$share/launch" &&
+    ln -sfn "$repo/stewart_vibration/config" "$share/config"
+}
 _stewart_env() {
   local repo venv py stamp want
   repo="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)" || return 1
@@ -70,6 +85,7 @@ _stewart_env() {
     echo "$want" > "$stamp"
   fi
   _stewart_interfaces "$repo" "$venv" || return 1
+  _stewart_ament_entry "$repo" "$venv" || return 1
   REPO="$repo"
   # setup.cfg puts executables in lib/stewart_vibration (the ros2 run layout).
   export PATH="$venv/lib/stewart_vibration:$venv/bin:$PATH"
