@@ -24,6 +24,7 @@ SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.paper_cmd",
     "stewart_vibration.cli.validate_dynamics_cmd",
     "stewart_vibration.cli.mcap_recover_cmd",
+    "stewart_vibration.cli.topic_rate_cmd",
 ]
 
 
