@@ -52,6 +52,7 @@ KINDS = [  # (kind, pattern on the line without its comment)
     ("ros2", r"ros2 (topic|service|param|action) "),
     ("colcon", r"colcon build "),
     ("pip", r"pip install "),
+    ("suite_cli", r"stewart-vibration topic-rate "),  # needs the running suite: run with the UI commands
     ("cli", r"stewart-vibration "),
     ("python", r"python -m "),
 ]
