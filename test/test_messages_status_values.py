@@ -285,6 +285,17 @@ def test_each_out_of_range_vibration_field_is_named(field, value):
     assert info.value.field == field, info.value
 
 
+def test_an_inactive_robot_reads_back_inactive_and_a_bool_that_is_no_bool_is_refused():
+    data = serialize_message(vibration_status_msg(REPORTS[0], active=False))
+    assert vibration_report_from_cdr(data).active is False
+    live = serialize_message(vibration_status_msg(REPORTS[0], active=True))
+    (where,) = [i for i, (a, b) in enumerate(zip(data, live)) if a != b]  # the one byte of `active`
+    assert vibration_report_from_cdr(live).active is True
+    with pytest.raises(MalformedMessageError) as info:
+        vibration_report_from_cdr(live[:where] + bytes([2]) + live[where + 1:])
+    assert info.value.field == "active"
+
+
 def test_nan_times_are_none_and_no_ramp_is_minus_inf():
     report = vibration_report_from_cdr(serialize_message(vibration_status_msg(REPORTS[0])))
     assert (report.commanded_until, report.ramp_start, report.event_stamp, report.event_time) == (

@@ -25,6 +25,7 @@ def test_a_ready_robot_may_start():
     assert refusal(planner_state="aborted: the units stopped") is None  # an abort latches nothing
     assert refusal(units_state=None, robot_time_s=None) is None  # no status yet: the emulator checks the window
     assert refusal(units_state="running", status_age_s=5.0) is None  # a stale status says nothing about now
+    assert refusal(robot_active=False, status_age_s=5.0) is None
 
 
 @pytest.mark.parametrize("change, outcome", [
@@ -34,6 +35,7 @@ def test_a_ready_robot_may_start():
     ({"units_state": "estopped", "status_age_s": 60.0}, "ESTOP_LATCHED"),  # a latch holds however old its word
     ({"units_state": "ramping_out"}, "UNITS_NOT_AT_REST"),
     ({"units_state": "pending"}, "UNITS_NOT_AT_REST"),
+    ({"robot_active": False}, "ROBOT_INACTIVE"),  # the emulator deactivated (lifecycle): it refuses commands
     ({"now_s": 0.0}, "CLOCK_NOT_RUNNING"),
     ({"now_s": 1.8e9}, "CLOCK_MISMATCH"),  # a planner on the wall clock beside a robot on sim time
     ({"pose_age_s": None}, "NOT_READY"),

@@ -61,6 +61,7 @@ class VibrationReport:
     accepted: int = 0
     refused: int = 0
     fault: str = ""  # a latched physics fault's reason ("" if none)
+    active: bool = True  # the robot takes commands (the node's lifecycle state: active)
 
     @property
     def message(self) -> str:

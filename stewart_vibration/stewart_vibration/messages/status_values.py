@@ -248,12 +248,16 @@ def _vibration_report(r: CdrReader) -> VibrationReport:
     event_time = _time(r.f64(), "event_time_s", nan=None)
     accepted, refused = r.u32(), r.u32()
     fault = check_text(r.string(), "fault")
+    active = r.u8()
+    if active > 1:
+        raise MalformedMessageError(f"active {active} is not a bool", field="active", kind="range")
     r.end()
     return VibrationReport(
         state=state, level=level, reason=reason, since=since, time=sec + nanosec * 1e-9, amplitude=amplitude,
         commanded_until=commanded_until, ramp_start=ramp_start, ramp_reason=ramp_reason, ramp_cause=ramp_cause,
         event_seq=event_seq, event=event, event_outcome=event_outcome, event_reason=event_reason if event else "",
-        event_stamp=event_stamp, event_time=event_time, accepted=accepted, refused=refused, fault=fault)
+        event_stamp=event_stamp, event_time=event_time, accepted=accepted, refused=refused, fault=fault,
+        active=bool(active))
 
 
 # -- /diagnostics of the suite's nodes ----------------------------------------------------------------------

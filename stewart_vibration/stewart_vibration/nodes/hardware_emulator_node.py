@@ -215,6 +215,7 @@ class HardwareEmulatorNode(LifecycleNode):
             self.thread = threading.Thread(target=self.physics_loop, name="physics", daemon=True)
             self.thread.start()
         self.active = True
+        self.publish_status(cast(HardwareEmulator, self.emulator).status.report)  # says at once it takes commands
         self.diagnostics.set(OK, "running")
         self.get_logger().info("active: physics running, commands accepted")
         return super().on_activate(state)
@@ -223,6 +224,8 @@ class HardwareEmulatorNode(LifecycleNode):
         with self.lock:  # the emulator exists: deactivate comes only from active (configured)
             self.active = False
             cast(HardwareEmulator, self.emulator).halt(DEACTIVATED)
+            report = cast(HardwareEmulator, self.emulator).status.report
+        self.publish_status(report)  # says at once it refuses commands
         self.diagnostics.set(self._level(WARN), self._message(
             "inactive: robot stopped safely (vibration ramped out, struts braked to rest within their acceleration "
             "limit, then held); commands refused"))
@@ -449,7 +452,7 @@ class HardwareEmulatorNode(LifecycleNode):
 
     # -- vibration status -------------------------------------------------------------------
     def publish_status(self, report) -> None:
-        self.status_pub.publish(vibration_status_msg(report))
+        self.status_pub.publish(vibration_status_msg(report, self.active))
         self._status_sent = (report.state, report.event_seq, time.monotonic())
 
     def repeat_status(self) -> None:

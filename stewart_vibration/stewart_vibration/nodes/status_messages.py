@@ -20,15 +20,17 @@ def _time_or_nan(value: float | None) -> float:
     return math.nan if value is None else float(value)
 
 
-def vibration_status_msg(report: VibrationReport) -> VibrationUnitsStatus:
-    """The VibrationUnitsStatus of ``report`` (stamped with its time, s of the robot's clock)."""
+def vibration_status_msg(report: VibrationReport, active: bool = True) -> VibrationUnitsStatus:
+    """The VibrationUnitsStatus of ``report`` (stamped with its time, s of the robot's clock); ``active``: the
+    emulator takes commands (its lifecycle state)."""
     msg = VibrationUnitsStatus(
         state=STATES.index(report.state), level=LEVELS.index(report.level), reason=report.reason,
         since_s=float(report.since), commanded_until_s=float(report.commanded_until),
         ramp_start_s=_time_or_nan(report.ramp_start), ramp_cause=RAMP_CAUSES.index(report.ramp_cause),
         ramp_reason=report.ramp_reason, event_seq=int(report.event_seq), event=EVENTS.index(report.event),
         event_stamp_s=_time_or_nan(report.event_stamp), event_time_s=_time_or_nan(report.event_time),
-        accepted_windows=int(report.accepted), refused_windows=int(report.refused), fault=report.fault)
+        accepted_windows=int(report.accepted), refused_windows=int(report.refused), fault=report.fault,
+        active=bool(active))
     msg.header.stamp = time_message(report.time)
     msg.amplitude_m = np.asarray(report.amplitude, float)
     if report.event:

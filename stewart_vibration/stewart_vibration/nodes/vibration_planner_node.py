@@ -266,7 +266,7 @@ class VibrationPlannerNode(Node):
         pose_age = None if self.pose_data is None else time.monotonic() - self.pose_data[1]
         check_can_start(self.state, emulator.state if emulator else None, status_age, STATUS_STALE_S,
                         emulator.time if emulator else None, now, pose_age, settings["pose_timeout_s"],
-                        self.clock_rate.rate())
+                        self.clock_rate.rate(), emulator.active if emulator else True)
         data, _ = cast(tuple, self.pose_data)
         try:
             pose_stamp, pose = pose_from_cdr(data, "pose estimate")

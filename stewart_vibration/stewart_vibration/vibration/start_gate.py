@@ -11,7 +11,7 @@ CLOCK_MISMATCH_S = 10.0  # the planner's clock this far from the robot's: not th
 
 def check_can_start(planner_state: str, units_state: str | None, status_age_s: float, status_stale_s: float,
                     robot_time_s: float | None, now_s: float, pose_age_s: float | None, pose_timeout_s: float,
-                    clock_rate: float = 1.0) -> None:
+                    clock_rate: float = 1.0, robot_active: bool = True) -> None:
     """Refuse a start the robot cannot carry out now; return None when it may go ahead.
 
     Args:
@@ -25,10 +25,11 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
         pose_timeout_s: a pose estimate older than this is stale (s).
         clock_rate: the planner's clock's rate (s per wall s; faster than real time the robot's clock moves
             that much more while a status ages).
+        robot_active: that status says the robot takes commands (the emulator's lifecycle state is active).
 
     Raises:
-        RefusedError: BUSY, ESTOP_LATCHED, UNITS_NOT_AT_REST, NOT_READY (no or a stale pose estimate),
-            CLOCK_NOT_RUNNING or CLOCK_MISMATCH, with the reason and what to do.
+        RefusedError: BUSY, ESTOP_LATCHED, ROBOT_INACTIVE, UNITS_NOT_AT_REST, NOT_READY (no or a stale pose
+            estimate), CLOCK_NOT_RUNNING or CLOCK_MISMATCH, with the reason and what to do.
     """
     if planner_state in ("running", "stopping"):
         raise RefusedError("BUSY", f"a vibration is {planner_state}; cancel it first")
@@ -36,6 +37,9 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
     if units_state == "estopped":
         raise RefusedError("ESTOP_LATCHED", "emergency stop latched on the hardware emulator: call "
                                             "hardware_emulator/reset first")
+    if fresh and not robot_active:
+        raise RefusedError("ROBOT_INACTIVE", "the hardware emulator is not active (lifecycle): it refuses every "
+                                             "command; activate it first (ros2 lifecycle set <its node> activate)")
     if fresh and units_state in BUSY_STATES:
         raise RefusedError("UNITS_NOT_AT_REST", f"the vibration units are not at rest ({units_state}); start again "
                                                 "when they are")
