@@ -262,3 +262,20 @@ def test_a_repeated_window_prefix_is_not_checked_twice_but_its_new_tail_is(buffe
             buffer.add(bad, now=40.4)
     finally:
         module.check_command_limits = checker
+
+
+@pytest.mark.parametrize("offset", [1.1125369292536007e-308, 1e-15, 5e-10])
+def test_a_window_starting_a_hair_after_a_buffered_knot_replaces_it_and_stays_finite(buffer, offset):
+    """Windows at rest stamped ``offset`` s after a buffered knot (float rounding of equal stamps, or a sender's
+    denormal lead): the knot closer than a nanosecond gives way to the window's first one, so no segment of
+    that length (whose spline is 0/0) is ever followed; the commands stay finite and within the limits."""
+    buffer.add(window(10.0, 0.0, 0.3), now=10.0)
+    buffer.add(window(10.0, 0.0, 0.3), now=10.0)  # the same window again at the same time
+    buffer.add(window(10.0 + offset, 0.0, 0.3), now=10.0)
+    t = np.linspace(9.99, 10.31, 3201)
+    pos, vel, acc = buffer.sample(t)
+    assert np.isfinite(pos).all() and np.isfinite(vel).all() and np.isfinite(acc).all()
+    expected = signal(t - 10.0 - offset)[0]
+    inside = (t >= 10.0 + 1e-3) & (t <= 10.3)
+    assert np.abs(pos[inside] - expected[inside]).max() < 1e-9
+    assert (np.diff(buffer.times) >= 1e-9).all()

@@ -46,6 +46,7 @@ from ..vibration.waveform import fade_out, product_rule
 from .strut_trajectory import JointTrajectory
 
 HISTORY_S = 1.0  # buffered samples kept behind the newest window's first sample
+MIN_KNOT_GAP_S = 1e-9  # knots closer than this (a message's stamp resolution) are one knot
 RAMP_GROWTH = 1.2  # ratio between the safety-ramp lengths tried
 RAMP_MAX_S = 2.0  # the longest safety ramp tried (s)
 RAMP_SAMPLE_S = 1e-4  # a tried ramp is sampled this often (s): within 0.07 % of the peak of a 120 Hz sinusoid
@@ -149,15 +150,21 @@ class VibrationBuffer:
             raise VibrationLimitError(
                 f"window ended {now - times[-1]:.3f} s before it arrived (its first sample is "
                 f"{now - times[0]:.3f} s old)", limit_name="splice", value=float(now - times[-1]), limit=0.0)
-        keep = (self.times < times[0]) & (self.times >= times[0] - HISTORY_S) & check_splice
+        # a buffered knot closer than MIN_KNOT_GAP_S before the window's first one is replaced by it: a segment that
+        # short has no meaningful spline (its h**2 underflows to 0 and the join would be NaN)
+        keep = (self.times < times[0] - MIN_KNOT_GAP_S) & (self.times >= times[0] - HISTORY_S) & check_splice
         if self.stop_start is not None:
             keep &= self.times < self.stop_start  # faded out by a stop: never to run again once it is lifted
         kept = [self.times[keep], self.positions[keep], self.velocities[keep], self.accelerations[keep]]
-        if check_splice and times[0] > now and self.times.size and not (kept[0].size and kept[0][-1] >= now):
+        if check_splice and times[0] > now + MIN_KNOT_GAP_S and self.times.size and \
+                not (kept[0].size and kept[0][-1] >= now):
             # the join segment to the window's first sample would start at a past sample and change what the
-            # units do now (they brake, ramp out or rest there): it starts now, from the commanded state
-            kept = [np.append(kept[0], now)] + [np.vstack([k, x]) for k, x in zip(kept[1:], self.sample([now]),
-                                                                                    strict=True)]
+            # units do now (they brake, ramp out or rest there): it starts now, from the commanded state (a
+            # knot just before now gives way to it, as above)
+            now_state = self.sample([now])
+            far = kept[0] < now - MIN_KNOT_GAP_S
+            kept = [np.append(kept[0][far], now)] + [np.vstack([k[far], x]) for k, x in zip(kept[1:], now_state,
+                                                                                             strict=True)]
         new_t = np.concatenate([kept[0], times])
         new_p = np.vstack([kept[1], pos])
         new_v = np.vstack([kept[2], vel])
