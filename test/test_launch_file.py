@@ -69,7 +69,8 @@ def test_launch_file_passes_the_tissue_to_the_emulator_and_kinematics(monkeypatc
     from test_dds_loopback import _launch_actions
 
     actions = _launch_actions(monkeypatch, ROOT)
-    assert ("arg", ("tissue_config",), {"default_value": ""}) in actions
+    (tissue,) = [a for a in actions if a[0] == "arg" and a[1] == ("tissue_config",)]
+    assert tissue[2]["default_value"] == ""
     nodes = {a[2]["name"]: a[2]["parameters"][-1] for a in actions if a[0] in ("node", "lifecycle_node")}
     for name in ("hardware_emulator", "kinematics"):
         kind, args, kwargs = nodes[name]["tissue_config"]
@@ -86,7 +87,8 @@ def test_launch_file_passes_the_robot_to_every_node_that_reads_one(monkeypatch):
     from stewart_vibration.runtime.suite import OPTIONAL_NODES
 
     actions = _launch_actions(monkeypatch, ROOT)
-    assert ("arg", ("robot_config",), {"default_value": ""}) in actions
+    (robot,) = [a for a in actions if a[0] == "arg" and a[1] == ("robot_config",)]
+    assert robot[2]["default_value"] == ""
     nodes = {a[2]["name"]: a[2]["parameters"][-1] for a in actions if a[0] in ("node", "lifecycle_node")}
     for spec in SUITE_NODES + list(OPTIONAL_NODES.values()):
         if spec.robot_config:
@@ -95,3 +97,12 @@ def test_launch_file_passes_the_robot_to_every_node_that_reads_one(monkeypatch):
             assert kwargs["value_type"] is str
         else:
             assert "robot_config" not in nodes[spec.name]
+
+
+def test_every_launch_argument_says_what_it_does(monkeypatch):
+    """`ros2 launch -s` shows each argument's description: none is left without one."""
+    from test_dds_loopback import _launch_actions
+
+    arguments = [a for a in _launch_actions(monkeypatch, ROOT) if a[0] == "arg"]
+    assert len(arguments) >= 7
+    assert all(a[2].get("description", "").strip() for a in arguments), [a[1] for a in arguments]

@@ -33,23 +33,28 @@ def test_recent_problems_lists_the_last_warnings_and_errors_of_each_node(tmp_pat
 
 
 def test_the_robot_reaches_every_node_that_reads_one(tmp_path):
-    """--robot (RunOptions.robot_config) is passed, as an absolute path, to every node whose source declares the
-    robot_config parameter, main job and optional nodes alike; none is left on the default robot."""
+    """--robot (RunOptions.robot_config) is passed, as an absolute path, to every node whose parameter table
+    declares robot_config (and whose source declares that table), main job and optional nodes alike; none is
+    left on the default robot."""
     import ast
     import importlib.util
 
+    from stewart_vibration.parameters.tables import NODE_PARAMETERS
     from stewart_vibration.runtime.bringup import node_arguments
     from stewart_vibration.runtime.steps import RunOptions
     from stewart_vibration.runtime.suite import OPTIONAL_NODES, SUITE_NODES
 
-    def declares_robot_config(module: str) -> bool:
+    def declared_table(module: str) -> str:
+        """The name of the table the node's source passes to declare_table."""
         source = open(importlib.util.find_spec(module).origin).read()
-        return any(isinstance(n, ast.Call) and getattr(n.func, "attr", "") == "declare_parameter" and n.args
-                   and isinstance(n.args[0], ast.Constant) and n.args[0].value == "robot_config"
-                   for n in ast.walk(ast.parse(source)))
+        (table,) = [n.args[1].id for n in ast.walk(ast.parse(source)) if isinstance(n, ast.Call)
+                    and getattr(n.func, "id", "") == "declare_table" and len(n.args) == 2]
+        return table
 
     nodes = SUITE_NODES + list(OPTIONAL_NODES.values())
-    readers = {n.name for n in nodes if declares_robot_config(n.module)}
+    for node in nodes:  # each node declares its own table
+        assert declared_table(node.module) == node.name.upper(), node.name
+    readers = {n.name for n in nodes if any(s.name == "robot_config" for s in NODE_PARAMETERS[n.name])}
     assert readers == {n.name for n in nodes if n.robot_config}  # the suite's list says which nodes read one
     assert {"hardware_emulator", "kinematics", "vibration_planner", "leg_force_estimator"} <= readers
     relative = "short.yaml"

@@ -95,3 +95,17 @@ print('share', get_package_share_directory('stewart_vibration'))
     assert (share / "config" / "suite_params.yaml").is_file()
     assert "Package 'no_such_package' not found" in out.stderr and "status=1" in out.stdout
     assert any(x.startswith("usage: stewart-vibration") for x in lines), out.stdout + out.stderr
+
+
+def test_activating_the_venv_alone_puts_the_executables_on_path():
+    """The usual Python habit, `. .venv/bin/activate`, without tools/env.sh: stewart-vibration and the node
+    executables are found (bin/ links to lib/stewart_vibration/, set up by the first tools/env.sh)."""
+    script = f"""
+    source "{REPO}/tools/env.sh" >/dev/null 2>&1 || exit 3
+    env -i HOME="$HOME" PATH=/usr/bin:/bin bash -c '. "{REPO}/.venv/bin/activate" && command -v stewart-vibration \
+        && command -v kinematics_node && stewart-vibration --help | head -1'
+    """
+    out = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "/.venv/bin/stewart-vibration" in out.stdout and "/.venv/bin/kinematics_node" in out.stdout
+    assert "usage: stewart-vibration" in out.stdout

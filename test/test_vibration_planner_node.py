@@ -124,8 +124,11 @@ def test_parameter_validation_and_refused_goals(planner):
                    {"max_lookahead_s": 1.0}):  # below lookahead_s
         (result,) = set_params(client, **values)
         assert not result.successful and result.reason, values
-    (typed,) = set_params(client, lead_s=1)  # at run time rclpy refuses an integer, with the reason
-    assert not typed.successful and "DOUBLE" in typed.reason
+    (typed,) = set_params(client, lead_s=1)  # an integer for a double is that number (ros2 param set ... 1)
+    assert typed.successful, typed.reason
+    (text,) = set_params(client, lead_s="soon")  # another type is refused by rclpy's type check, with the type
+    assert not text.successful and "DOUBLE" in text.reason
+    assert set_params(client, lead_s=0.3)[0].successful
     (gone,) = set_params(client, frequency_hz=40.0)  # the vibration is the goal's: no parameter for it
     assert not gone.successful
 

@@ -45,7 +45,8 @@ _stewart_interfaces() {
 # The package's ament index entry in the venv, as colcon gives it on a ROS install: the index marker, and
 # share/stewart_vibration/{package.xml,launch,config} linked to the checkout (the editable install puts the
 # executables in lib/stewart_vibration already), so `ros2 run`, `ros2 pkg` and `ros2 launch` of a real
-# ros2cli find the package.
+# ros2cli find the package. The executables are linked into bin/ too: activating the venv alone (the usual
+# Python habit) puts stewart-vibration and the nodes on PATH.
 _stewart_ament_entry() {
   local repo="$1" venv="$2" share="$2/share/stewart_vibration" marker
   marker="$venv/share/ament_index/resource_index/packages/stewart_vibration"
@@ -55,7 +56,12 @@ _stewart_ament_entry() {
   : > "$marker"
   ln -sfn "$repo/stewart_vibration/package.xml" "$share/package.xml" &&
     ln -sfn "$repo/stewart_vibration/launch" "$share/launch" &&
-    ln -sfn "$repo/stewart_vibration/config" "$share/config"
+    ln -sfn "$repo/stewart_vibration/config" "$share/config" || return 1
+  local exe
+  for exe in "$venv/lib/stewart_vibration/"*; do
+    [ -f "$exe" ] && [ -x "$exe" ] && ln -sfn "$exe" "$venv/bin/$(basename "$exe")"
+  done
+  return 0
 }
 _stewart_env() {
   local repo venv py stamp want
