@@ -136,3 +136,31 @@ def test_guard_trips_leave_out_statuses_that_cannot_be_read_and_keep_the_rest_in
     trips = guard_trips({"guard_status": statuses})
     assert [t.trip_time_s for t in trips] == [3.25, 12.5]
     assert trips[1].peak_force_n == 2.0
+
+
+def test_statuses_of_a_log_from_before_the_typed_statuses_are_left_out_and_counted(tmp_path):
+    """A run folder with vibration/status recorded as diagnostic_msgs/DiagnosticStatus (a log from before the
+    typed statuses) and as VibrationUnitsStatus: the typed ones are read, the old ones counted as untyped, not
+    as malformed (they are no spoof)."""
+    from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+    from malformed_messages import good_vibration_status
+    from rclpy.serialization import serialize_message
+
+    from stewart_vibration.analysis.run_summary import stream_summary
+
+    write_part(tmp_path / "run_a.mcap", 1.0, 1.2)
+    old = McapRunWriter(tmp_path / "run_b.mcap")
+    old.add_topic("/s/vibration/status", "diagnostic_msgs/msg/DiagnosticStatus", "[]")
+    old_status = DiagnosticStatus(name="hardware_emulator: vibration", message="idle",
+                                  values=[KeyValue(key="state", value="idle")])
+    old.submit("/s/vibration/status", 1_300_000_000, serialize_message(old_status))
+    old.close()
+    new = McapRunWriter(tmp_path / "run_c.mcap")
+    new.add_topic("/s/vibration/status", "stewart_vibration_interfaces/msg/VibrationUnitsStatus", "[]")
+    new.submit("/s/vibration/status", 1_400_000_000, serialize_message(good_vibration_status()))
+    new.close()
+    signals = load_signals(tmp_path)
+    assert len(signals["vibration_status"]) == 1 and signals["untyped_statuses"] == {"vibration/status": 1}
+    streams = stream_summary(signals)
+    assert streams["malformed_statuses"] == [] and streams["untyped_statuses"] == {"vibration/status": 1}
+    assert streams["windows"]["accepted"] == 3  # the typed status's count

@@ -46,6 +46,11 @@ STREAM_TOPICS = ("legs/joint_states", "ground_truth/platform_pose", "platform/po
                  "platform/external_wrench_estimate")  # the 500 Hz streams; the first is the input of the rest
 
 
+# the type each status topic is read as; a log whose status has another type predates it (not read)
+TYPED_STATUS = {"vibration/status": "stewart_vibration_interfaces/msg/VibrationUnitsStatus",
+                "kinematics/guard_status": "stewart_vibration_interfaces/msg/ForceGuardStatus"}
+
+
 def load_signals(mcap_path) -> dict:
     """Time series of a run (an MCAP file, a run folder: every file in it, in time order; or an open
     RunReader / RunFiles): ground-truth poses, joint states, force estimates (header-stamp times in s), the
@@ -61,7 +66,8 @@ def load_signals(mcap_path) -> dict:
         "pose_estimate" (as "pose": the controller's estimate), "force_estimate": (times [n], {...: [n, 6]}),
         "vibration_starts": distinct vib window stamps (s), "stream_counts" (``counts_in_common_span``),
         "vibration_status" and "guard_status": the raw VibrationUnitsStatus and ForceGuardStatus messages (bytes;
-        read with messages.status_values, which counts what is malformed), "node_diagnostics"
+        read with messages.status_values, which counts what is malformed), "untyped_statuses": {topic: count} of
+        those recorded in another type (a log from before the typed statuses: left out), "node_diagnostics"
         (``last_diagnostics``), "tissue_wrench" and "wrench_estimate" (``wrench_array``), "clock": the /clock
         values (s) in recorded order, "stream_stamps" and "files" (``stream_stamps``)}.
 
@@ -84,10 +90,14 @@ def load_signals(mcap_path) -> dict:
         for key, bucket in wanted.items():
             if raw.topic.endswith("/" + key) or raw.topic == key:
                 bucket.append(msg)
+    untyped: dict[str, int] = {}
     for raw in reader.messages(recorded(raw_wanted)):  # read field by field: a spoofed status is counted
         for key, raw_bucket in raw_wanted.items():
             if raw.topic.endswith("/" + key) or raw.topic == key:
-                raw_bucket.append(raw.data)
+                if raw.type_name == TYPED_STATUS[key]:
+                    raw_bucket.append(raw.data)
+                else:  # a log from before the typed statuses (DiagnosticStatus): not read as one of them
+                    untyped[key] = untyped.get(key, 0) + 1
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         wanted[new] = wanted[new] or wanted[old]
     sensed = joint_arrays(wanted["legs/joint_states"])
@@ -104,6 +114,7 @@ def load_signals(mcap_path) -> dict:
         "tissue_wrench": wrench_array(wanted["ground_truth/tissue_wrench"]),
         "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
         "guard_status": raw_wanted["kinematics/guard_status"],
+        "untyped_statuses": untyped,
         "clock": np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in wanted["/clock"]]),
         "stream_stamps": stamps,
         "files": files,
@@ -292,7 +303,8 @@ def stream_summary(signals: dict) -> dict:
         "lag_p50_ms", "lag_p99_ms", "level", "message"}}, "worst_ratio": the lowest ratio of the derived
         streams (0.0 if none), "lost": states lost over all nodes, "windows": {"accepted", "refused",
         "refusals"} (of the last well-formed vibration status), "malformed_statuses": the recorded statuses
-        that could not be read (messages.status_values), left out}.
+        that could not be read (messages.status_values), left out, "untyped_statuses": {topic: count} of
+        statuses recorded in another type (a log from before the typed statuses), not read}.
     """
     counts = signals["stream_counts"]
     base = max(counts.get("legs/joint_states", 0), 1)
@@ -319,7 +331,8 @@ def stream_summary(signals: dict) -> dict:
     derived = [topics[t]["ratio"] for t in ("platform/pose_estimate", "legs/force_estimate",
                                             "platform/external_wrench_estimate") if t in topics]
     return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
-            "lost": sum(n["lost"] for n in nodes.values()), "windows": windows, "malformed_statuses": malformed}
+            "lost": sum(n["lost"] for n in nodes.values()), "windows": windows, "malformed_statuses": malformed,
+            "untyped_statuses": dict(signals.get("untyped_statuses") or {})}
 
 
 def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:
