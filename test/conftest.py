@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import gc
 import os
 import signal
 import time
@@ -75,6 +76,24 @@ def no_process_left_behind():
     before = set(_suite_processes())
     yield
     _kill_left_behind(before)
+
+
+@pytest.fixture(autouse=True)
+def no_long_garbage_collection_during_an_integration_test(request):
+    """The test process's heap grows over the session (hypothesis, recorded messages); a full collection of it
+    stalls this process for up to a second, and an integration test that times a node's answer by when it
+    arrives here would measure that stall. So the heap is collected before each integration test and what
+    lives then is frozen out of the collector (gc.freeze) until the test ends: only the test's own objects are
+    scanned while it runs."""
+    if request.node.get_closest_marker("integration") is None:
+        yield
+        return
+    gc.collect()
+    gc.freeze()
+    try:
+        yield
+    finally:
+        gc.unfreeze()
 
 
 @pytest.fixture(scope="session")
