@@ -12,7 +12,6 @@ bad arguments.
 from __future__ import annotations
 
 import json
-import time
 
 from .arguments import float_in, int_in
 
@@ -37,46 +36,15 @@ def register(subparsers) -> None:
 
 def run(args) -> int:
     """Listen to ``args.topic`` and print its rate; the exit code (module docstring)."""
-    import rclpy
-    from rclpy.signals import SignalHandlerOptions
-
-    from ..mcap_log.msg_definitions import has_header_first
-    from ..mcap_log.qos_yaml import request_for_offers
-    from ..messages.cdr import header_stamp_ns
     from ..messages.topic_rate import topic_rate
-    from ..nodes.ros_graph import message_class, offered_profile, rclpy_profile
+    from ..nodes.topic_listener import listen
 
-    rclpy.init(signal_handler_options=SignalHandlerOptions.NO)
-    node = rclpy.create_node(f"topic_rate_{int(time.time() * 1000) % 100000}")
-    try:
-        deadline = time.monotonic() + args.wait
-        publishers = node.get_publishers_info_by_topic(args.topic)
-        while not publishers and time.monotonic() < deadline:
-            rclpy.spin_once(node, timeout_sec=0.1)
-            publishers = node.get_publishers_info_by_topic(args.topic)
-        if not publishers:
-            print(f"no publisher of {args.topic} within {args.wait:g} s (is ROS_DOMAIN_ID the suite's?)")
-            return 2
-        type_name = publishers[0].topic_type
-        qos = request_for_offers([offered_profile(p.qos_profile) for p in publishers], args.depth)
-        stamped = has_header_first(type_name)
-        arrivals: list[float] = []
-        stamps: list[float] = []
-
-        def heard(data: bytes) -> None:
-            arrivals.append(time.monotonic())
-            if stamped:
-                ns = header_stamp_ns(data)
-                stamps.append(float("nan") if ns is None else ns * 1e-9)
-
-        node.create_subscription(message_class(type_name), args.topic, heard, rclpy_profile(qos), raw=True)
-        end = time.monotonic() + args.seconds
-        while time.monotonic() < end:
-            rclpy.spin_once(node, timeout_sec=0.05)
-        rate = topic_rate(arrivals, stamps if stamped else None)
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    heard = listen(args.topic, args.seconds, args.wait, args.depth)
+    if heard is None:
+        print(f"no publisher of {args.topic} within {args.wait:g} s (is ROS_DOMAIN_ID the suite's?)")
+        return 2
+    rate = topic_rate(heard.arrivals, heard.stamps if heard.stamped else None)
+    type_name, qos = heard.type_name, heard.qos
     if args.json:
         print(json.dumps({"topic": args.topic, "type": type_name, "reliability": qos.reliability,
                           "depth": qos.depth, **rate.record()}))

@@ -41,7 +41,7 @@ from ..errors import StewartError
 from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
 from ..mcap_log.reader import open_run
 from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
-from ..parameters.tables import MCAP_REPLAY
+from ..parameters.tables import MCAP_REPLAY, REPLAY_CLOCK_RATE_HZ
 from .common import (
     StopFlag,
     declare_table,
@@ -51,7 +51,6 @@ from .common import (
 )
 from .ros_graph import message_class, rclpy_profile
 
-DEFAULT_CLOCK_RATE_HZ = 100.0
 SUBSCRIBERS_SETTLE_S = 1.0  # wall s the subscriber counts must stay unchanged before a waiting replay starts
 
 
@@ -80,7 +79,7 @@ class McapReplayNode(Node):
             exclude.append("/clock")
             if clock_rate == 0:
                 recorded = recorded_rate_hz([m.log_time for m in self.reader.messages(["/clock"])])
-                clock_rate = recorded or DEFAULT_CLOCK_RATE_HZ
+                clock_rate = recorded or REPLAY_CLOCK_RATE_HZ
         self.clock_rate_hz = clock_rate
         self.options = ReplayOptions(rate=rate, start_offset_s=offset, include=tuple(include), exclude=tuple(exclude))
         self.pubs = {}
