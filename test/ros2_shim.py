@@ -1,20 +1,24 @@
 """A stand-in for the ``ros2`` command (ros2cli is not on PyPI), so the README's ``ros2 ...`` lines run here
 exactly as written, over real DDS with rclpy.
 
-It implements the verbs the README uses, with ros2cli's arguments and output shape:
+It implements the verbs the README uses with ros2cli 0.32's arguments, waiting, output shape and exit codes,
+and is no sturdier than it: nothing is resent, a lost answer is lost (here it ends after WAIT_S with exit 1
+where ros2cli would wait forever), and a refusal in an answer exits 0 as in ros2cli (tests read the output,
+as a user does):
 
-  ros2 topic pub --once TOPIC TYPE YAML     waits for one matching subscription, publishes once
+  ros2 topic pub [--once|-1] [-t N] [-w N] [--max-wait-time-secs S] [--keep-alive S] TOPIC TYPE [YAML]
+                          waits for N matching subscriptions (default 1 with --once/-t, else 0), publishes,
+                          keeps the participant alive --keep-alive s (default 0.1)
   ros2 topic echo [--once] TOPIC [TYPE]     prints each message, then ``---`` (until Ctrl-C)
-  ros2 service call SERVICE TYPE [YAML]     waits for the service, prints ``response:`` and the answer
-  ros2 param set NODE NAME VALUE            VALUE parsed as YAML, as ros2cli does ("0.3" double, "[..]" array)
-  ros2 action send_goal [-f] ACTION TYPE YAML  sends the goal, prints the feedback (-f / --feedback), the
-                                            result and ``Goal finished with status: ...``; Ctrl-C cancels it
+  ros2 service call SERVICE TYPE [YAML]     waits for the service, one request, prints ``response:`` and it
+  ros2 param set NODE NAME VALUE            VALUE parsed as YAML; "Set parameter successful" or
+                                            "Setting parameter failed: REASON" on stderr (exit 0 both)
+  ros2 action send_goal [-f] ACTION TYPE YAML  sends the goal at once, prints the feedback (-f / --feedback),
+                                            the result and ``Goal finished with status: ...``; Ctrl-C cancels it
   ros2 run PACKAGE EXECUTABLE [ARGS...]     executes <prefix>/lib/PACKAGE/EXECUTABLE, prefix from the ament index
 
-Stricter than ros2cli in one way: a refused ``param set``, an unsuccessful Trigger or a goal that did not
-succeed exits 1, so a test sees it. Sturdier in one: a query (``param set``, ``get_state``, ...) whose answer
-Fast DDS lost is asked again
-(nodes.service_calls). ``ros2 launch`` and ``ros2 bag`` need a ROS install; they exit 2 saying so.
+Messages print as repr (ros2cli prints action messages as YAML with rosidl_runtime_py, not on PyPI).
+``ros2 launch`` and ``ros2 bag`` need a ROS install; they exit 2 saying so.
 """
 
 from __future__ import annotations
@@ -77,18 +81,47 @@ def wait_for(predicate, what: str) -> None:
         time.sleep(0.05)
 
 
-def topic_pub(node, args: list[str]) -> int:
-    if args[0] != "--once":
-        raise SystemExit("this stand-in publishes with --once only")
-    topic, type_name, text = args[1], args[2], args[3] if len(args) > 3 else None
-    msg = fill(message_type(type_name)(), parse_yaml(text))
-    publisher = node.create_publisher(type(msg), topic, 10)
+def topic_pub(node, args: list[str]) -> int | str:
+    """ros2topic's pub verb for --once / --times: wait for -w subscriptions, publish, keep alive."""
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="ros2 topic pub")
+    parser.add_argument("topic_name")
+    parser.add_argument("message_type")
+    parser.add_argument("values", nargs="?", default="{}")
+    parser.add_argument("-1", "--once", action="store_true")
+    parser.add_argument("-t", "--times", type=int, default=0)
+    parser.add_argument("-r", "--rate", type=float, default=1.0)
+    parser.add_argument("-w", "--wait-matching-subscriptions", type=int, default=None)
+    parser.add_argument("--max-wait-time-secs", type=float, default=None)
+    parser.add_argument("--keep-alive", type=float, default=0.1)
+    opts = parser.parse_args(args)
+    times = 1 if opts.once else opts.times
+    if times == 0:
+        raise SystemExit("this stand-in publishes a finite number of messages only (--once or --times N)")
+    wait = opts.wait_matching_subscriptions if opts.wait_matching_subscriptions is not None else 1
+    values = yaml.safe_load(opts.values)
+    if not isinstance(values, dict):
+        return "The passed value needs to be a dictionary in YAML format"
+    msg = fill(message_type(opts.message_type)(), values)
+    publisher = node.create_publisher(type(msg), opts.topic_name, 10)
+    waited = 0.0
+    while publisher.get_subscription_count() < wait:
+        if waited % 1.0 < 0.05:
+            print(f"Waiting for at least {wait} matching subscription(s)...")
+        if opts.max_wait_time_secs is not None and opts.max_wait_time_secs <= waited:
+            return (f"Timed out waiting for subscribers: Expected {wait} subcribers but only got "
+                    f"{publisher.get_subscription_count()} subscribers")
+        time.sleep(0.1)
+        waited += 0.1
     print("publisher: beginning loop")
-    wait_for(lambda: publisher.get_subscription_count() >= 1, f"a subscription on {topic}")
-    publisher.publish(msg)
-    print(f"publishing #1: {msg!r}\n")
-    time.sleep(0.2)  # let reliable delivery finish before the participant goes away
-    return 0
+    for count in range(1, times + 1):
+        print(f"publishing #{count}: {msg!r}\n")
+        publisher.publish(msg)
+        if count < times:
+            time.sleep(1.0 / opts.rate)
+    time.sleep(opts.keep_alive)  # as ros2cli: a moment for the message to reach the wire
+    return None
 
 
 def topic_echo(node, args: list[str]) -> int:
@@ -118,63 +151,60 @@ def topic_echo(node, args: list[str]) -> int:
     return 0
 
 
-def spinner(node):
-    """``wait(predicate, seconds) -> bool`` spinning ``node`` (for nodes.service_calls.answer_with_resend:
-    a lost answer to a query is asked again, which ros2cli does not do)."""
+def wait_until(node, predicate, seconds: float) -> bool:
+    """Spin ``node`` until ``predicate()`` or ``seconds`` passed (ros2cli spins without a limit)."""
     import rclpy
 
-    def wait(predicate, seconds: float) -> bool:
-        deadline = time.monotonic() + seconds
-        while not predicate() and time.monotonic() < deadline:
-            with INTERRUPTS.deferred():
-                rclpy.spin_once(node, timeout_sec=0.05)
-        return bool(predicate())
-    return wait
+    deadline = time.monotonic() + seconds
+    while not predicate() and time.monotonic() < deadline:
+        with INTERRUPTS.deferred():
+            rclpy.spin_once(node, timeout_sec=0.05)
+    return bool(predicate())
 
 
-def service_call(node, args: list[str]) -> int:
-    from stewart_vibration.nodes.service_calls import answer_with_resend
-
+def service_call(node, args: list[str]) -> int | str:
+    """One request, as ros2service's call: a response that never comes is not asked for again."""
     name, type_name = args[0], args[1]
     srv = message_type(type_name)
     request = fill(srv.Request(), parse_yaml(args[2] if len(args) > 2 else None))
     client = node.create_client(srv, name)
-    if not client.wait_for_service(timeout_sec=WAIT_S):
-        raise SystemExit(f"service {name} not available after {WAIT_S:g} s")
+    if not client.service_is_ready():
+        print("waiting for service to become available...")
+        if not client.wait_for_service(timeout_sec=WAIT_S):
+            raise SystemExit(f"(shim) service {name} not available after {WAIT_S:g} s")
     print(f"requester: making request: {request!r}\n")
-    response = answer_with_resend(client, name, request, WAIT_S, spinner(node))
-    if response is None:
-        raise SystemExit(f"no response from {name} in {WAIT_S:g} s")
-    print(f"response:\n{response!r}\n")
-    refused = getattr(response, "success", True) is False or \
-        (hasattr(response, "outcome") and response.outcome.code != 1)  # Outcome.SUCCEEDED
-    return 1 if refused else 0
+    future = client.call_async(request)
+    if not wait_until(node, future.done, WAIT_S):
+        raise SystemExit(f"(shim) no response from {name} in {WAIT_S:g} s (ros2cli would wait forever)")
+    print(f"response:\n{future.result()!r}\n")
+    return None
 
 
-def param_set(node, args: list[str]) -> int:
+def param_set(node, args: list[str]) -> int | str:
+    """ros2param's set: a refusal is printed on stderr and exits 0, as there."""
     from rcl_interfaces.srv import SetParameters
     from rclpy.parameter import Parameter
-
-    from stewart_vibration.nodes.service_calls import answer_with_resend
 
     target, name, text = args[0], args[1], args[2]
     value = yaml.safe_load(text)
     client = node.create_client(SetParameters, f"{target}/set_parameters")
     if not client.wait_for_service(timeout_sec=WAIT_S):
-        raise SystemExit(f"Node not found: {target}")
+        return "Node not found"
     request = SetParameters.Request(parameters=[Parameter(name, value=value).to_parameter_msg()])
-    answer = answer_with_resend(client, f"{target}/set_parameters", request, WAIT_S, spinner(node))
-    if answer is None:
-        raise SystemExit(f"no response from {target}/set_parameters in {WAIT_S:g} s")
-    (result,) = answer.results
+    future = client.call_async(request)
+    if not wait_until(node, future.done, WAIT_S):
+        raise SystemExit(f"(shim) no response from {target}/set_parameters in {WAIT_S:g} s")
+    (result,) = future.result().results
     if result.successful:
         print("Set parameter successful")
-        return 0
-    print(f"Setting parameter failed: {result.reason}")
-    return 1
+    else:
+        print(f"Setting parameter failed: {result.reason}" if result.reason else "Setting parameter failed",
+              file=sys.stderr)
+    return None
 
 
-def action_send_goal(node, args: list[str]) -> int:
+def action_send_goal(node, args: list[str]) -> int | str:
+    """ros2action's send_goal: the goal is sent as soon as the server is seen; every end exits 0."""
     from rclpy.action import ActionClient
 
     feedback = any(a in ("-f", "--feedback") for a in args)
@@ -185,32 +215,34 @@ def action_send_goal(node, args: list[str]) -> int:
     client = ActionClient(node, action, name)
     print("Waiting for an action server to become available...")
     if not client.wait_for_server(timeout_sec=WAIT_S):
-        raise SystemExit(f"action {name} not available after {WAIT_S:g} s")
-    wait = spinner(node)
-    wait(lambda: False, 0.5)  # discovery finishes (a goal's answer sent before it is lost; it cannot be resent)
-    print(f"Sending goal:\n     {goal!r}\n")
-    sent = client.send_goal_async(goal, feedback_callback=(lambda m: print(f"Feedback:\n    {m.feedback!r}\n"))
+        raise SystemExit(f"(shim) action {name} not available after {WAIT_S:g} s (ros2cli would wait forever)")
+    print(f"Sending goal:\n     {goal!r}")
+    sent = client.send_goal_async(goal, feedback_callback=(lambda m: print(f"Feedback:\n    {m.feedback!r}"))
                                   if feedback else None)
-    if not wait(sent.done, WAIT_S) or not sent.result().accepted:
+    if not wait_until(node, sent.done, WAIT_S):
+        raise SystemExit(f"(shim) no answer to the goal from {name} in {WAIT_S:g} s")
+    if not sent.result().accepted:
         print("Goal was rejected.")
-        return 1
+        return None
     handle = sent.result()
     print(f"Goal accepted with ID: {bytes(handle.goal_id.uuid).hex()}\n")
     result = handle.get_result_async()
     try:
-        while not wait(result.done, 1.0):
+        while not wait_until(node, result.done, 1.0):
             pass
     except KeyboardInterrupt:
+        print("Canceling goal...")
         cancel = handle.cancel_goal_async()
-        wait(cancel.done, WAIT_S)
+        wait_until(node, cancel.done, WAIT_S)
         print("Goal canceled.")
-        wait(result.done, WAIT_S)
+        wait_until(node, result.done, WAIT_S)
     if not result.done():
-        return 1
+        return "(shim) the goal's result never came"
     answer = result.result()
-    status = {4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}.get(answer.status, str(answer.status))
-    print(f"Result:\n    {answer.result!r}\n\nGoal finished with status: {status}")
-    return 0 if status == "SUCCEEDED" else 1
+    status = {4: "SUCCEEDED", 5: "CANCELED", 6: "ABORTED"}.get(answer.status, "UNKNOWN")
+    print(f"Result:\n    {answer.result!r}")
+    print(f"Goal finished with status: {status}")
+    return None
 
 
 def run(args: list[str]) -> int:
@@ -248,12 +280,16 @@ def main(argv: list[str]) -> int:
     INTERRUPTS.install()
     node = rclpy.create_node(f"ros2cli_shim_{os.getpid()}")
     try:
-        return verb(node, argv[2:])
+        error = verb(node, argv[2:])
     except KeyboardInterrupt:
         return 0
     finally:
         node.destroy_node()
         rclpy.try_shutdown()
+    if error:  # as ros2cli's main: a returned string is printed and exits 1
+        print(error, file=sys.stderr)
+        return 1
+    return 0
 
 
 if __name__ == "__main__":

@@ -274,10 +274,17 @@ def run_ui_command(workspace: Workspace, command: str) -> None:
         return
     result = workspace.run(command, timeout=120)
     assert result.returncode == 0, f"{command}\n{result.stdout[-3000:]}"
+    # ros2cli exits 0 on a refusal too: what happened is in what it prints, as a user reads it
     if "param set" in command:
-        assert "Set parameter successful" in result.stdout
+        assert "Set parameter successful" in result.stdout, result.stdout[-3000:]
     if "service call" in command:
-        assert "response:" in result.stdout
+        assert "response:" in result.stdout, result.stdout[-3000:]
+        answer = result.stdout.split("response:", 1)[1]
+        assert "success=False" not in answer, f"{command}\n{answer[-3000:]}"
+        if "Outcome(" in answer:  # a typed answer: SUCCEEDED (1)
+            assert "Outcome(code=1," in answer, f"{command}\n{answer[-3000:]}"
+        if "std_srvs/srv/Trigger" in command:
+            assert "success=True" in answer, f"{command}\n{answer[-3000:]}"
     if "action send_goal" in command:  # the vibration ran: its typed result and the goal's final status
         assert "Goal finished with status: SUCCEEDED" in result.stdout and "Feedback:" in result.stdout, \
             result.stdout[-3000:]

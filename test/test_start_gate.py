@@ -23,9 +23,6 @@ def refusal(**change) -> str | None:
 def test_a_ready_robot_may_start():
     assert refusal() is None
     assert refusal(planner_state="aborted: the units stopped") is None  # an abort latches nothing
-    assert refusal(units_state=None, robot_time_s=None) is None  # no status yet: the emulator checks the window
-    assert refusal(units_state="running", status_age_s=5.0) is None  # a stale status says nothing about now
-    assert refusal(robot_active=False, status_age_s=5.0) is None
 
 
 @pytest.mark.parametrize("change, outcome", [
@@ -38,6 +35,13 @@ def test_a_ready_robot_may_start():
     ({"robot_active": False}, "ROBOT_INACTIVE"),  # the emulator deactivated (lifecycle): it refuses commands
     ({"now_s": 0.0}, "CLOCK_NOT_RUNNING"),
     ({"now_s": 1.8e9}, "CLOCK_MISMATCH"),  # a planner on the wall clock beside a robot on sim time
+    # the robot's state cannot be confirmed: no status yet, or one too old to say anything about now (a
+    # planner on the wall clock beside a sim-time robot would otherwise pass unchecked)
+    ({"units_state": None, "robot_time_s": None}, "NOT_READY"),
+    ({"units_state": None, "robot_time_s": None, "now_s": 1.8e9}, "NOT_READY"),
+    ({"units_state": "running", "status_age_s": 5.0}, "NOT_READY"),
+    ({"robot_active": False, "status_age_s": 5.0}, "NOT_READY"),
+    ({"now_s": 1.8e9, "status_age_s": 5.0}, "NOT_READY"),
     ({"pose_age_s": None}, "NOT_READY"),
     ({"pose_age_s": 1.5}, "NOT_READY"),
 ])

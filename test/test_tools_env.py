@@ -3,6 +3,7 @@ failing command afterwards must not close the terminal, and the suite's executab
 
 from __future__ import annotations
 
+import os
 import subprocess
 from pathlib import Path
 
@@ -93,6 +94,9 @@ print('share', get_package_share_directory('stewart_vibration'))
         assert (prefix / "lib" / "stewart_vibration" / exe).is_file(), exe
     assert (share / "package.xml").is_file() and (share / "launch" / "stewart_vibration.launch.py").is_file()
     assert (share / "config" / "suite_params.yaml").is_file()
+    # ros2 launch PACKAGE FILE looks the file up by os.walk of the share folder (it does not enter linked folders)
+    found = [Path(root) / name for root, _, files in os.walk(share) for name in files]
+    assert [f.name for f in found].count("stewart_vibration.launch.py") == 1, found
     assert "Package 'no_such_package' not found" in out.stderr and "status=1" in out.stdout
     assert any(x.startswith("usage: stewart-vibration") for x in lines), out.stdout + out.stderr
 
@@ -109,3 +113,25 @@ def test_activating_the_venv_alone_puts_the_executables_on_path():
     assert out.returncode == 0, out.stdout + out.stderr
     assert "/.venv/bin/stewart-vibration" in out.stdout and "/.venv/bin/kinematics_node" in out.stdout
     assert "usage: stewart-vibration" in out.stdout
+
+
+def test_the_executables_land_where_ros2_run_and_path_look_whichever_layout_pip_chose(tmp_path):
+    """An older pip installs the editable package's executables in lib/stewart_vibration (setup.cfg), a recent
+    one (PEP 660 editable wheels) in bin/: after the link step each is in both, and a real file is never
+    replaced by a link."""
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "lib" / "stewart_vibration").mkdir(parents=True)
+    (venv / "bin" / "in_bin").write_text("#!/bin/sh\necho bin\n")
+    (venv / "lib" / "stewart_vibration" / "in_lib").write_text("#!/bin/sh\necho lib\n")
+    script = f"""
+    source "{REPO}/tools/env.sh" >/dev/null 2>&1 || exit 3
+    _stewart_link_executables "{venv}" in_bin in_lib missing || exit 4
+    """
+    out = subprocess.run(["bash", "-c", script], capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr
+    lib, bin_ = venv / "lib" / "stewart_vibration", venv / "bin"
+    assert (lib / "in_bin").is_symlink() and (lib / "in_bin").resolve() == (bin_ / "in_bin")
+    assert (bin_ / "in_lib").is_symlink() and (bin_ / "in_lib").resolve() == (lib / "in_lib")
+    assert not (bin_ / "in_bin").is_symlink() and not (lib / "in_lib").is_symlink()
+    assert not (lib / "missing").exists() and not (bin_ / "missing").exists()

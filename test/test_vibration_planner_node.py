@@ -90,13 +90,16 @@ def samples_of(window):
                                                                               "accelerations"))
 
 
-def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason="", event_outcome=""):
-    """A vibration/status message as the hardware emulator publishes it (of its VibrationReport)."""
+def emulator_status(state, since, event_seq=0, event="", event_stamp=None, level=0, reason="", event_outcome="",
+                    now=None):
+    """A vibration/status message as the hardware emulator publishes it (of its VibrationReport); ``now`` is the
+    robot's clock when sent (default ``since``)."""
     from stewart_vibration.emulation.vibration_status import VibrationReport
     from stewart_vibration.nodes.status_messages import vibration_status_msg
 
     return vibration_status_msg(VibrationReport(
-        state=state, level=("ok", "warn", "error")[level], reason=reason, since=since, time=since,
+        state=state, level=("ok", "warn", "error")[level], reason=reason, since=since,
+        time=since if now is None else now,
         event_seq=event_seq, event=event, event_stamp=event_stamp, event_reason=reason,
         event_outcome=event_outcome or ("SUCCEEDED" if event == "accepted" else "LIMIT_EXCEEDED" if event else "")))
 
@@ -110,6 +113,13 @@ def status_publisher(client):
         qos = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         client._publishers["status"] = client.node.create_publisher(VibrationUnitsStatus, "vibration/status", qos)
     return client._publishers["status"]
+
+
+def idle_robot_heartbeat(client, clock=time.time, period_s: float = 0.5):
+    """The emulator's word the planner needs before it starts anything: its units idle, repeated with the
+    robot's clock ``clock()`` (s) every ``period_s`` while ``client`` spins (the emulator repeats every second)."""
+    status = status_publisher(client)
+    return client.node.create_timer(period_s, lambda: status.publish(emulator_status("idle", 0.0, now=clock())))
 
 
 def planner_messages(diagnostics):
@@ -132,6 +142,11 @@ def test_parameter_validation_and_refused_goals(planner):
     (gone,) = set_params(client, frequency_hz=40.0)  # the vibration is the goal's: no parameter for it
     assert not gone.successful
 
+    name, message = client.vibrate().outcome()  # nothing from the robot yet: it cannot be confirmed
+    assert name == "NOT_READY" and "no vibration/status from the hardware emulator" in message, (name, message)
+    idle_robot_heartbeat(client)
+    assert client.wait_for_subscribers("vibration/status")
+    assert client.spin_until(lambda: "pose_estimate" in client.vibrate().outcome()[1], 10)
     assert client.vibrate().outcome() == ("NOT_READY", "no platform/pose_estimate received yet")
     nan = pose_msg(np.zeros(6))
     nan.pose.position.x = float("nan")
@@ -160,6 +175,7 @@ def test_a_goal_streams_reports_feedback_and_its_cancel_ramps_out(robot, planner
     windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
     poses = client.publisher("platform/pose_estimate", PoseStamped)
     pose = paper_pose(robot)
+    idle_robot_heartbeat(client)
     assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
     goal = start_with_pose(client, poses, pose, duration_s=0.0)  # until cancelled
     plan = goal.plan()
@@ -305,17 +321,21 @@ def test_a_goal_on_sim_time(robot, ros_domain, tmp_path):
         windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
         clock = client.publisher("/clock", Clock)
         poses = client.publisher("platform/pose_estimate", PoseStamped)
+        sim = 100.0
+        idle_robot_heartbeat(client, clock=lambda: sim)
         assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
         goal = start_with_pose(client, poses, paper_pose(robot), waiting_for=("NOT_READY",), duration_s=1.0,
                                ramp_s=0.1)
         assert goal.outcome()[0] == "CLOCK_NOT_RUNNING", goal.outcome()
 
-        sim = 100.0
         goal = start_with_pose(client, poses, paper_pose(robot), duration_s=1.0, ramp_s=0.1,
                                publish_also=lambda: clock.publish(Clock(clock=Time(sec=100))))
         assert goal.plan() is not None, goal.outcome()
+        status = status_publisher(client)
         while sim < 102.5:  # 2.5 s of sim time at ~4x wall speed
             sim += 0.01
+            if abs(sim - 101.5) < 0.005:  # the robot says its units vibrate (from t0 = 101 s)
+                status.publish(emulator_status("running", 101.0, now=sim))
             ns = round(sim * 1e9)
             clock.publish(Clock(clock=Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)))
             client.spin_for(0.0025)
@@ -333,9 +353,12 @@ def test_a_goal_on_sim_time(robot, ros_domain, tmp_path):
         assert abs(result.active_s - 1.0) < 0.02 and abs(result.cycles_delivered - F * 0.9) < 0.02 * F
 
 
-def test_a_goal_beside_a_real_emulator_refuses_an_inactive_robot(robot, ros_domain, tmp_path):
+def test_a_goal_beside_a_real_emulator_refuses_an_inactive_robot_and_the_wall_clock(robot, ros_domain, tmp_path):
     """With the real hardware emulator deactivated (lifecycle), a vibrate goal ends ROBOT_INACTIVE saying to
-    activate it -- before anything is streamed; active again, the same goal plans."""
+    activate it -- before anything is streamed; active again, the same goal plans. A planner started on the wall
+    clock beside it ends CLOCK_MISMATCH naming use_sim_time -- never SUCCEEDED: before the emulator's status
+    reaches it, it refuses NOT_READY (it cannot tell the robot's clock), and a goal whose units the robot never
+    reported moving does not succeed."""
     from lifecycle_msgs.msg import Transition
 
     emulator_args = ["--ros-args", "-p", "autostart:=false"]
@@ -359,4 +382,10 @@ def test_a_goal_beside_a_real_emulator_refuses_an_inactive_robot(robot, ros_doma
             assert goal.plan() is not None, goal.outcome()
             goal.cancel()
             assert goal.outcome(10)[0] == "CANCELED"
+        with node_under_test("wall_planner", planner, ros_domain, tmp_path) as (_, client):  # no use_sim_time
+            poses = client.publisher("platform/pose_estimate", PoseStamped)
+            assert client.wait_for_subscribers("platform/pose_estimate")
+            name, message = start_with_pose(client, poses, paper_pose(robot), duration_s=1.0,
+                                            waiting_for=PLANNER_NOT_READY + ("UNITS_NOT_AT_REST",)).outcome()
+            assert name == "CLOCK_MISMATCH" and "use_sim_time:=true" in message, (name, message)
         assert emulator.alive()

@@ -43,10 +43,10 @@ _stewart_interfaces() {
   ) 9>"$venv/.interfaces.lock"
 }
 # The package's ament index entry in the venv, as colcon gives it on a ROS install: the index marker, and
-# share/stewart_vibration/{package.xml,launch,config} linked to the checkout (the editable install puts the
-# executables in lib/stewart_vibration already), so `ros2 run`, `ros2 pkg` and `ros2 launch` of a real
-# ros2cli find the package. The executables are linked into bin/ too: activating the venv alone (the usual
-# Python habit) puts stewart-vibration and the nodes on PATH.
+# share/stewart_vibration/{package.xml,launch/*.py,config} linked to the checkout, and the executables in
+# lib/stewart_vibration, so `ros2 run`, `ros2 pkg` and `ros2 launch` of a real ros2cli find the package. They
+# are in bin/ too: activating the venv alone (the usual Python habit) puts stewart-vibration and the nodes on
+# PATH.
 _stewart_ament_entry() {
   local repo="$1" venv="$2" share="$2/share/stewart_vibration" marker
   marker="$venv/share/ament_index/resource_index/packages/stewart_vibration"
@@ -55,11 +55,34 @@ _stewart_ament_entry() {
   mkdir -p "$(dirname "$marker")" "$share" || return 1
   : > "$marker"
   ln -sfn "$repo/stewart_vibration/package.xml" "$share/package.xml" &&
-    ln -sfn "$repo/stewart_vibration/launch" "$share/launch" &&
     ln -sfn "$repo/stewart_vibration/config" "$share/config" || return 1
-  local exe
-  for exe in "$venv/lib/stewart_vibration/"*; do
-    [ -f "$exe" ] && [ -x "$exe" ] && ln -sfn "$exe" "$venv/bin/$(basename "$exe")"
+  # ros2 launch finds a launch file by os.walk of the share folder, which does not enter a linked folder:
+  # a real launch/ folder, its files linked
+  local file
+  [ -L "$share/launch" ] && { rm -f "$share/launch" || return 1; }
+  mkdir -p "$share/launch" || return 1
+  for file in "$repo/stewart_vibration/launch/"*.py; do
+    ln -sfn "$file" "$share/launch/$(basename "$file")" || return 1
+  done
+  # shellcheck disable=SC2046  # one word per executable name
+  _stewart_link_executables "$venv" $("$venv/bin/python" -c "import importlib.metadata as m
+print(' '.join(e.name for e in m.distribution('stewart-vibration').entry_points if e.group == 'console_scripts'))")
+}
+# Each named executable both in <venv>/lib/stewart_vibration (where ros2 run looks) and in <venv>/bin (PATH
+# of an activated venv): setup.cfg asks for lib/stewart_vibration, but a pip that installs editables as
+# wheels (PEP 660: a recent pip with a recent setuptools) puts them in bin/; whichever is missing is linked
+# to the other.
+_stewart_link_executables() {
+  local venv="$1" name lib bin
+  shift
+  mkdir -p "$venv/lib/stewart_vibration" || return 1
+  for name in "$@"; do
+    lib="$venv/lib/stewart_vibration/$name" bin="$venv/bin/$name"
+    if [ -f "$lib" ] && [ ! -L "$lib" ]; then
+      ln -sfn "$lib" "$bin" || return 1
+    elif [ -f "$bin" ] && [ ! -L "$bin" ]; then
+      ln -sfn "$bin" "$lib" || return 1
+    fi
   done
   return 0
 }

@@ -66,7 +66,7 @@ from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
-from ..vibration.start_gate import check_can_start
+from ..vibration.start_gate import UNITS_MOVING, check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
 from ..vibration.waveform import envelope, fade_out
 from .common import (
@@ -184,6 +184,8 @@ class VibrationPlannerNode(Node):
             self.seen_event = report.event_seq
             return
         t0 = self.run["t0"]
+        if report.state in UNITS_MOVING or report.since > t0:  # moving, or changed state since t0 (a keep-last-1
+            self.run["confirmed"] = True                         # subscriber may see only the idle at the end)
         new_event = report.event_seq != self.seen_event
         self.seen_event = report.event_seq
         if new_event and report.event == "refused" and report.event_stamp is not None \
@@ -287,16 +289,10 @@ class VibrationPlannerNode(Node):
         self.state, self.last_error = "running", ""
         self.seen_event = emulator.event_seq if emulator is not None else 0
         self.publish(first)
-        unconfirmed = ("; no vibration/status from the hardware emulator yet, so the units' state is unconfirmed"
-                       if emulator is None else
-                       f"; the last vibration/status is {status_age:.1f} s old (this process was held up?), so the "
-                       "units' state is unconfirmed; the hardware emulator checks the window"
-                       if status_age > STATUS_STALE_S else "")
         self.get_logger().info(
             f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "
             f"{np.round(plan.direction, 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {settings['ramp_s']} s, "
-            f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}"
-            f"{unconfirmed}")
+            f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}")
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
                              gains=np.round(plan.gains, 6).tolist(),
                              leg_amplitudes_um=np.round(plan.leg_amplitudes * 1e6, 3).tolist())
@@ -389,6 +385,11 @@ class VibrationPlannerNode(Node):
             cast(VibrationStream, self.stream).rest_at
         if cast(VibrationStream, self.stream).finished and end is not None and rel >= end:
             cancelled = self.state == "stopping"
+            if not cancelled and not run.get("confirmed"):
+                # the planner's clock ran through the plan, but the robot never said its units moved
+                self.abort("the hardware emulator never reported the units vibrating for this goal (its "
+                           "vibration/status stayed at rest): nothing was delivered", WARN, "STOPPED_EARLY")
+                return
             self.state = "idle"
             self._finish("CANCELED" if cancelled else "SUCCEEDED",
                          "cancelled: ramped out" if cancelled else "the vibration ran as planned")

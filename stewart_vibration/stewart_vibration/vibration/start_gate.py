@@ -5,7 +5,8 @@ from __future__ import annotations
 
 from ..errors import RefusedError
 
-BUSY_STATES = ("pending", "ramping_in", "running", "ramping_out")  # the units move (vibration/status states)
+UNITS_MOVING = ("ramping_in", "running", "ramping_out")  # vibration/status states of units that vibrate
+BUSY_STATES = ("pending", *UNITS_MOVING)  # a window queued or the units moving: not at rest
 CLOCK_MISMATCH_S = 10.0  # the planner's clock this far from the robot's: not the same clock
 
 
@@ -28,8 +29,9 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
         robot_active: that status says the robot takes commands (the emulator's lifecycle state is active).
 
     Raises:
-        RefusedError: BUSY, ESTOP_LATCHED, ROBOT_INACTIVE, UNITS_NOT_AT_REST, NOT_READY (no or a stale pose
-            estimate), CLOCK_NOT_RUNNING or CLOCK_MISMATCH, with the reason and what to do.
+        RefusedError: BUSY, ESTOP_LATCHED, ROBOT_INACTIVE, UNITS_NOT_AT_REST, NOT_READY (no or a stale status
+            or pose estimate: a start the robot's state cannot confirm is refused), CLOCK_NOT_RUNNING or
+            CLOCK_MISMATCH, with the reason and what to do.
     """
     if planner_state in ("running", "stopping"):
         raise RefusedError("BUSY", f"a vibration is {planner_state}; cancel it first")
@@ -43,9 +45,16 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
     if fresh and units_state in BUSY_STATES:
         raise RefusedError("UNITS_NOT_AT_REST", f"the vibration units are not at rest ({units_state}); start again "
                                                 "when they are")
+    if units_state is None:
+        raise RefusedError("NOT_READY", "no vibration/status from the hardware emulator yet: its units' state and "
+                                        "clock are unknown (is it running, in this ROS domain and namespace?)")
+    if not fresh:
+        raise RefusedError("NOT_READY", f"the last vibration/status from the hardware emulator is "
+                                        f"{status_age_s:.1f} s old (it repeats every second): the units' state "
+                                        "is unknown; try again")
     if now_s <= 0:
         raise RefusedError("CLOCK_NOT_RUNNING", "the planner's clock is not running (use_sim_time without /clock?)")
-    if fresh and robot_time_s is not None and \
+    if robot_time_s is not None and \
             abs(now_s - robot_time_s) > CLOCK_MISMATCH_S + status_age_s * max(clock_rate, 1.0):
         raise RefusedError("CLOCK_MISMATCH", f"the planner's clock reads {now_s:.3f} s but the robot's read "
                                              f"{robot_time_s:.3f} s {status_age_s:.1f} s ago: start the planner "
