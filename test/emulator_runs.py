@@ -33,3 +33,35 @@ def start_tibia_vibration(emu, robot, pose, duration_s: float = 2.0):
     window = VibrationStream(robot, plan, StreamSettings(duration=duration_s)).next_window(emu.time - t0)
     emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity, window.acceleration)
     return plan, t0
+
+
+def run_excitation(emu, steps, amplitude_m: float, lead_s: float = 0.1) -> dict:
+    """Run the identification ``steps`` (vibration.identification_run) on the in-process emulator, each
+    step's window commanded just before it starts; record every state period: times (s from t0), the unit
+    sensors (N, 6), the IMU's specific force and rate (N, 3) each, and the truth for judging: the units' true
+    displacements (N, 6) and the platform's true pose (N, 6)."""
+    from stewart_vibration.vibration.identification_run import step_samples
+
+    t0 = emu.time + lead_s
+    rec: dict[str, list] = {"times": [], "units": [], "accel": [], "gyro": [], "true_units": [], "true_pose": []}
+    for step in steps:
+        while emu.time < t0 + step.start - 0.05:
+            _record(emu, t0, rec)
+        grid = np.arange(0.0, step.duration + 1e-9, 0.001)
+        x, v, a = step_samples(step, amplitude_m, grid + step.start)
+        emu.command_vibration(VIB_NAMES, t0 + step.start, grid, x, v, a)
+    while emu.time < t0 + steps[-1].end + 0.02:
+        _record(emu, t0, rec)
+    return {key: np.asarray(value) for key, value in rec.items()}
+
+
+def _record(emu, t0: float, rec: dict) -> None:
+    emu.advance(PERIOD)
+    _, positions, _, _ = emu.joint_state()
+    imu = emu.imu_sample()
+    rec["times"].append(emu.time - t0)
+    rec["units"].append(positions[6:])
+    rec["accel"].append(imu.linear_acceleration)
+    rec["gyro"].append(imu.angular_velocity)
+    rec["true_units"].append(emu.true_joint_state()[1][6:])
+    rec["true_pose"].append(emu.platform_pose())
