@@ -37,7 +37,8 @@ def identified(robot, plant=None):
     # the device facts a controller has from the data sheets: the IMU reports the mean specific force over its
     # 2 ms sample period (integrate and dump); a unit's sensor reports the reading its 2 kHz firmware used last
     ident = identify_units(steps, AMPLITUDE, pose, rec["times"], rec["units"], rec["accel"], rec["gyro"],
-                           gravity=robot.gravity, accel_average_s=0.002, unit_sensor_latency_s=0.0005 if plant is not None else 0.0,
+                           gravity=robot.gravity, accel_average_s=0.002,
+                           unit_sensor_latency_s=0.0005 if plant is not None else 0.0,
                            provenance={"test": "in-process emulator"})
     return ident, steps, rec, pose
 

@@ -35,10 +35,12 @@ class ExcitationStep:
 
     @property
     def duration(self) -> float:
+        """The step's length (s): both ramps, the settling and the measured time."""
         return 2.0 * self.ramp_s + self.settle_s + self.measure_s
 
     @property
     def end(self) -> float:
+        """When the step is back at rest (s from t0)."""
         return self.start + self.duration
 
     @property
@@ -77,8 +79,8 @@ def step_samples(step: ExcitationStep, amplitude_m: float, times) -> tuple[np.nd
 
 
 def identify_units(steps: list[ExcitationStep], amplitude_m: float, pose, times, unit_readings, accel, gyro,
-                   gravity=(0.0, 0.0, 0.0), accel_average_s: float = 0.0, unit_sensor_latency_s: float = 0.0, blocks: int = 4,
-                   provenance: dict | None = None) -> VibrationIdentification:
+                   gravity=(0.0, 0.0, 0.0), accel_average_s: float = 0.0, unit_sensor_latency_s: float = 0.0,
+                   blocks: int = 4, provenance: dict | None = None) -> VibrationIdentification:
     """The identification from the recorded sensors of a run of ``steps`` at ``pose`` (6,).
 
     Args:
