@@ -29,8 +29,9 @@ import numpy as np
 from ..errors import StewartError
 from ..robot import Robot
 from .decompose import VibrationDecomposition
+from .demand_schedule import DemandSchedule
 from .signals import sample_leg_vibration
-from .waveform import fade_out
+from .waveform import envelope, fade_out, product_rule
 
 
 class StreamInterrupted(StewartError):
@@ -69,8 +70,10 @@ class VibrationWindow:
 class VibrationStream:
     """Windows of one vibration (see the module docstring). ``now`` arguments are s from t0."""
 
-    def __init__(self, robot: Robot, plan: VibrationDecomposition, settings: StreamSettings):
+    def __init__(self, robot: Robot, plan: VibrationDecomposition, settings: StreamSettings,
+                 demands: DemandSchedule | None = None):
         self.robot, self.plan, self.settings = robot, plan, settings
+        self.demands = demands  # complex leg demands a loop corrects; None: the plan's exact leg signals
         self.tail_start: float | None = None  # where the last window's ramp-out began (None: it ends at rest)
         self.rest_at: float = 0.0  # the last window sent commands rest from here on
         self.stop_at: float | None = None  # start of the stop ramp, once stop() was called
@@ -81,6 +84,11 @@ class VibrationStream:
     def _ceil(self, t: float) -> float:
         dt = self.settings.sample_period_s
         return max(math.ceil(t / dt - 1e-9), 0) * dt
+
+    def splice_time(self, now: float) -> float:
+        """Where the next window sent at ``now`` (s from t0) starts: a correction of ``demands`` from there on
+        changes no sample already sent."""
+        return self._start_after(now) if self.windows_sent else 0.0
 
     def _start_after(self, now: float) -> float:
         """Where a window sent at ``now`` (s from t0) starts: the first sample at or after now + lead_s."""
@@ -104,9 +112,14 @@ class VibrationStream:
     def _sample(self, times: np.ndarray, fade_at: float | None, final: bool) -> VibrationWindow:
         s = self.settings
         fade = fade_out(times, fade_at, s.ramp_s) if fade_at is not None else None
+        rest_at = float(times[-1])
+        if self.demands is not None:
+            env = envelope(times, s.duration, s.ramp_s)
+            position, velocity, acceleration = self.demands.sample(
+                times, product_rule(env, fade) if fade is not None else env)
+            return VibrationWindow(times, position, velocity, acceleration, rest_at, final)
         legs = sample_leg_vibration(self.robot, self.plan, times, duration=s.duration, ramp_time=s.ramp_s,
                                     fade=fade)
-        rest_at = float(times[-1])
         return VibrationWindow(times, legs.position, legs.velocity, legs.acceleration, rest_at, final)
 
     # -- windows ------------------------------------------------------------------------------
