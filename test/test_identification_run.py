@@ -9,8 +9,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from emulator_runs import move_and_settle, run_excitation
+from emulator_runs import move_and_settle
 
+from stewart_vibration.emulation.control_bench import run_excitation
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.plant import load_plant
 from stewart_vibration.errors import InvalidInputError
@@ -33,7 +34,7 @@ def identified(robot, plant=None):
     pose = paper_pose(robot)
     move_and_settle(emu, robot, pose)
     steps = excitation_plan(FREQUENCIES, min_measure_s=0.6)
-    rec = run_excitation(emu, steps, AMPLITUDE)
+    rec = run_excitation(emu, steps, AMPLITUDE, truth=True)
     # the device facts a controller has from the data sheets: the IMU reports the mean specific force over its
     # 2 ms sample period (integrate and dump); a unit's sensor reports the reading its 2 kHz firmware used last
     ident = identify_units(steps, AMPLITUDE, pose, rec["times"], rec["units"], rec["accel"], rec["gyro"],

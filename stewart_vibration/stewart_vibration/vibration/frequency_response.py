@@ -110,3 +110,16 @@ def platform_motion_response(accel_response, gyro_response, frequency: float, ro
     g = np.asarray(gravity, dtype=float).reshape((3,) + (1,) * (dphi.ndim - 1))
     acceleration = rot @ (np.asarray(accel_response, dtype=complex) / average) - np.cross(dphi, g, axis=0)
     return np.concatenate([acceleration / (-w * w), dphi])
+
+
+def platform_motion(times, accel, gyro, frequency: float, rotation, gravity=(0.0, 0.0, 0.0),
+                    accel_average_s: float = 0.0) -> np.ndarray:
+    """The platform's 6-DOF motion (6,) complex [dp (m); dphi (rad)], base frame, at ``frequency`` (Hz) over
+    IMU samples at ``times`` (N,) s from the vibration's t0: its complex amplitude against the carrier
+    sin(2 pi f t) (the same reference as the legs' demands), by synchronous demodulation (a least-squares
+    fit at the frequency, with offset and drift: the IMU's biases and gravity drop out); ``accel`` (N, 3)
+    m/s^2, ``gyro`` (N, 3) rad/s, platform frame; the rest as ``platform_motion_response``. Use whole periods.
+    """
+    fit = fit_sinusoid(times, np.column_stack([np.asarray(accel, float), np.asarray(gyro, float)]), frequency)
+    c = fit.complex_amplitude
+    return platform_motion_response(c[:3], c[3:], frequency, rotation, gravity, accel_average_s)

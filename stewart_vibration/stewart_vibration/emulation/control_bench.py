@@ -1,0 +1,212 @@
+"""An in-process bench for the vibration control (no ROS): the controller's pure cores drive the emulated robot
+(``HardwareEmulator``, the realistic plant included) and see only its sensors (the units' displacement sensors,
+the platform IMU); the bench reads the plant's truth (the platform's true pose) to judge what was delivered.
+For benchmarks and tests of the loop's mathematics on the real physics; the nodes run the same cores over DDS.
+
+Modes: "open_loop" (the decomposition's legs, today's planner), "feedforward" (the demands H^-1 y* of an
+identification), "closed_loop" (from the feed-forward, or the nominal map J^-1 without an identification,
+corrected by ``SineController`` from the IMU).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import StewartError
+from ..kinematics import inverse_kinematics
+from ..kinematics.jacobian import jacobian
+from ..kinematics.rotations import rotation_from_rpy, so3_log
+from ..motion.profiles import minimum_jerk, minimum_jerk_duration
+from ..robot import LEG_NAMES, VIB_NAMES, Robot
+from ..vibration.decompose import decompose_vibration
+from ..vibration.demand_schedule import DemandSchedule
+from ..vibration.frequency_response import platform_motion
+from ..vibration.identification_run import excitation_plan, identify_units, step_samples
+from ..vibration.leg_demands import decomposition_demands
+from ..vibration.sine_control import DeliveredSine, SineController, SineControlLimits, delivered_figures
+from ..vibration.sine_fit import fit_sinusoid
+from ..vibration.streaming import StreamSettings, VibrationStream
+from ..vibration.unit_identification import VibrationIdentification
+from .emulator import HardwareEmulator
+
+STATE_PERIOD_S = 0.002  # the emulator's sensor period (500 Hz)
+IMU_AVERAGE_S = 0.002  # the IMU integrates and dumps over its sample period
+UNIT_SENSOR_LATENCY_S = 0.0005  # a unit's sensor reports its 2 kHz firmware's last reading
+
+
+def move_to(emu: HardwareEmulator, robot: Robot, pose, settle_s: float = 0.5) -> None:
+    """A minimum-jerk move from home to ``pose`` at 10 mm/s (0.5 s at least), then ``settle_s`` at rest."""
+    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, pose)
+    duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
+    times = np.linspace(duration / 40, duration, 40)
+    emu.command_struts(LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))
+    end = emu.time + duration + settle_s
+    while emu.time < end:
+        emu.advance(STATE_PERIOD_S)
+
+
+def run_excitation(emu: HardwareEmulator, steps, amplitude_m: float, lead_s: float = 0.1,
+                   truth: bool = False) -> dict:
+    """Run the identification ``steps`` (vibration.identification_run), each step's window commanded just
+    before it starts; every state period records: times (s from t0), the unit sensors (N, 6), the IMU's
+    specific force and rate (N, 3) each; with ``truth``, for judging only, the units' true displacements
+    (N, 6) and the platform's true pose (N, 6) too."""
+    t0 = emu.time + lead_s
+    keys = ["times", "units", "accel", "gyro"] + (["true_units", "true_pose"] if truth else [])
+    rec: dict[str, list] = {key: [] for key in keys}
+
+    def record():
+        emu.advance(STATE_PERIOD_S)
+        imu = emu.imu_sample()
+        rec["times"].append(emu.time - t0)
+        rec["units"].append(emu.joint_state()[1][6:])
+        rec["accel"].append(imu.linear_acceleration)
+        rec["gyro"].append(imu.angular_velocity)
+        if truth:
+            rec["true_units"].append(emu.true_joint_state()[1][6:])
+            rec["true_pose"].append(emu.platform_pose())
+
+    for step in steps:
+        while emu.time < t0 + step.start - 0.05:
+            record()
+        grid = np.arange(0.0, step.duration + 1e-9, 0.001)
+        x, v, a = step_samples(step, amplitude_m, grid + step.start)
+        emu.command_vibration(VIB_NAMES, t0 + step.start, grid, x, v, a)
+    while emu.time < t0 + steps[-1].end + 0.02:
+        record()
+    return {key: np.asarray(value) for key, value in rec.items()}
+
+
+def identify(emu: HardwareEmulator, robot: Robot, pose, frequencies, amplitude_m: float = 20e-6,
+             min_measure_s: float = 0.6) -> VibrationIdentification:
+    """The identification run at ``pose`` (the robot must be at rest there), from the sensors only."""
+    steps = excitation_plan(frequencies, min_measure_s=min_measure_s)
+    rec = run_excitation(emu, steps, amplitude_m)
+    return identify_units(steps, amplitude_m, pose, rec["times"], rec["units"], rec["accel"], rec["gyro"],
+                          gravity=robot.gravity, accel_average_s=IMU_AVERAGE_S,
+                          unit_sensor_latency_s=UNIT_SENSOR_LATENCY_S)
+
+
+@dataclass
+class BenchRun:
+    """What one vibration delivered: per update period (``times`` s from t0) the truth's figures against
+    the target; the loop's verdicts; the outcome ("completed" or the abort's reason)."""
+
+    mode: str
+    times: list = field(default_factory=list)
+    truth: list[DeliveredSine] = field(default_factory=list)
+    verdicts: list[str] = field(default_factory=list)
+    outcome: str = "completed"
+    frequency_error: float = 0.0
+
+
+def true_motion(times, poses, frequency: float, nominal_rotation) -> np.ndarray:
+    """The platform's true 6-DOF motion (6,) complex [dp; dphi] (base frame) over ``poses`` (N, 6)."""
+    rotations = rotation_from_rpy(np.asarray(poses)[:, 3:])
+    dphi = so3_log(rotations @ np.asarray(nominal_rotation).T)
+    fit = fit_sinusoid(times, np.column_stack([np.asarray(poses)[:, :3], dphi]), frequency)
+    return fit.complex_amplitude
+
+
+def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acceleration_g: float = 0.3,
+            frequency: float = 35.0, duration_s: float = 4.0, ramp_s: float = 0.2,
+            identification: VibrationIdentification | None = None, gain: float = 0.7, measure_periods: int = 4,
+            rotation_scale_m: float = 0.1, limits: SineControlLimits | None = None, disturb=None) -> BenchRun:
+    """One vibration along ``direction`` (base frame) at ``pose`` in ``mode`` (module docstring); ``disturb``:
+    called as disturb(emu, t) every state period (t s from t0), to change the plant mid-vibration."""
+    plan = decompose_vibration(robot, pose, direction, acceleration_g=acceleration_g, frequency=frequency,
+                               frame="base")
+    target = plan.twist * plan.amplitude * np.exp(1j * plan.phase)
+    rotation = rotation_from_rpy(np.asarray(pose)[3:])
+    estimate = (identification.platform_response_at(frequency) if identification is not None
+                else np.linalg.inv(jacobian(robot, pose)))
+    if mode == "open_loop":
+        demand = decomposition_demands(plan)
+    else:
+        demand = np.linalg.solve(estimate, target)
+    controller = SineController(estimate, target, gain=gain, rotation_scale_m=rotation_scale_m,
+                                max_demand_m=robot.vibration_unit.amplitude_max, limits=limits,
+                                initial_demand=demand) if mode == "closed_loop" else None
+    schedule = DemandSchedule(demand, frequency, blend_s=0.05)
+    stream = VibrationStream(robot, plan, StreamSettings(duration=duration_s, ramp_s=ramp_s, lead_s=0.05,
+                                                         lookahead_s=0.5, max_lookahead_s=0.5), demands=schedule)
+    run = BenchRun(mode)
+    t0 = emu.time + 0.1
+
+    def send(now) -> bool:
+        """Send the next window; False (with the outcome set) when the robot refuses it."""
+        window = stream.next_window(now)
+        if window is None:
+            return True
+        try:
+            emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity,
+                                  window.acceleration)
+        except StewartError as exc:  # e.g. the units' travel protection ramped them out: the robot stopped it
+            report, _ = emu.vibration_report()
+            run.outcome = f"the robot refused the next window ({report.state}: {report.reason}): {exc}"
+            return False
+        return True
+
+    send(-0.1)
+    next_send, period = 0.25, 1.0 / frequency
+    times, accel, gyro, poses = [], [], [], []
+    next_judge = 0.0
+    while emu.time < t0 + duration_s + 0.05:
+        emu.advance(STATE_PERIOD_S)
+        now = emu.time - t0
+        if disturb is not None:
+            disturb(emu, now)
+        report, _ = emu.vibration_report()  # what the robot's vibration/status says
+        if report.state in ("stopped", "estopped") or emu.vibration.stop_start is not None:
+            run.outcome = f"the robot ramped the vibration out: {emu.vibration.stop_reason or report.reason}"
+            break
+        imu = emu.imu_sample()
+        times.append(now)
+        accel.append(imu.linear_acceleration)
+        gyro.append(imu.angular_velocity)
+        poses.append(emu.platform_pose())
+        span = measure_periods * period
+        if now > ramp_s + span and now <= duration_s - ramp_s:
+            t = np.asarray(times)
+            recent = t > now - span
+            if now >= next_judge:  # the truth, for judging only
+                next_judge = now + span
+                run.times.append(now)
+                run.truth.append(delivered_figures(true_motion(t[recent], np.asarray(poses)[recent], frequency,
+                                                               rotation), target, rotation_scale_m))
+            if controller is not None and now >= max(schedule.settled_at, ramp_s) + span:
+                measured = platform_motion(t[recent], np.asarray(accel)[recent], np.asarray(gyro)[recent],
+                                           frequency, rotation, robot.gravity, IMU_AVERAGE_S)
+                step = controller.update(measured)
+                run.verdicts.append(step.verdict)
+                if step.verdict == "abort":
+                    run.outcome = step.reason
+                    window = stream.stop_window(now)
+                    if window is not None:
+                        emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity,
+                                              window.acceleration)
+                    break
+                schedule.correct(step.demand, stream.splice_time(now))
+                if not send(now):
+                    break
+                next_send = now + 0.25
+        if now >= next_send:
+            if not send(now):
+                break
+            next_send = now + 0.25
+    steady = (np.asarray(times) > ramp_s) & (np.asarray(times) < duration_s - ramp_s)
+    if steady.sum() > 100:
+        z = np.asarray(poses)[steady, :3] @ plan.direction
+        run.frequency_error = _frequency_error(np.asarray(times)[steady], z, frequency)
+    return run
+
+
+def _frequency_error(times, signal, frequency: float) -> float:
+    """Relative error of the signal's frequency against ``frequency``, from the drift of its phase."""
+    halves = np.array_split(np.arange(times.size), 2)
+    phases = [np.angle(fit_sinusoid(times[h], signal[h], frequency).complex_amplitude) for h in halves]
+    drift = np.angle(np.exp(1j * (phases[1] - phases[0])))
+    span = times[halves[1]].mean() - times[halves[0]].mean()
+    return float(drift / (2 * np.pi * span) / frequency)
