@@ -389,3 +389,42 @@ def test_a_goal_beside_a_real_emulator_refuses_an_inactive_robot_and_the_wall_cl
                                             waiting_for=PLANNER_NOT_READY + ("UNITS_NOT_AT_REST",)).outcome()
             assert name == "CLOCK_MISMATCH" and "use_sim_time:=true" in message, (name, message)
         assert emulator.alive()
+
+
+def test_a_goal_with_an_identification_streams_its_feedforward(robot, ros_domain, tmp_path):
+    """identification_file: the windows carry the identification's feed-forward demands (a linear robot's, so
+    the reference is closed form); a file that does not load is refused with the reason; '' goes back to the
+    decomposition's legs, and the log says which."""
+    from test_compensation import linear_identification
+
+    from stewart_vibration.analysis.fits import fit_sinusoid
+    from stewart_vibration.vibration.compensation import compensated_demands
+    from stewart_vibration.vibration.decompose import decompose_vibration
+    from stewart_vibration.vibration.unit_identification import save_identification
+
+    pose = paper_pose(robot)
+    path = save_identification(tmp_path / "units.yaml", linear_identification(robot, pose))
+    (tmp_path / "broken.yaml").write_text("kind: something else\n")
+    args = ["--ros-args", "-p", f"identification_file:={path}"]
+    with node_under_test("planner_ff", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
+                         args) as (proc, client):
+        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
+        poses = client.publisher("platform/pose_estimate", PoseStamped)
+        idle_robot_heartbeat(client)
+        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
+        goal = start_with_pose(client, poses, pose, duration_s=2.0, ramp_s=0.2)
+        assert goal.plan() is not None, goal.outcome()
+        assert client.spin_until(lambda: len(windows) >= 1, 5)
+        t, pos, *_ = samples_of(windows[0])
+        steady = (t > 0.3) & (t < 1.7)
+        plan = decompose_vibration(robot, pose, [0.0, 0.0, 1.0], acceleration_g=G_ACC, frequency=F)
+        demands, how = compensated_demands(linear_identification(robot, pose), plan)
+        np.testing.assert_allclose(fit_sinusoid(t[steady], pos[steady], F).complex_amplitude, demands,
+                                   atol=1e-6 * plan.amplitude)
+        assert client.spin_until(lambda: "identified feed-forward" in proc.log_text(), 5), proc.log_text()
+        goal.cancel()
+        (refused,) = set_params(client, identification_file=str(tmp_path / "broken.yaml"))
+        assert not refused.successful and "identification_file" in refused.reason and "not a vibration " \
+            "identification file" in refused.reason
+        assert set_params(client, identification_file="")[0].successful
+        assert proc.alive()

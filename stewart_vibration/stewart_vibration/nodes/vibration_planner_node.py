@@ -68,6 +68,7 @@ from ..runtime.sim_clock import ClockRate
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
 from ..vibration.start_gate import UNITS_MOVING, check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
+from ..vibration.unit_identification import load_identification_option
 from ..vibration.waveform import envelope, fade_out
 from .common import (
     ERROR,
@@ -100,9 +101,11 @@ class VibrationPlannerNode(Node):
         declare_table(self, VIBRATION_PLANNER)
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         self.add_on_set_parameters_callback(self.on_set_parameters)
+        self.add_post_set_parameters_callback(self.after_set_parameters)
         reason = settings_reason(self.robot, self.settings_with({}))
         if reason:
             raise ValueError(f"invalid initial parameters: {reason}")
+        self.identification = load_identification_option(self.get_parameter("identification_file").value)
 
         self.diagnostics = Diagnostics(self, "vibration planner")
         self.malformed = MalformedInputs(self, self.diagnostics)
@@ -152,11 +155,24 @@ class VibrationPlannerNode(Node):
             reason = settings_reason(self.robot, s)
         except (TypeError, ValueError) as exc:
             reason = f"invalid parameter value: {exc}"
+        for p in params:
+            if p.name == "identification_file" and not reason:
+                try:
+                    load_identification_option(p.value)
+                except StewartError as exc:
+                    reason = f"identification_file: {exc}"
         if reason:
             if hasattr(self, "diagnostics"):
                 reject(self, self.diagnostics, "parameters", reason)
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)
+
+    def after_set_parameters(self, params) -> None:
+        """A new identification_file (already checked) is loaded for the next vibration."""
+        for p in params:
+            if p.name == "identification_file":
+                self.identification = load_identification_option(p.value)
+                self.get_logger().info(f"identification: {p.value or 'none (uncompensated)'}")
 
     # -- inputs ------------------------------------------------------------------------
     def now_s(self) -> float:
@@ -278,7 +294,8 @@ class VibrationPlannerNode(Node):
         # just resumed from a stall, this process may not have taken the latest /clock yet: the
         # fresh pose estimate's stamp (sim time) bounds the present from below
         now = max(now, pose_stamp)
-        started = start_check(self.robot, pose, settings, self.clock_rate.wall_margin)  # wall s -> sim s
+        started = start_check(self.robot, pose, settings, self.clock_rate.wall_margin,  # wall s -> sim s
+                              identification=self.identification)
         plan, stream, first = started.plan, started.stream, started.first
         t0 = now + started.start_lead
         self.stream = stream
@@ -292,7 +309,8 @@ class VibrationPlannerNode(Node):
         self.get_logger().info(
             f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "
             f"{np.round(plan.direction, 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {settings['ramp_s']} s, "
-            f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}")
+            f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}; "
+            f"{started.compensation}")
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
                              gains=np.round(plan.gains, 6).tolist(),
                              leg_amplitudes_um=np.round(plan.leg_amplitudes * 1e6, 3).tolist())

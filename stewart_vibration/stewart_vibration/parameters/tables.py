@@ -22,7 +22,10 @@ MAX_QOS_DEPTH = 1_000_000  # history per recorded topic: beyond this one topic c
 REPLAY_CLOCK_RATE_HZ = 100.0
 
 VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
-    P(name, "double", p.default, p.description, "s", p.low, p.high) for name, p in STREAM_PARAMETERS.items())
+    P(name, "double", p.default, p.description, "s", p.low, p.high) for name, p in STREAM_PARAMETERS.items()) + (
+    P("identification_file", "string", "", "the vibration units' identification (YAML, "
+      "vibration.unit_identification): vibrations at its pose and within its frequencies are planned with its "
+      "feed-forward; '' = none (uncompensated: the decomposition's legs)"),)
 
 HARDWARE_EMULATOR = (
     P("robot_config", "string", "", "robot YAML ('' = config/robot.yaml; read at configure)", at_configure=True),

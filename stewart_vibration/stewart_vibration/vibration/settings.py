@@ -22,9 +22,12 @@ import numpy as np
 from ..errors import InvalidInputError, StewartError, VibrationLimitError
 from ..input_checks import safe_norm
 from ..robot import Robot
+from .compensation import compensated_demands
 from .decompose import FRAMES, VibrationDecomposition, decompose_vibration
+from .demand_schedule import DemandSchedule
 from .feasibility import check_command_limits
 from .streaming import StreamSettings, VibrationStream, VibrationWindow
+from .unit_identification import VibrationIdentification
 
 MAX_WINDOW_SAMPLES = 100_000  # one message; the emulator refuses windows reaching > 30 s ahead anyway
 
@@ -259,15 +262,21 @@ class StartPlan:
     stream: VibrationStream
     first: VibrationWindow
     start_lead: float
+    compensation: str = "uncompensated"  # how the legs' demands were made (compensation.compensated_demands)
 
 
-def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds) -> StartPlan:
+def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds,
+                identification: VibrationIdentification | None = None) -> StartPlan:
     """Everything the planner checks before it starts a vibration at ``pose`` with the settings ``s``.
 
     The settings (``settings_reason``), the decomposition with the unit's and the stroke limits, the first
     window (sent at the start call, start_lead_s before t0, ramp-in included) and, for a vibration that
     is streamed, a stop window at full amplitude against the unit's limits. ``wall_margin`` turns the
     wall-time leads into sim seconds (see ``stream_settings``).
+
+    With ``identification`` (vibration.unit_identification) made at this pose and covering the frequency, the
+    legs' demands are its feed-forward (vibration.compensation); otherwise the decomposition's own legs, and
+    the StartPlan's ``compensation`` says why.
 
     Returns:
         The StartPlan; its stream has sent the first window (times relative to t0).
@@ -280,16 +289,21 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds) -> StartP
         raise InvalidInputError(reason)
     plan = plan_vibration(robot, pose, s, check_limits=True)
     start_lead = wall_margin(s["start_lead_s"])
-    stream = VibrationStream(robot, plan, stream_settings(s, wall_margin))
+    demands, compensation = compensated_demands(identification, plan)
+
+    def schedule() -> DemandSchedule | None:
+        return None if demands is None else DemandSchedule(demands, plan.frequency)
+
+    stream = VibrationStream(robot, plan, stream_settings(s, wall_margin), demands=schedule())
     first = cast(VibrationWindow, stream.next_window(-start_lead))  # a new stream always has a first window
     check_command_limits(robot.vibration_unit, first.times, first.position, first.velocity, first.acceleration)
     if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
-        probe = VibrationStream(robot, plan, stream.settings)
+        probe = VibrationStream(robot, plan, stream.settings, demands=schedule())
         probe.next_window(-start_lead)
         stop = probe.stop_window(s["ramp_s"])
         if stop is not None:
             check_command_limits(robot.vibration_unit, stop.times, stop.position, stop.velocity, stop.acceleration)
-    return StartPlan(plan, stream, first, start_lead)
+    return StartPlan(plan, stream, first, start_lead, compensation)
 
 
 def start_refusal(exc: StewartError, s: dict) -> str:

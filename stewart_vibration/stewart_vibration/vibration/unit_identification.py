@@ -171,3 +171,8 @@ def load_identification(path) -> VibrationIdentification:
         raise InvalidInputError(f"{path}: identification file without {exc.args[0]!r}") from None
     except (TypeError, ValueError) as exc:
         raise InvalidInputError(f"{path}: malformed identification file: {exc}") from None
+
+
+def load_identification_option(path: str | None) -> VibrationIdentification | None:
+    """``load_identification`` of a node parameter's value; None for '' (no identification)."""
+    return load_identification(path) if path else None
