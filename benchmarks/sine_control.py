@@ -65,9 +65,11 @@ def one_seed(robot, seed: int, tissue) -> list[dict]:
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant, tissue=tissue)
     bench.move_to(emu, robot, pose)
     rows = []
-    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0))
+    axes = bench.tracked_rotation(emu)
+    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0), rotation=axes)
     for mode in ("open_loop", "feedforward", "closed_loop"):
-        run = bench.vibrate(emu, robot, pose, direction, mode, identification=ident, ramp_s=RAMP_S)
+        run = bench.vibrate(emu, robot, pose, direction, mode, identification=ident, ramp_s=RAMP_S,
+                            measured_rotation=axes)
         rows.append({"seed": seed, "tissue": tissue is not None, **figures(run)})
         end = emu.time + 0.3
         while emu.time < end:
@@ -98,9 +100,10 @@ def disturbed(robot, seed: int, tissue, disturbance) -> dict:
     plant = load_plant(default_config_dir() / "plant_realistic.yaml", robot, seed=seed)
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant, tissue=tissue)
     bench.move_to(emu, robot, pose)
-    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0))
+    axes = bench.tracked_rotation(emu)
+    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0), rotation=axes)
     run = bench.vibrate(emu, robot, pose, direction, "closed_loop", identification=ident, ramp_s=RAMP_S,
-                        duration_s=5.0, disturb=disturbance)
+                        duration_s=5.0, disturb=disturbance, measured_rotation=axes)
     after = [(t, f) for t, f in zip(run.times, run.truth) if t > 2.0]
     back = next((t - 2.0 for t, f in after if f.direction_error_deg <= REQUIRED["direction_deg"] and
                  100 * abs(f.amplitude_error) <= REQUIRED["amplitude_pct"] and

@@ -24,11 +24,13 @@ def runs(robot):
     plant = load_plant(default_config_dir() / "plant_realistic.yaml", robot, seed=5)
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant)
     bench.move_to(emu, robot, pose)
-    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0))
+    axes = bench.tracked_rotation(emu)  # the IMU's axes as the external tracker sees the platform
+    ident = bench.identify(emu, robot, pose, (30.0, 35.0, 40.0), rotation=axes)
     direction = rotation_from_rpy(pose[3:])[:, 2]
     out = {}
     for mode in ("open_loop", "feedforward", "closed_loop"):
-        out[mode] = bench.vibrate(emu, robot, pose, direction, mode, identification=ident, duration_s=3.0)
+        out[mode] = bench.vibrate(emu, robot, pose, direction, mode, identification=ident, duration_s=3.0,
+                                  measured_rotation=axes)
         end = emu.time + 0.3
         while emu.time < end:
             emu.advance(bench.STATE_PERIOD_S)

@@ -17,7 +17,7 @@ import numpy as np
 from ..errors import StewartError
 from ..kinematics import inverse_kinematics
 from ..kinematics.jacobian import jacobian
-from ..kinematics.rotations import rotation_from_rpy, so3_log
+from ..kinematics.rotations import rotation_from_quaternion, rotation_from_rpy, so3_exp, so3_log
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..vibration.decompose import decompose_vibration
@@ -79,14 +79,28 @@ def run_excitation(emu: HardwareEmulator, steps, amplitude_m: float, lead_s: flo
     return {key: np.asarray(value) for key, value in rec.items()}
 
 
+def tracked_rotation(emu: HardwareEmulator, seconds: float = 0.5) -> np.ndarray:
+    """The platform's orientation (3, 3) in the base frame from the external tracker's frames over ``seconds``
+    at rest (their mean rotation): the IMU's axes as they are, not as the drawing's FK puts them."""
+    quaternions = []
+    end = emu.time + seconds
+    while emu.time < end:
+        emu.advance(STATE_PERIOD_S)
+        quaternions += [frame.quaternion for frame in emu.tracker_frames()]
+    rotations = rotation_from_quaternion(np.asarray(quaternions))
+    mean = so3_log(rotations @ rotations[0].T).mean(axis=0)
+    return so3_exp(mean) @ rotations[0]
+
+
 def identify(emu: HardwareEmulator, robot: Robot, pose, frequencies, amplitude_m: float = 20e-6,
-             min_measure_s: float = 0.6) -> VibrationIdentification:
-    """The identification run at ``pose`` (the robot must be at rest there), from the sensors only."""
+             min_measure_s: float = 0.6, rotation=None) -> VibrationIdentification:
+    """The identification run at ``pose`` (the robot must be at rest there), from the sensors only;
+    ``rotation``: the platform's measured orientation (``tracked_rotation``), default the pose's."""
     steps = excitation_plan(frequencies, min_measure_s=min_measure_s)
     rec = run_excitation(emu, steps, amplitude_m)
     return identify_units(steps, amplitude_m, pose, rec["times"], rec["units"], rec["accel"], rec["gyro"],
                           gravity=robot.gravity, accel_average_s=IMU_AVERAGE_S,
-                          unit_sensor_latency_s=UNIT_SENSOR_LATENCY_S)
+                          unit_sensor_latency_s=UNIT_SENSOR_LATENCY_S, rotation=rotation)
 
 
 @dataclass
@@ -113,13 +127,17 @@ def true_motion(times, poses, frequency: float, nominal_rotation) -> np.ndarray:
 def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acceleration_g: float = 0.3,
             frequency: float = 35.0, duration_s: float = 4.0, ramp_s: float = 0.2,
             identification: VibrationIdentification | None = None, gain: float = 0.7, measure_periods: int = 4,
-            rotation_scale_m: float = 0.1, limits: SineControlLimits | None = None, disturb=None) -> BenchRun:
+            rotation_scale_m: float = 0.1, limits: SineControlLimits | None = None, disturb=None,
+            measured_rotation=None) -> BenchRun:
     """One vibration along ``direction`` (base frame) at ``pose`` in ``mode`` (module docstring); ``disturb``:
-    called as disturb(emu, t) every state period (t s from t0), to change the plant mid-vibration."""
+    called as disturb(emu, t) every state period (t s from t0), to change the plant mid-vibration;
+    ``measured_rotation``: the platform's orientation the loop takes the IMU's axes at (``tracked_rotation``;
+    default the pose's). The truth is judged about the platform's true orientation."""
     plan = decompose_vibration(robot, pose, direction, acceleration_g=acceleration_g, frequency=frequency,
                                frame="base")
     target = plan.twist * plan.amplitude * np.exp(1j * plan.phase)
-    rotation = rotation_from_rpy(np.asarray(pose)[3:])
+    rotation = rotation_from_rpy(np.asarray(pose)[3:])  # the nominal orientation: the truth's reference
+    imu_axes = rotation if measured_rotation is None else np.asarray(measured_rotation, float)
     estimate = (identification.platform_response_at(frequency) if identification is not None
                 else np.linalg.inv(jacobian(robot, pose)))
     if mode == "open_loop":
@@ -178,7 +196,7 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
                                                                rotation), target, rotation_scale_m))
             if controller is not None and now >= max(schedule.settled_at, ramp_s) + span:
                 measured = platform_motion(t[recent], np.asarray(accel)[recent], np.asarray(gyro)[recent],
-                                           frequency, rotation, robot.gravity, IMU_AVERAGE_S)
+                                           frequency, imu_axes, robot.gravity, IMU_AVERAGE_S)
                 step = controller.update(measured)
                 run.verdicts.append(step.verdict)
                 if step.verdict == "abort":

@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..splines import smoothstep
 from .leg_demands import blended_demand_samples
 
 
@@ -51,6 +52,15 @@ class DemandSchedule:
         if at < self.settled_at - 1e-12:
             raise InvalidInputError(f"a correction at {at:.4f} s overlaps the blend ending at {self.settled_at:.4f} s")
         self.changes.append((float(at), self._checked(demands)))
+
+    def demand_at(self, t: float) -> np.ndarray:
+        """The complex demands (6,) m in force at ``t`` (s from t0), a blend's part way included."""
+        k = max(i for i, (at, _) in enumerate(self.changes) if i == 0 or at <= t)
+        if k == 0:
+            return self.changes[0][1].copy()
+        at, after = self.changes[k]
+        before = self.changes[k - 1][1]
+        return before + (after - before) * float(smoothstep((t - at) / self.blend_s)[0])
 
     def sample(self, times, envelope) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Position, velocity, acceleration (N, 6) at ``times`` (N,) s from t0 under ``envelope``

@@ -80,7 +80,7 @@ def step_samples(step: ExcitationStep, amplitude_m: float, times) -> tuple[np.nd
 
 def identify_units(steps: list[ExcitationStep], amplitude_m: float, pose, times, unit_readings, accel, gyro,
                    gravity=(0.0, 0.0, 0.0), accel_average_s: float = 0.0, unit_sensor_latency_s: float = 0.0,
-                   blocks: int = 4, provenance: dict | None = None) -> VibrationIdentification:
+                   blocks: int = 4, provenance: dict | None = None, rotation=None) -> VibrationIdentification:
     """The identification from the recorded sensors of a run of ``steps`` at ``pose`` (6,).
 
     Args:
@@ -90,6 +90,8 @@ def identify_units(steps: list[ExcitationStep], amplitude_m: float, pose, times,
         gravity: (3,) m/s^2 in the base frame (the robot's ``gravity``).
         accel_average_s: the interval the accelerometer averages over before each sample (its sample period
             for an integrate-and-dump device; ``platform_motion_response``).
+        rotation: the platform's orientation (3, 3) in the base frame, as measured (e.g. by the external
+            tracker); default: the pose's (the drawing's FK, off by the geometry's errors).
         unit_sensor_latency_s: how old a unit sensor's reading is when reported (its firmware reports the
             reading of its last control cycle): the unit's response is its displacement's, this delay removed.
 
@@ -99,7 +101,7 @@ def identify_units(steps: list[ExcitationStep], amplitude_m: float, pose, times,
     t = np.asarray(times, dtype=float)
     readings = np.column_stack([np.asarray(unit_readings, float), np.asarray(accel, float),
                                 np.asarray(gyro, float)])
-    rotation = rotation_from_rpy(np.asarray(pose, float)[3:])
+    rotation = rotation_from_rpy(np.asarray(pose, float)[3:]) if rotation is None else np.asarray(rotation, float)
     freqs = sorted({s.frequency for s in steps})
     n = len(freqs)
     unit_h, unit_c, unit_u = (np.full((n, 6), np.nan, dtype=complex) for _ in range(3))

@@ -1,0 +1,100 @@
+"""The closed loop of one streamed vibration (pure): the platform IMU's samples in, the corrected leg demands
+(or an abort with its reason) out, on the stream's splice rules.
+
+Each update takes the IMU samples of the last ``measure_periods`` whole periods that lie after the latest
+correction has blended in and after the ramp-in, demodulates them against the demands' carrier
+(vibration.frequency_response.platform_motion), and lets the SineController correct the demands; the
+correction is blended in from the next window's start (``VibrationStream.splice_time``), so the caller sends
+that window at once. An IMU that goes silent, or reports what no vibration of this size can be (non-finite
+values, an acceleration beyond ``plausible_g``), aborts the vibration: the loop cannot see what it delivers.
+
+Times are s from the vibration's t0 (the stream's clock); the IMU's samples are platform-frame specific force
+(m/s^2) and rate (rad/s).
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..robot import STANDARD_GRAVITY
+from .demand_schedule import DemandSchedule
+from .frequency_response import platform_motion
+from .sine_control import ControlStep, SineController
+from .streaming import VibrationStream
+
+
+@dataclass(frozen=True)
+class LoopStep:
+    """What the caller does now: "wait" (nothing), "correct" (send the next window at once), "abort" (ramp out
+    and end the goal with ``reason``); ``control``: the controller's step of a correction or abort (None when
+    the abort is the sensor's)."""
+
+    action: str
+    reason: str = ""
+    control: ControlStep | None = None
+
+
+class ClosedLoop:
+    """The loop of one vibration (module docstring).
+
+    Args:
+        controller: the SineController (its demands are the schedule's initial ones).
+        schedule: the DemandSchedule the stream samples.
+        stream: the VibrationStream of the vibration.
+        rotation: the platform's nominal orientation (3, 3) in the base frame; gravity (3,) m/s^2 there.
+        ramp_s: the vibration's ramp-in (s): nothing is measured before its end.
+        accel_average_s: the accelerometer's averaging interval (its sample period, s).
+        silence_s: an IMU sample older than this (s of the stream's clock) while the loop needs one aborts.
+    """
+
+    def __init__(self, controller: SineController, schedule: DemandSchedule, stream: VibrationStream, rotation,
+                 gravity, ramp_s: float, measure_periods: int = 4, accel_average_s: float = 0.002,
+                 silence_s: float = 0.1, plausible_g: float = 8.0):
+        self.controller, self.schedule, self.stream = controller, schedule, stream
+        self.rotation = np.asarray(rotation, dtype=float)
+        self.gravity = np.asarray(gravity, dtype=float)
+        self.ramp_s, self.span = float(ramp_s), measure_periods / schedule.frequency
+        self.accel_average_s, self.silence_s = float(accel_average_s), float(silence_s)
+        self.plausible = float(plausible_g) * STANDARD_GRAVITY
+        self.samples: deque = deque(maxlen=4096)  # (t, accel (3,), gyro (3,))
+        self.last_sample = -np.inf
+
+    def add_imu(self, t: float, accel, gyro) -> str:
+        """One IMU sample at ``t``; returns why it is unusable ("" when it is kept)."""
+        a, g = np.asarray(accel, dtype=float), np.asarray(gyro, dtype=float)
+        if not (np.isfinite(a).all() and np.isfinite(g).all()):
+            return "the platform IMU reported a non-finite value"
+        if np.linalg.norm(a) > self.plausible:
+            return (f"the platform IMU reported {np.linalg.norm(a):.1f} m/s^2, beyond what this vibration can make "
+                    f"({self.plausible:.0f} m/s^2)")
+        self.samples.append((float(t), a, g))
+        self.last_sample = max(self.last_sample, float(t))
+        return ""
+
+    def step(self, now: float, steady_until: float | None) -> LoopStep:
+        """At ``now``: correct when a full measurement is in, wait otherwise; ``steady_until``: the end of the
+        full-amplitude part (None: until a stop), after which nothing is corrected."""
+        first = max(self.schedule.settled_at, self.ramp_s)
+        if now < self.ramp_s or (steady_until is not None and now > steady_until) or self.stream.finished:
+            return LoopStep("wait")
+        if now - self.last_sample > self.silence_s and now > self.ramp_s + self.silence_s:
+            return LoopStep("abort", f"the platform IMU went silent ({now - max(self.last_sample, 0.0):.3f} s "
+                                     "without a sample): the delivered vibration cannot be seen")
+        if now < first + self.span or self.last_sample < now - self.silence_s:
+            return LoopStep("wait")
+        window = [s for s in self.samples if now - self.span < s[0] <= now]
+        if len(window) < 8:
+            return LoopStep("wait")
+        t = np.array([s[0] for s in window])
+        accel = np.array([s[1] for s in window])
+        gyro = np.array([s[2] for s in window])
+        measured = platform_motion(t, accel, gyro, self.schedule.frequency, self.rotation, self.gravity,
+                                   self.accel_average_s)
+        control = self.controller.update(measured)
+        if control.verdict == "abort":
+            return LoopStep("abort", control.reason, control)
+        self.schedule.correct(control.demand, self.stream.splice_time(now))
+        return LoopStep("correct", "", control)
