@@ -96,3 +96,21 @@ def test_nothing_is_corrected_after_the_steady_part(robot, steady_until):
         step = loop.step(t, steady_until)
         if t > steady_until:
             assert step.action == "wait"
+
+
+def test_after_the_last_window_the_limits_are_still_judged_but_nothing_is_corrected(robot):
+    plan, plant, schedule, stream, loop, rotation = setup(robot)
+    finite = VibrationStream(robot, plan, StreamSettings(duration=1.0), demands=schedule)
+    loop.stream = finite
+    assert finite.next_window(-0.3).final  # a short vibration is sent whole: nothing left to correct
+    loud = 1.5 * np.linalg.solve(plant, target_motion(plan))  # what makes the platform move 1.5x the target
+    schedule.changes[0] = (-np.inf, loud)
+    steps = []
+    for k in range(int(0.7 / DT)):
+        t = k * DT
+        loop.add_imu(t, *imu_of(plant, schedule, rotation, robot.gravity, t))
+        steps.append(loop.step(t, 0.8))
+        if steps[-1].action == "abort":
+            break
+    assert steps[-1].action == "abort" and "+3.5 dB" in steps[-1].reason
+    assert all(s.action in ("wait", "abort") for s in steps) and len(schedule.changes) == 1

@@ -428,3 +428,87 @@ def test_a_goal_with_an_identification_streams_its_feedforward(robot, ros_domain
             "identification file" in refused.reason
         assert set_params(client, identification_file="")[0].successful
         assert proc.alive()
+
+
+class SyntheticImu:
+    """The platform IMU (at the platform origin, platform axes) of a platform moving ``motion(t)`` (6,) complex
+    [dp; dphi] (base frame) under the vibration's envelope; published as the emulator does, stamped with the
+    wall clock (the planner here runs on it)."""
+
+    def __init__(self, client, rotation, gravity, t0, ramp_s):
+        from rclpy.qos import QoSProfile, ReliabilityPolicy
+        from sensor_msgs.msg import Imu
+
+        self.pub = client.node.create_publisher(Imu, "platform/imu", QoSProfile(
+            depth=500, reliability=ReliabilityPolicy.RELIABLE))
+        self.client, self.rotation, self.gravity, self.t0, self.ramp_s = client, rotation, gravity, t0, ramp_s
+
+    def run(self, motion, seconds: float, until=lambda: False) -> None:
+        from sensor_msgs.msg import Imu
+
+        from stewart_vibration.vibration.waveform import envelope
+
+        w = 2 * np.pi * F
+        end = time.time() + seconds
+        while time.time() < end and not until():
+            stamp = time.time()
+            t = stamp - self.t0
+            e = float(envelope(np.array([t]), None, self.ramp_s)[0][0])
+            y = motion(t) * e * np.exp(1j * w * t)
+            accel = self.rotation.T @ (np.imag(-w * w * y[:3]) - self.gravity)
+            rate = self.rotation.T @ np.imag(1j * w * y[3:])
+            msg = Imu()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = int(stamp), int((stamp % 1) * 1e9)
+            msg.header.frame_id = "platform"
+            msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = map(float, accel)
+            msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, rate)
+            self.pub.publish(msg)
+            self.client.spin_for(0.002)
+
+
+@pytest.mark.parametrize("case", ["delivered", "too_loud", "imu_silent"])
+def test_the_closed_loop_over_dds(robot, ros_domain, tmp_path, case):
+    """closed_loop:=true with the platform IMU on platform/imu: a platform moving as planned keeps the demands
+    and the goal SUCCEEDED; 1.5x the target (+3.5 dB) or an IMU that goes silent ends it DELIVERY_LIMIT with
+    the reason, after a ramp-out window."""
+    from stewart_vibration.kinematics.rotations import rotation_from_rpy
+    from stewart_vibration.vibration.compensation import target_motion
+    from stewart_vibration.vibration.decompose import decompose_vibration
+
+    pose = paper_pose(robot)
+    args = ["--ros-args", "-p", "closed_loop:=true", "-p", "imu_average_s:=0.0"]
+    with node_under_test("planner_loop", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
+                         args) as (proc, client):
+        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
+        poses = client.publisher("platform/pose_estimate", PoseStamped)
+        idle_robot_heartbeat(client)
+        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
+        goal = start_with_pose(client, poses, pose, duration_s=3.0, ramp_s=0.2)
+        plan_msg = goal.plan()
+        assert plan_msg is not None, goal.outcome()
+        t0 = plan_t0(plan_msg)
+        plan = decompose_vibration(robot, pose, [0.0, 0.0, 1.0], acceleration_g=G_ACC, frequency=F)
+        target = target_motion(plan)
+        imu = SyntheticImu(client, rotation_from_rpy(pose[3:]), robot.gravity, t0, 0.2)
+        assert client.wait_for_subscribers("platform/imu", timeout=10), proc.log_text()
+        while time.time() < t0:
+            poses.publish(pose_msg(pose))
+            client.spin_for(0.01)
+        status_publisher(client).publish(emulator_status("running", t0, now=time.time()))
+        if case == "delivered":
+            imu.run(lambda t: target, 3.3, until=goal.result_future.done)
+            name, message = goal.outcome(5)
+            assert name == "SUCCEEDED", (name, message, proc.log_text()[-2000:])
+        elif case == "too_loud":
+            imu.run(lambda t: 1.5 * target, 2.0, until=goal.result_future.done)
+            name, message = goal.outcome(5)
+            assert name == "DELIVERY_LIMIT" and "+3.5 dB" in message, (name, message, proc.log_text()[-3000:])
+        else:
+            imu.run(lambda t: target, 0.8)
+            name, message = goal.outcome(5)
+            assert name == "DELIVERY_LIMIT" and "IMU went silent" in message, (name, message)
+        if case != "delivered":
+            t, pos, *_ = samples_of(windows[-1])
+            assert np.abs(pos[-1]).max() < 1e-15 and t[-1] - t[0] <= 0.2 + 2 * DT  # a ramp-out ended it
+        assert "closed loop on the platform IMU" in proc.log_text()
+        assert proc.alive()

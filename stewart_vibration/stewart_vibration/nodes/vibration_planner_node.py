@@ -51,6 +51,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
+from sensor_msgs.msg import Imu
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration_interfaces.action import Vibrate
@@ -60,11 +61,13 @@ from ..analysis.delivered import delivered_vibration
 from ..errors import MalformedMessageError, RefusedError, StewartError
 from ..kinematics import inverse_kinematics
 from ..kinematics.robot_config import load_robot
+from ..kinematics.rotations import rotation_from_rpy
 from ..messages import cdr
 from ..messages.stamped import pose_from_cdr, poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
+from ..vibration.closed_loop import ClosedLoop, closed_loop_for
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
 from ..vibration.start_gate import UNITS_MOVING, check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
@@ -88,6 +91,7 @@ POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
 STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
@@ -112,6 +116,8 @@ class VibrationPlannerNode(Node):
         self.state = "idle"
         self.last_error = ""
         self.stream: VibrationStream | None = None
+        self.loop: ClosedLoop | None = None  # the running vibration's closed loop (closed_loop)
+        self._imu_subscription = None
         self.run = None  # dict: settings, t0 (s), next_send (s), seen (s from t0: the last tick's sim time),
         # goal (its handle), done (Future of (outcome name, message, run)), plan (VibrationPlan), next_feedback
         # (wall s), stream
@@ -186,6 +192,31 @@ class VibrationPlannerNode(Node):
         self._pose_seen += 1
         if self._pose_seen % 50 == 1:  # the freshness watch needs no more than a few per second
             self.diagnostics.seen("platform/pose_estimate")
+
+    def _ensure_imu_subscription(self) -> None:
+        """Subscribe platform/imu the first time a closed loop needs it (500 Hz: not before)."""
+        if self._imu_subscription is None:
+            self._imu_subscription = self.create_subscription(Imu, "platform/imu", self.on_imu, IMU_QOS, raw=True)
+            self.diagnostics.watch("platform/imu", 1.0, "from hardware_emulator (closed loop)")
+
+    def on_imu(self, data: bytes) -> None:
+        """A platform IMU sample for the closed loop of the running vibration (else ignored)."""
+        loop, run = self.loop, self.run
+        if loop is None or run is None or self.state != "running":
+            return
+        sample = self.malformed.read("platform/imu", cdr.decode_imu, data)
+        if sample is None:
+            return
+        stamp, _, rate, accel = sample
+        reason = loop.add_imu(stamp - run["t0"], accel, rate)
+        if reason:
+            self._abort_delivery(reason)
+
+    def _abort_delivery(self, reason: str) -> None:
+        """The closed loop's abort: ramp out now, the goal ends DELIVERY_LIMIT with ``reason``."""
+        self._stop_streaming()
+        self.loop = None
+        self.abort(reason, WARN, "DELIVERY_LIMIT")
 
     def on_status(self, data: bytes) -> None:
         """The emulator's vibration/status (raw). A malformed one is counted and ignored: the planner keeps the
@@ -294,11 +325,19 @@ class VibrationPlannerNode(Node):
         # just resumed from a stall, this process may not have taken the latest /clock yet: the
         # fresh pose estimate's stamp (sim time) bounds the present from below
         now = max(now, pose_stamp)
+        closed = bool(self.get_parameter("closed_loop").value)
         started = start_check(self.robot, pose, settings, self.clock_rate.wall_margin,  # wall s -> sim s
-                              identification=self.identification)
+                              identification=self.identification, closed_loop=closed)
         plan, stream, first = started.plan, started.stream, started.first
         t0 = now + started.start_lead
         self.stream = stream
+        self.loop = None
+        if closed and started.schedule is not None:
+            self._ensure_imu_subscription()
+            self.loop = closed_loop_for(
+                self.robot, plan, started.schedule, stream, self.identification if started.compensated else None,
+                rotation_from_rpy(np.asarray(pose)[3:]), settings["ramp_s"],
+                float(self.get_parameter("loop_gain").value), float(self.get_parameter("imu_average_s").value))
         plan_msg = plan_message(plan, settings, t0)
         # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
         self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,
@@ -310,7 +349,7 @@ class VibrationPlannerNode(Node):
             f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "
             f"{np.round(plan.direction, 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {settings['ramp_s']} s, "
             f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}; "
-            f"{started.compensation}")
+            f"{started.compensation}{'; closed loop on the platform IMU' if self.loop else ''}")
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
                              gains=np.round(plan.gains, 6).tolist(),
                              leg_amplitudes_um=np.round(plan.leg_amplitudes * 1e6, 3).tolist())
@@ -416,6 +455,14 @@ class VibrationPlannerNode(Node):
         if wall >= run["next_feedback"]:
             run["next_feedback"] = wall + FEEDBACK_PERIOD_S
             self._feedback(run)
+        if self.loop is not None and self.state == "running":
+            duration = run["settings"]["duration_s"]
+            step = self.loop.step(rel, duration - run["settings"]["ramp_s"] if duration > 0 else None)
+            if step.action == "abort":
+                self._abort_delivery(step.reason)
+                return
+            if step.action == "correct":
+                run["next_send"] = now  # the corrected window goes at once
         if cast(VibrationStream, self.stream).finished or now < run["next_send"]:
             return
         run["next_send"] = now + run["settings"]["window_period_s"]

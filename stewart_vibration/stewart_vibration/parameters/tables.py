@@ -25,7 +25,13 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
     P(name, "double", p.default, p.description, "s", p.low, p.high) for name, p in STREAM_PARAMETERS.items()) + (
     P("identification_file", "string", "", "the vibration units' identification (YAML, "
       "vibration.unit_identification): vibrations at its pose and within its frequencies are planned with its "
-      "feed-forward; '' = none (uncompensated: the decomposition's legs)"),)
+      "feed-forward; '' = none (uncompensated: the decomposition's legs)"),
+    P("closed_loop", "bool", False, "correct the legs' demands while vibrating from the platform IMU (platform/imu) "
+      "until the delivered vibration is the planned one, and ramp out when it leaves the abort limits "
+      "(DELIVERY_LIMIT); the identification's response, or the kinematic map without one"),
+    P("loop_gain", "double", 0.5, "the closed loop's correction per update (of the estimated error)", "", 0.05, 1.0),
+    P("imu_average_s", "double", 0.002, "the IMU's accelerometer averages over this interval before each sample (its "
+      "sample period)", "s", 0.0, 0.1),)
 
 HARDWARE_EMULATOR = (
     P("robot_config", "string", "", "robot YAML ('' = config/robot.yaml; read at configure)", at_configure=True),

@@ -19,11 +19,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..robot import STANDARD_GRAVITY
+from ..kinematics.jacobian import jacobian
+from ..robot import STANDARD_GRAVITY, Robot
+from .compensation import target_motion
+from .decompose import VibrationDecomposition
 from .demand_schedule import DemandSchedule
 from .frequency_response import platform_motion
-from .sine_control import ControlStep, SineController
+from .sine_control import ControlStep, SineController, delivered_figures, judge
 from .streaming import VibrationStream
+from .unit_identification import VibrationIdentification
 
 
 @dataclass(frozen=True)
@@ -61,6 +65,7 @@ class ClosedLoop:
         self.plausible = float(plausible_g) * STANDARD_GRAVITY
         self.samples: deque = deque(maxlen=4096)  # (t, accel (3,), gyro (3,))
         self.last_sample = -np.inf
+        self.judged_at = -np.inf  # the last judgement without a correction (the stream finished)
 
     def add_imu(self, t: float, accel, gyro) -> str:
         """One IMU sample at ``t``; returns why it is unusable ("" when it is kept)."""
@@ -76,13 +81,15 @@ class ClosedLoop:
 
     def step(self, now: float, steady_until: float | None) -> LoopStep:
         """At ``now``: correct when a full measurement is in, wait otherwise; ``steady_until``: the end of the
-        full-amplitude part (None: until a stop), after which nothing is corrected."""
-        first = max(self.schedule.settled_at, self.ramp_s)
-        if now < self.ramp_s or (steady_until is not None and now > steady_until) or self.stream.finished:
+        full-amplitude part (None: until a stop), after which nothing is judged. Once the stream has sent its
+        last window nothing can be corrected, but the abort limits and the IMU's silence are still judged (a
+        stop window can still ramp the vibration out)."""
+        if now < self.ramp_s or (steady_until is not None and now > steady_until):
             return LoopStep("wait")
         if now - self.last_sample > self.silence_s and now > self.ramp_s + self.silence_s:
             return LoopStep("abort", f"the platform IMU went silent ({now - max(self.last_sample, 0.0):.3f} s "
                                      "without a sample): the delivered vibration cannot be seen")
+        first = max(self.schedule.settled_at, self.ramp_s, self.judged_at)
         if now < first + self.span or self.last_sample < now - self.silence_s:
             return LoopStep("wait")
         window = [s for s in self.samples if now - self.span < s[0] <= now]
@@ -93,8 +100,27 @@ class ClosedLoop:
         gyro = np.array([s[2] for s in window])
         measured = platform_motion(t, accel, gyro, self.schedule.frequency, self.rotation, self.gravity,
                                    self.accel_average_s)
+        if self.stream.finished:  # judged, not corrected: the next judgement on fresh samples
+            self.judged_at = now
+            verdict, reason = judge(delivered_figures(measured, self.controller.target,
+                                                      self.controller.rotation_scale_m),
+                                    self.controller.limits, self.controller.updates)
+            return LoopStep("abort", reason) if verdict == "abort" else LoopStep("wait")
         control = self.controller.update(measured)
         if control.verdict == "abort":
             return LoopStep("abort", control.reason, control)
         self.schedule.correct(control.demand, self.stream.splice_time(now))
         return LoopStep("correct", "", control)
+
+def closed_loop_for(robot: Robot, plan: VibrationDecomposition, schedule: DemandSchedule, stream: VibrationStream,
+                    identification: VibrationIdentification | None, rotation, ramp_s: float, gain: float,
+                    accel_average_s: float) -> ClosedLoop:
+    """The loop of a started vibration: the identification's platform response as the plant estimate when its
+    feed-forward planned the demands (``identification`` given), else the robot's kinematic map at the plan's
+    pose; the units' amplitude limit bounds the corrections."""
+    estimate = (identification.platform_response_at(plan.frequency) if identification is not None
+                else np.linalg.inv(jacobian(robot, plan.pose)))
+    controller = SineController(estimate, target_motion(plan), gain=gain,
+                                max_demand_m=robot.vibration_unit.amplitude_max, initial_demand=schedule.current)
+    return ClosedLoop(controller, schedule, stream, rotation, robot.gravity, ramp_s,
+                      accel_average_s=accel_average_s)

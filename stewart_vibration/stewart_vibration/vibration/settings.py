@@ -14,7 +14,7 @@ stream to run, or raises the typed error whose ``start_refusal`` text both say.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import cast
 
 import numpy as np
@@ -26,6 +26,7 @@ from .compensation import compensated_demands
 from .decompose import FRAMES, VibrationDecomposition, decompose_vibration
 from .demand_schedule import DemandSchedule
 from .feasibility import check_command_limits
+from .leg_demands import decomposition_demands
 from .streaming import StreamSettings, VibrationStream, VibrationWindow
 from .unit_identification import VibrationIdentification
 
@@ -263,10 +264,12 @@ class StartPlan:
     first: VibrationWindow
     start_lead: float
     compensation: str = "uncompensated"  # how the legs' demands were made (compensation.compensated_demands)
+    schedule: DemandSchedule | None = None  # the complex demands the stream samples (feed-forward, closed loop)
+    compensated: bool = False  # the demands are the identification's feed-forward
 
 
 def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds,
-                identification: VibrationIdentification | None = None) -> StartPlan:
+                identification: VibrationIdentification | None = None, closed_loop: bool = False) -> StartPlan:
     """Everything the planner checks before it starts a vibration at ``pose`` with the settings ``s``.
 
     The settings (``settings_reason``), the decomposition with the unit's and the stroke limits, the first
@@ -276,7 +279,9 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds,
 
     With ``identification`` (vibration.unit_identification) made at this pose and covering the frequency, the
     legs' demands are its feed-forward (vibration.compensation); otherwise the decomposition's own legs, and
-    the StartPlan's ``compensation`` says why.
+    the StartPlan's ``compensation`` says why. With ``closed_loop`` the demands are complex ones in a
+    DemandSchedule (the StartPlan's ``schedule``) whatever the compensation, and the vibration is streamed in
+    windows however short, so a correction can go into the next one.
 
     Returns:
         The StartPlan; its stream has sent the first window (times relative to t0).
@@ -290,11 +295,18 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds,
     plan = plan_vibration(robot, pose, s, check_limits=True)
     start_lead = wall_margin(s["start_lead_s"])
     demands, compensation = compensated_demands(identification, plan)
+    compensated = demands is not None
+    if demands is None and closed_loop:  # the loop corrects complex demands: the decomposition's, first order
+        demands = decomposition_demands(plan)
 
     def schedule() -> DemandSchedule | None:
         return None if demands is None else DemandSchedule(demands, plan.frequency)
 
-    stream = VibrationStream(robot, plan, stream_settings(s, wall_margin), demands=schedule())
+    settings = stream_settings(s, wall_margin)
+    if closed_loop:  # streamed in windows whatever its length: a correction goes into the next one
+        settings = replace(settings, max_lookahead_s=settings.lookahead_s)
+    demand_schedule = schedule()
+    stream = VibrationStream(robot, plan, settings, demands=demand_schedule)
     first = cast(VibrationWindow, stream.next_window(-start_lead))  # a new stream always has a first window
     check_command_limits(robot.vibration_unit, first.times, first.position, first.velocity, first.acceleration)
     if not stream.finished:  # the ramps and the stop ramp too: one stop window at full amplitude
@@ -303,7 +315,7 @@ def start_check(robot: Robot, pose, s: dict, wall_margin=same_seconds,
         stop = probe.stop_window(s["ramp_s"])
         if stop is not None:
             check_command_limits(robot.vibration_unit, stop.times, stop.position, stop.velocity, stop.acceleration)
-    return StartPlan(plan, stream, first, start_lead, compensation)
+    return StartPlan(plan, stream, first, start_lead, compensation, demand_schedule, compensated)
 
 
 def start_refusal(exc: StewartError, s: dict) -> str:
