@@ -4,6 +4,7 @@ its outcome code, cancel = ramp-out), its windows, and its refusals."""
 from __future__ import annotations
 
 import time
+from contextlib import contextmanager
 
 import numpy as np
 import pytest
@@ -391,6 +392,21 @@ def test_a_goal_beside_a_real_emulator_refuses_an_inactive_robot_and_the_wall_cl
         assert emulator.alive()
 
 
+@contextmanager
+def planner_vibrating(robot, ros_domain, tmp_path, name: str, args, **vibration):
+    """A planner started with ``args`` on the wall clock beside an idle robot's status, vibrating at the
+    paper's pose: (process, client, windows received, pose publisher, the goal that began)."""
+    with node_under_test(name, "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
+                         ["--ros-args", *args]) as (proc, client):
+        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
+        poses = client.publisher("platform/pose_estimate", PoseStamped)
+        idle_robot_heartbeat(client)
+        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
+        goal = start_with_pose(client, poses, paper_pose(robot), **vibration)
+        assert goal.plan() is not None, goal.outcome()
+        yield proc, client, windows, poses, goal
+
+
 def test_a_goal_with_an_identification_streams_its_feedforward(robot, ros_domain, tmp_path):
     """identification_file: the windows carry the identification's feed-forward demands (a linear robot's, so
     the reference is closed form); a file that does not load is refused with the reason; '' goes back to the
@@ -405,15 +421,8 @@ def test_a_goal_with_an_identification_streams_its_feedforward(robot, ros_domain
     pose = paper_pose(robot)
     path = save_identification(tmp_path / "units.yaml", linear_identification(robot, pose))
     (tmp_path / "broken.yaml").write_text("kind: something else\n")
-    args = ["--ros-args", "-p", f"identification_file:={path}"]
-    with node_under_test("planner_ff", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
-                         args) as (proc, client):
-        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
-        poses = client.publisher("platform/pose_estimate", PoseStamped)
-        idle_robot_heartbeat(client)
-        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-        goal = start_with_pose(client, poses, pose, duration_s=2.0, ramp_s=0.2)
-        assert goal.plan() is not None, goal.outcome()
+    with planner_vibrating(robot, ros_domain, tmp_path, "planner_ff", ["-p", f"identification_file:={path}"],
+                           duration_s=2.0, ramp_s=0.2) as (proc, client, windows, _, goal):
         assert client.spin_until(lambda: len(windows) >= 1, 5)
         t, pos, *_ = samples_of(windows[0])
         steady = (t > 0.3) & (t < 1.7)
@@ -476,17 +485,10 @@ def test_the_closed_loop_over_dds(robot, ros_domain, tmp_path, case):
     from stewart_vibration.vibration.decompose import decompose_vibration
 
     pose = paper_pose(robot)
-    args = ["--ros-args", "-p", "closed_loop:=true", "-p", "imu_average_s:=0.0"]
-    with node_under_test("planner_loop", "stewart_vibration.nodes.vibration_planner_node", ros_domain, tmp_path,
-                         args) as (proc, client):
-        windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
-        poses = client.publisher("platform/pose_estimate", PoseStamped)
-        idle_robot_heartbeat(client)
-        assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-        goal = start_with_pose(client, poses, pose, duration_s=3.0, ramp_s=0.2)
-        plan_msg = goal.plan()
-        assert plan_msg is not None, goal.outcome()
-        t0 = plan_t0(plan_msg)
+    args = ["-p", "closed_loop:=true", "-p", "imu_average_s:=0.0"]
+    with planner_vibrating(robot, ros_domain, tmp_path, "planner_loop", args, duration_s=3.0,
+                           ramp_s=0.2) as (proc, client, windows, poses, goal):
+        t0 = plan_t0(goal.plan())
         plan = decompose_vibration(robot, pose, [0.0, 0.0, 1.0], acceleration_g=G_ACC, frequency=F)
         target = target_motion(plan)
         imu = SyntheticImu(client, rotation_from_rpy(pose[3:]), robot.gravity, t0, 0.2)
