@@ -480,12 +480,16 @@ def test_the_closed_loop_over_dds(robot, ros_domain, tmp_path, case):
     """closed_loop:=true with the platform IMU on platform/imu: a platform moving as planned keeps the demands
     and the goal SUCCEEDED; 1.5x the target (+3.5 dB) or an IMU that goes silent ends it DELIVERY_LIMIT with
     the reason, after a ramp-out window."""
+    from test_compensation import linear_identification
+
     from stewart_vibration.kinematics.rotations import rotation_from_rpy
     from stewart_vibration.vibration.compensation import target_motion
     from stewart_vibration.vibration.decompose import decompose_vibration
+    from stewart_vibration.vibration.unit_identification import save_identification
 
     pose = paper_pose(robot)
-    args = ["-p", "closed_loop:=true", "-p", "imu_average_s:=0.0"]
+    path = save_identification(tmp_path / "units.yaml", linear_identification(robot, pose))
+    args = ["-p", "closed_loop:=true", "-p", "imu_average_s:=0.0", "-p", f"identification_file:={path}"]
     with planner_vibrating(robot, ros_domain, tmp_path, "planner_loop", args, duration_s=3.0,
                            ramp_s=0.2) as (proc, client, windows, poses, goal):
         t0 = plan_t0(goal.plan())

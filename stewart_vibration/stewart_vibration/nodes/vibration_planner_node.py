@@ -332,12 +332,16 @@ class VibrationPlannerNode(Node):
         t0 = now + started.start_lead
         self.stream = stream
         self.loop = None
-        if closed and started.schedule is not None:
+        loop_note = ""
+        if closed and started.compensated and started.schedule is not None and self.identification is not None:
             self._ensure_imu_subscription()
             self.loop = closed_loop_for(
-                self.robot, plan, started.schedule, stream, self.identification if started.compensated else None,
+                self.robot, plan, started.schedule, stream, self.identification,
                 rotation_from_rpy(np.asarray(pose)[3:]), settings["ramp_s"],
                 float(self.get_parameter("loop_gain").value), float(self.get_parameter("imu_average_s").value))
+            loop_note = "; closed loop on the platform IMU"
+        elif closed:
+            loop_note = "; no closed loop: it needs the units' identification at this pose"
         plan_msg = plan_message(plan, settings, t0)
         # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
         self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,
@@ -349,7 +353,7 @@ class VibrationPlannerNode(Node):
             f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "
             f"{np.round(plan.direction, 6).tolist()} (base frame), t0 = {t0:.6f} s, ramp {settings['ramp_s']} s, "
             f"duration {settings['duration_s'] or 'until cancelled'} s{' (sent whole)' if stream.finished else ''}; "
-            f"{started.compensation}{'; closed loop on the platform IMU' if self.loop else ''}")
+            f"{started.compensation}{loop_note}")
         self.diagnostics.set(OK, "running", frequency_hz=plan.frequency, amplitude_um=plan.amplitude * 1e6,
                              gains=np.round(plan.gains, 6).tolist(),
                              leg_amplitudes_um=np.round(plan.leg_amplitudes * 1e6, 3).tolist())

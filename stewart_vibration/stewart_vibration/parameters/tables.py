@@ -28,7 +28,8 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
       "feed-forward; '' = none (uncompensated: the decomposition's legs)"),
     P("closed_loop", "bool", False, "correct the legs' demands while vibrating from the platform IMU (platform/imu) "
       "until the delivered vibration is the planned one, and ramp out when it leaves the abort limits "
-      "(DELIVERY_LIMIT); the identification's response, or the kinematic map without one"),
+      "(DELIVERY_LIMIT); only for a vibration planned with the identification's feed-forward (its response is the "
+      "loop's plant estimate)"),
     P("loop_gain", "double", 0.5, "the closed loop's correction per update (of the estimated error)", "", 0.05, 1.0),
     P("imu_average_s", "double", 0.002, "the IMU's accelerometer averages over this interval before each sample (its "
       "sample period)", "s", 0.0, 0.1),)

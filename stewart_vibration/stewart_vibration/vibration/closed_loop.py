@@ -19,7 +19,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kinematics.jacobian import jacobian
 from ..robot import STANDARD_GRAVITY, Robot
 from .compensation import target_motion
 from .decompose import VibrationDecomposition
@@ -113,14 +112,17 @@ class ClosedLoop:
         return LoopStep("correct", "", control)
 
 def closed_loop_for(robot: Robot, plan: VibrationDecomposition, schedule: DemandSchedule, stream: VibrationStream,
-                    identification: VibrationIdentification | None, rotation, ramp_s: float, gain: float,
-                    accel_average_s: float) -> ClosedLoop:
-    """The loop of a started vibration: the identification's platform response as the plant estimate when its
-    feed-forward planned the demands (``identification`` given), else the robot's kinematic map at the plan's
-    pose; the units' amplitude limit bounds the corrections."""
-    estimate = (identification.platform_response_at(plan.frequency) if identification is not None
-                else np.linalg.inv(jacobian(robot, plan.pose)))
+                    identification: VibrationIdentification, rotation, ramp_s: float, gain: float,
+                    accel_average_s: float, travel_margin: float = 0.9) -> ClosedLoop:
+    """The loop of a started vibration planned with ``identification``'s feed-forward: its platform response
+    is the plant estimate, and no unit is asked for a demand its identified response would carry beyond
+    ``travel_margin`` of its travel (a resonant unit moves more than its demand). Without an identification
+    there is no loop: corrections through the drawing's kinematic map drive the resonant units of a real robot
+    past their travel before they converge."""
+    estimate = identification.platform_response_at(plan.frequency)
+    units = np.abs(identification.unit_response_at(plan.frequency))
     controller = SineController(estimate, target_motion(plan), gain=gain,
-                                max_demand_m=robot.vibration_unit.amplitude_max, initial_demand=schedule.current)
+                                max_demand_m=travel_margin * robot.vibration_unit.amplitude_max / units,
+                                initial_demand=schedule.current)
     return ClosedLoop(controller, schedule, stream, rotation, robot.gravity, ramp_s,
                       accel_average_s=accel_average_s)
