@@ -37,6 +37,15 @@ from lifecycle_msgs.msg import Transition
 from stewart_vibration.runtime.processes import DDS_PROFILE_ENV, dds_environment
 from stewart_vibration.runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 
+LAUNCH_ARGUMENTS = (  # (name, default, what it does: `ros2 launch -s`)
+    ("namespace", DEFAULT_NAMESPACE, "ROS namespace of every node and topic"),
+    ("real_time_factor", "1.0", "hardware emulator: sim seconds per wall second (0 = fastest)"),
+    ("output_dir", "", "MCAP recorder bag folder ('' = a new runs/run_<stamp>/ here)"),
+    ("foxglove", "false", "also start the Foxglove WebSocket bridge (127.0.0.1:8765)"),
+    ("ui", "false", "also start the planning UI (its address and token are logged)"),
+    ("tissue_config", "", "soft-tissue YAML for the emulator and kinematics ('' = none)"),
+    ("robot_config", "", "robot YAML for every node ('' = config/robot.yaml)"),
+)
 
 def generate_launch_description():
     config_dir = os.path.join(get_package_share_directory("stewart_vibration"), "config")
@@ -90,20 +99,8 @@ def generate_launch_description():
     ]
     return LaunchDescription(
         [
-            DeclareLaunchArgument("namespace", default_value=DEFAULT_NAMESPACE,
-                                  description="ROS namespace of every node and topic"),
-            DeclareLaunchArgument("real_time_factor", default_value="1.0",
-                                  description="hardware emulator: sim seconds per wall second (0 = fastest)"),
-            DeclareLaunchArgument("output_dir", default_value="",
-                                  description="MCAP recorder bag folder ('' = a new runs/run_<stamp>/ here)"),
-            DeclareLaunchArgument("foxglove", default_value="false",
-                                  description="also start the Foxglove WebSocket bridge (127.0.0.1:8765)"),
-            DeclareLaunchArgument("ui", default_value="false",
-                                  description="also start the planning UI (its address and token are logged)"),
-            DeclareLaunchArgument("tissue_config", default_value="",
-                                  description="soft-tissue YAML for the emulator and kinematics ('' = none)"),
-            DeclareLaunchArgument("robot_config", default_value="",
-                                  description="robot YAML for every node ('' = config/robot.yaml)"),
+            *(DeclareLaunchArgument(name, default_value=default, description=description)
+              for name, default, description in LAUNCH_ARGUMENTS),
             *dds,
             *nodes,
             *optional,

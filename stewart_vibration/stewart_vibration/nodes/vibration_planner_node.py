@@ -110,6 +110,7 @@ class VibrationPlannerNode(Node):
         if reason:
             raise ValueError(f"invalid initial parameters: {reason}")
         self.identification = load_identification_option(self.get_parameter("identification_file").value)
+        self._identification_read: tuple[str, object] = ("", None)  # (path, what it held) of the last set's check
 
         self.diagnostics = Diagnostics(self, "vibration planner")
         self.malformed = MalformedInputs(self, self.diagnostics)
@@ -163,8 +164,8 @@ class VibrationPlannerNode(Node):
             reason = f"invalid parameter value: {exc}"
         for p in params:
             if p.name == "identification_file" and not reason:
-                try:
-                    load_identification_option(p.value)
+                try:  # read once here; after_set_parameters takes what was read
+                    self._identification_read = (p.value, load_identification_option(p.value))
                 except StewartError as exc:
                     reason = f"identification_file: {exc}"
         if reason:
@@ -177,7 +178,8 @@ class VibrationPlannerNode(Node):
         """A new identification_file (already checked) is loaded for the next vibration."""
         for p in params:
             if p.name == "identification_file":
-                self.identification = load_identification_option(p.value)
+                path, read = self._identification_read
+                self.identification = read if path == p.value else load_identification_option(p.value)
                 self.get_logger().info(f"identification: {p.value or 'none (uncompensated)'}")
 
     # -- inputs ------------------------------------------------------------------------
