@@ -18,7 +18,13 @@ from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
 from stewart_vibration.nodes.common import make_executor
-from stewart_vibration.nodes.service_calls import ServiceClients, answer_with_resend, transition_lifecycle
+from stewart_vibration.nodes.service_calls import (
+    GoalAcceptances,
+    ServiceClients,
+    answer_with_resend,
+    send_goal_recovering,
+    transition_lifecycle,
+)
 from stewart_vibration.runtime.processes import ros_environment, start_python_module
 
 
@@ -75,6 +81,7 @@ class RosTestClient:
         self._publishers = {}
         self.clients = ServiceClients(self.node)
         self._actions: dict = {}
+        self._acceptances: dict = {}
 
     def subscribe(self, topic: str, msg_type, depth: int = 1000):
         self.node.create_subscription(msg_type, topic, self.received[topic].append, depth)
@@ -150,6 +157,7 @@ class RosTestClient:
 
         if name not in self._actions:
             self._actions[name] = ActionClient(self.node, action_type, name)
+            self._acceptances[name] = GoalAcceptances(self.node, name)
             if not self.spin_until(self._actions[name].server_is_ready, timeout):
                 return False
             # a goal sent at once can lose its answer (the server replies before it has matched this client's
@@ -160,10 +168,11 @@ class RosTestClient:
     def send_goal(self, name: str, goal_msg, timeout: float = 20.0) -> ActionGoal:
         """Send ``goal_msg`` to the action ``name`` (ready: action_server_ready); returns once it was taken."""
         goal = ActionGoal(self)
-        sent = self._actions[name].send_goal_async(goal_msg, feedback_callback=goal.on_feedback)
-        if not self.spin_until(sent.done, timeout) or not sent.result().accepted:
+        handle = send_goal_recovering(self._actions[name], goal_msg, self._acceptances[name], timeout, self.spin_until,
+                                      feedback_callback=goal.on_feedback)
+        if handle is None or not handle.accepted:
             raise TimeoutError(f"the {name} goal was not taken")
-        goal.handle = sent.result()
+        goal.handle = handle
         goal.result_future = goal.handle.get_result_async()
         return goal
 

@@ -83,6 +83,7 @@ from .common import (
 )
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
+from .service_calls import GoalAcceptances, send_goal_recovering_async
 from .vibration_goal import goal_message, plan_record, settings_of_plan
 
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
@@ -153,6 +154,7 @@ class PlanningUiNode(Node):
 
         # -- interfaces --
         self.move_client = ActionClient(self, MoveToPose, MOVE_ACTION)
+        self.move_acceptances = GoalAcceptances(self, MOVE_ACTION)
         self.streams = []  # the 500 Hz subscriptions: only while a page is open or a move / vibration is followed
         self.unwatched_since = time.monotonic()
         self.create_subscription(VibrationUnitsStatus, "vibration/status", self._on_status, STATUS_QOS, raw=True)
@@ -167,6 +169,7 @@ class PlanningUiNode(Node):
             "reset": self.create_client(Trigger, "hardware_emulator/reset"),
         }
         self.vibrate_client = ActionClient(self, Vibrate, "vibration_planner/vibrate")
+        self.vibrate_acceptances = GoalAcceptances(self, "vibration_planner/vibrate")
         # every vibration's feedback, whoever started it: the plan to follow and what the sensors show delivered
         self.create_subscription(Vibrate.Impl.FeedbackMessage, "vibration_planner/vibrate/_action/feedback",
                                  self._on_vibration_feedback, 10)
@@ -554,7 +557,8 @@ class PlanningUiNode(Node):
                 return
             future.result().get_result_async().add_done_callback(on_result)
 
-        self.move_client.send_goal_async(move_goal(target), feedback_callback=on_feedback).add_done_callback(on_goal)
+        send_goal_recovering_async(self.move_client, move_goal(target), self.move_acceptances,
+                                   feedback_callback=on_feedback).add_done_callback(on_goal)
         fields = model.pose_fields(target)
         self._event("planning_ui", "move goal sent: " + ", ".join(f"{k} {v:.3f}" for k, v in fields.items()), "OK")
         reply({"ok": True, "message": f"move goal sent to kinematics ({MOVE_ACTION}); following the move",
@@ -629,8 +633,8 @@ class PlanningUiNode(Node):
             self.own_goal = bytes(future.result().goal_id.uuid)
             future.result().get_result_async().add_done_callback(on_result)
 
-        self.vibrate_client.send_goal_async(goal_message(vibration), feedback_callback=on_feedback
-                                            ).add_done_callback(on_goal)
+        send_goal_recovering_async(self.vibrate_client, goal_message(vibration), self.vibrate_acceptances,
+                                   feedback_callback=on_feedback).add_done_callback(on_goal)
 
     def _trigger(self, name: str, reply) -> None:
         def done(response):

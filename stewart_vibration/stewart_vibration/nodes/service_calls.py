@@ -1,4 +1,4 @@
-"""Service calls that survive a lost answer.
+"""Service calls and action goals that survive a lost answer.
 
 Fast DDS can drop a service's response: the server sends it before it has matched the reply reader of a
 client it has just discovered (it waits 100 ms for that, then gives up with "client will not receive
@@ -8,16 +8,21 @@ the first call of a fresh client on a busy machine can go unanswered although th
 - keep one client per service (``ServiceClients``): after the first call its reply reader stays matched;
 - ask an idempotent service again after RESEND_AFTER_S without an answer (``answer_with_resend``);
 - never send a lifecycle transition twice: a lost answer to one is recovered from the node's state
-  (``transition_lifecycle``).
+  (``transition_lifecycle``);
+- never send an action goal twice: a lost answer to one is recovered from the action's status topic, which
+  lists every goal the server accepted (``GoalAcceptances``, ``send_goal_recovering``).
 """
 
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from uuid import uuid4
 
+from action_msgs.msg import GoalStatusArray
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState
+from unique_identifier_msgs.msg import UUID
 
 # services that can be asked twice without changing anything: a client sends the request again after
 # RESEND_AFTER_S without an answer (CI once waited 20 s for vibration_planner/set_parameters, and once for
@@ -95,5 +100,83 @@ def transition_lifecycle(client, transition_id: int, timeout: float, wait: Wait,
             return None
 
 
-__all__ = ["IDEMPOTENT_SERVICES", "RESEND_AFTER_S", "TRANSITION_GOALS", "ServiceClients", "answer_with_resend",
+class GoalAcceptances:
+    """The goals the action server ``action_name`` accepted, as its status topic lists them (kept for as long
+    as the server keeps their results), for one node."""
+
+    def __init__(self, node, action_name: str):
+        from rclpy.qos import qos_profile_action_status_default
+
+        self._accepted: set[bytes] = set()
+        self._waiting: dict[bytes, Callable[[], None]] = {}
+        self._sub = node.create_subscription(GoalStatusArray, f"{action_name}/_action/status", self._on_status,
+                                             qos_profile_action_status_default)
+
+    def _on_status(self, msg) -> None:
+        listed = {bytes(s.goal_info.goal_id.uuid) for s in msg.status_list}
+        self._accepted |= listed
+        for goal in listed & self._waiting.keys():
+            self._waiting.pop(goal)()
+
+    def accepted(self, goal_id) -> bool:
+        """Whether the server has listed the goal ``goal_id`` (unique_identifier_msgs/UUID) as accepted."""
+        return bytes(goal_id.uuid) in self._accepted
+
+    def when_accepted(self, goal_id, callback: Callable[[], None]) -> None:
+        """Call ``callback()`` once the server lists ``goal_id`` (at once if it has)."""
+        if self.accepted(goal_id):
+            callback()
+        else:
+            self._waiting[bytes(goal_id.uuid)] = callback
+
+    def forget(self, goal_id) -> None:
+        """Stop waiting for ``goal_id``."""
+        self._waiting.pop(bytes(goal_id.uuid), None)
+
+
+def send_goal_recovering_async(action_client, goal, acceptances: GoalAcceptances, feedback_callback=None):
+    """Send ``goal`` once through ``action_client`` (rclpy ActionClient, server ready). Returns an rclpy
+    Future of its ClientGoalHandle: the server's answer, or, when ``acceptances`` (of the same action) lists
+    the goal first, a handle marked accepted (the answer may have been lost), through which the result is
+    asked as usual. The Future has ``goal_id`` (unique_identifier_msgs/UUID)."""
+    from rclpy.action.client import ClientGoalHandle
+    from rclpy.task import Future
+
+    goal_id = UUID(uuid=list(uuid4().bytes))
+    handle: Future = Future()
+    handle.goal_id = goal_id  # type: ignore[attr-defined]
+
+    def answered(sent) -> None:
+        acceptances.forget(goal_id)
+        if handle.done():
+            return
+        if sent.exception() is not None:
+            handle.set_exception(sent.exception())
+        else:
+            handle.set_result(sent.result())
+
+    def listed() -> None:
+        if not handle.done():
+            response = action_client._action_type.Impl.SendGoalService.Response(accepted=True)
+            handle.set_result(ClientGoalHandle(action_client, goal_id, response))
+
+    sent = action_client.send_goal_async(goal, feedback_callback=feedback_callback, goal_uuid=goal_id)
+    sent.add_done_callback(answered)
+    acceptances.when_accepted(goal_id, listed)
+    return handle
+
+
+def send_goal_recovering(action_client, goal, acceptances: GoalAcceptances, timeout: float, wait: Wait,
+                         feedback_callback=None):
+    """``send_goal_recovering_async``, waited for: the goal's ClientGoalHandle, or None when neither the
+    server's answer nor its status listed the goal within ``timeout`` (wall s)."""
+    handle = send_goal_recovering_async(action_client, goal, acceptances, feedback_callback)
+    if wait(handle.done, timeout):
+        return handle.result()
+    acceptances.forget(handle.goal_id)
+    return None
+
+
+__all__ = ["IDEMPOTENT_SERVICES", "GoalAcceptances", "send_goal_recovering",
+           "send_goal_recovering_async", "RESEND_AFTER_S", "TRANSITION_GOALS", "ServiceClients", "answer_with_resend",
            "transition_lifecycle"]

@@ -38,7 +38,13 @@ from . import ensure_ament_prefix_path
 from .common import MalformedInputs, make_executor, stamp_seconds
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
-from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
+from .service_calls import (
+    GoalAcceptances,
+    ServiceClients,
+    answer_with_resend,
+    send_goal_recovering,
+    transition_lifecycle,
+)
 from .vibration_goal import goal_message, plan_record
 
 if TYPE_CHECKING:
@@ -84,6 +90,7 @@ class SuiteClient:
                                           lambda m, t=topic: self.latest.__setitem__(t, m), 1)  # type: ignore[misc]
             for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState))]
         self.move_client = ActionClient(self.node, MoveToPose, MOVE_ACTION)
+        self.move_acceptances = GoalAcceptances(self.node, MOVE_ACTION)
         self._move: dict = {}  # the latest move goal: handle, result (MoveResult)
         self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
@@ -101,6 +108,7 @@ class SuiteClient:
         # topic -> (the raw message last decoded, its pose or the last good one)
         self._decoded: dict[str, tuple] = {topic: (None, None) for topic in FOLLOWED_POSES}
         self.vibrate_client = ActionClient(self.node, Vibrate, "vibration_planner/vibrate")
+        self.vibrate_acceptances = GoalAcceptances(self.node, "vibration_planner/vibrate")
         self._vibration: dict = {}  # the latest vibrate goal: handle, plan (record), result (VibrationEnd)
 
     # -- callbacks --------------------------------------------------------------------------------------
@@ -258,9 +266,10 @@ class SuiteClient:
         it was taken; its result arrives later (``move_result``)."""
         self.spin_until(self.move_client.server_is_ready, 30.0, f"kinematics' {MOVE_ACTION} action")
         self._move = {"result": None}
-        send = self.move_client.send_goal_async(move_goal(pose))
-        self.spin_until(send.done, 30.0, "kinematics to take the move goal")
-        handle = send.result()
+        handle = send_goal_recovering(self.move_client, move_goal(pose), self.move_acceptances, 30.0,
+                                      self._wait_answer(MOVE_ACTION))
+        if handle is None:
+            raise StepFailed("kinematics did not take the move goal within 30 s")
         if not handle.accepted:
             raise StepFailed("kinematics rejected the move goal")
         self._move["handle"] = handle
@@ -320,9 +329,11 @@ class SuiteClient:
         deadline = time.monotonic() + 10.0
         while True:
             self._vibration = {"plan": None, "result": None}
-            send = self.vibrate_client.send_goal_async(goal_message(vibration), feedback_callback=self._on_feedback)
-            self.spin_until(send.done, 30.0, "the planner to take the vibrate goal")
-            handle = send.result()
+            handle = send_goal_recovering(self.vibrate_client, goal_message(vibration), self.vibrate_acceptances,
+                                          30.0, self._wait_answer("vibration_planner/vibrate"),
+                                          feedback_callback=self._on_feedback)
+            if handle is None:
+                raise StepFailed("the planner did not take the vibrate goal within 30 s")
             if not handle.accepted:
                 return VibrationStart("INTERNAL_ERROR", "the planner rejected the goal", None)
             self._vibration["handle"] = handle
