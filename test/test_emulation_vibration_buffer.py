@@ -163,6 +163,20 @@ def test_no_latch_a_new_vibration_starts_after_any_ramp_out(buffer):
     assert np.abs(buffer.sample([9.25])[0]).max() > 0.5 * A * 0.7
 
 
+@pytest.mark.parametrize("ahead_s", [0.3, 1.5, 4.0])
+def test_a_window_queued_far_ahead_leaves_the_running_one_alone_until_it_starts(buffer, ahead_s):
+    """A vibration from rest to rest, and during it the next one queued ``ahead_s`` after it ends (longer than
+    the history the buffer keeps, too): the running one plays out unchanged, then the queued one."""
+    buffer.add(window(10.0, 0.0, 0.6, tail=0.5), now=9.9)
+    later = 10.6 + ahead_s
+    buffer.add(window(later, 0.0, 0.6, tail=0.5), now=10.2)
+    t = np.arange(10.2, 10.6, 1e-4)
+    assert np.abs(buffer.sample(t)[0] - signal(t - 10.0, tail=0.5)[0]).max() < 1e-7 * A
+    t = np.arange(later, later + 0.6, 1e-4)
+    assert np.abs(buffer.sample(t)[0] - signal(t - later, tail=0.5)[0]).max() < 1e-7 * A
+    assert np.abs(buffer.sample(np.arange(10.61, later, 1e-3))[0]).max() < 1e-9  # at rest between
+
+
 def test_window_while_a_safety_ramp_runs_is_refused(buffer):
     buffer.add(window(5.0, 0.0, 1.0, tail=0.9), now=4.9)
     buffer.stop(5.3, "emergency stop", "emergency_stop")

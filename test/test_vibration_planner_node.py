@@ -518,3 +518,50 @@ def test_the_closed_loop_over_dds(robot, ros_domain, tmp_path, case):
             assert np.abs(pos[-1]).max() < 1e-15 and t[-1] - t[0] <= 0.2 + 2 * DT  # a ramp-out ended it
         assert "closed loop on the platform IMU" in proc.log_text()
         assert proc.alive()
+
+
+def test_the_identification_action_beside_the_real_emulator(robot, ros_domain, tmp_path):
+    """identify_vibration_units with the hardware emulator (ideal plant, sim time): feedback per step, a file
+    whose unit responses are 1 (ideal units) and whose platform responses are the kinematic map (a common
+    sub-step delay aside), which the planner then loads; a second goal while one runs is BUSY."""
+    from stewart_vibration.kinematics.jacobian import jacobian
+    from stewart_vibration.vibration.unit_identification import load_identification
+    from stewart_vibration_interfaces.action import IdentifyVibrationUnits
+
+    planner = "stewart_vibration.nodes.vibration_planner_node"
+    with node_under_test("emulator", "stewart_vibration.nodes.hardware_emulator_node", ros_domain, tmp_path):
+        with node_under_test("planner", planner, ros_domain, tmp_path,
+                             ["--ros-args", "-p", "use_sim_time:=true"]) as (proc, client):
+            poses = client.publisher("platform/pose_estimate", PoseStamped)
+            home = pose_msg(robot.home_pose)
+            assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
+            name = "vibration_planner/identify_vibration_units"
+            assert client.action_server_ready(IdentifyVibrationUnits, name, 20)
+            path = tmp_path / "units.yaml"
+            goal_msg = IdentifyVibrationUnits.Goal(frequencies_hz=[35.0], amplitude_m=2e-5, output_path=str(path))
+            deadline = time.monotonic() + 30
+            while True:  # until the planner has the pose estimate and the emulator's status
+                poses.publish(home)
+                client.spin_for(0.3)
+                goal = client.send_goal(name, goal_msg)
+                if not client.spin_until(goal.result_future.done, 0.5) or time.monotonic() > deadline:
+                    break
+                assert goal.result().outcome.code in (200, 204), goal.result().outcome  # NOT_READY, CLOCK
+            busy = client.send_goal(name, goal_msg).result()
+            assert busy.outcome.code == 201 and "identified" in busy.outcome.message  # BUSY
+            while not goal.result_future.done():
+                poses.publish(home)
+                client.spin_for(0.05)
+            result = goal.result()
+            assert result.outcome.code == 1, (result.outcome, list(result.problems), proc.log_text()[-2000:])
+            assert result.path == str(path) and abs(result.duration_s - 6 * 0.87) < 0.3
+            steps = {(f.feedback.step, f.feedback.unit) for f in goal.feedback}
+            assert {(k, k) for k in range(1, 7)} <= steps
+            ident = load_identification(path)
+            np.testing.assert_allclose(ident.unit_response[0], 1.0, atol=0.005)
+            kinematic = np.linalg.inv(jacobian(robot, robot.home_pose))
+            ratio = ident.platform_response[0] / kinematic
+            big = np.abs(kinematic) > 0.2 * np.abs(kinematic).max(axis=1, keepdims=True)
+            np.testing.assert_allclose(np.abs(ratio[big]), 1.0, atol=0.02)
+            assert np.degrees(np.abs(np.angle(ratio[big]))).max() < 5.0  # 35 Hz x under 0.5 ms
+            assert client.spin_until(lambda: "identification: " + str(path) in proc.log_text(), 5)

@@ -152,7 +152,9 @@ class VibrationBuffer:
                 f"{now - times[0]:.3f} s old)", limit_name="splice", value=float(now - times[-1]), limit=0.0)
         # a buffered knot closer than MIN_KNOT_GAP_S before the window's first one is replaced by it: a segment that
         # short has no meaningful spline (its h**2 underflows to 0 and the join would be NaN)
-        keep = (self.times < times[0] - MIN_KNOT_GAP_S) & (self.times >= times[0] - HISTORY_S) & check_splice
+        # (history counts back from now too: a window queued further ahead than HISTORY_S must not drop the
+        # command the units are following until it starts)
+        keep = (self.times < times[0] - MIN_KNOT_GAP_S) & (self.times >= min(now, times[0]) - HISTORY_S) & check_splice
         if self.stop_start is not None:
             keep &= self.times < self.stop_start  # faded out by a stop: never to run again once it is lifted
         kept = [self.times[keep], self.positions[keep], self.velocities[keep], self.accelerations[keep]]

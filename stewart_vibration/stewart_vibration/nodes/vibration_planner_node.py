@@ -49,16 +49,17 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
-from sensor_msgs.msg import Imu
+from sensor_msgs.msg import Imu, JointState
 from trajectory_msgs.msg import JointTrajectory
 
-from stewart_vibration_interfaces.action import Vibrate
+from stewart_vibration_interfaces.action import IdentifyVibrationUnits, Vibrate
 from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 from ..analysis.delivered import delivered_vibration
-from ..errors import MalformedMessageError, RefusedError, StewartError
+from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError
 from ..kinematics import inverse_kinematics
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_rpy
@@ -68,10 +69,13 @@ from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
 from ..vibration.closed_loop import ClosedLoop, closed_loop_for
+from ..vibration.feasibility import check_command_limits
+from ..vibration.identification_run import THERAPY_BAND_HZ, excitation_plan, step_samples
+from ..vibration.identification_session import IdentificationSession
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
 from ..vibration.start_gate import UNITS_MOVING, check_can_start
 from ..vibration.streaming import StreamInterrupted, VibrationStream
-from ..vibration.unit_identification import load_identification_option
+from ..vibration.unit_identification import load_identification_option, quality_problems, save_identification
 from ..vibration.waveform import envelope, fade_out
 from .common import (
     ERROR,
@@ -93,6 +97,7 @@ STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
+DEFAULT_EXCITATION_M = 20e-6  # each unit's demand in an identification run (m): a fifth of its travel
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
 
@@ -139,6 +144,13 @@ class VibrationPlannerNode(Node):
         self.create_subscription(VibrationUnitsStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.action = ActionServer(self, Vibrate, "vibration_planner/vibrate", execute_callback=self.execute,
                                    goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
+        self.identifying: dict | None = None  # the identification run: session, t0, goal, done, path, next_feedback
+        self._joint_state_subscription = None
+        self._joint_states = cdr.JointStateDecoder()
+        self.identify_action = ActionServer(
+            self, IdentifyVibrationUnits, "vibration_planner/identify_vibration_units",
+            execute_callback=self.identify_execute, goal_callback=lambda goal: GoalResponse.ACCEPT,
+            cancel_callback=lambda goal: CancelResponse.ACCEPT)
         self.create_timer(POLL_PERIOD_S, self.tick, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.diagnostics.watch("platform/pose_estimate", 1.0, "from kinematics")
         self.diagnostics.watch("vibration/status", 3.0, "from hardware_emulator")
@@ -203,7 +215,12 @@ class VibrationPlannerNode(Node):
 
     def on_imu(self, data: bytes) -> None:
         """A platform IMU sample for the closed loop of the running vibration (else ignored)."""
-        loop, run = self.loop, self.run
+        loop, run, ident = self.loop, self.run, self.identifying
+        if ident is not None:
+            sample = self.malformed.read("platform/imu", cdr.decode_imu, data)
+            if sample is not None:
+                ident["session"].add_imu(sample[0] - ident["t0"], sample[3], sample[2])
+            return
         if loop is None or run is None or self.state != "running":
             return
         sample = self.malformed.read("platform/imu", cdr.decode_imu, data)
@@ -213,6 +230,118 @@ class VibrationPlannerNode(Node):
         reason = loop.add_imu(stamp - run["t0"], accel, rate)
         if reason:
             self._abort_delivery(reason)
+
+    def on_joint_states(self, data: bytes) -> None:
+        """The units' sensor readings for the identification run (else ignored)."""
+        ident = self.identifying
+        if ident is None:
+            return
+        state = self.malformed.read("legs/joint_states", self._joint_states.decode, data)
+        if state is None:
+            return
+        index = {name: k for k, name in enumerate(state.names)}
+        if all(name in index for name in VIB_NAMES) and state.position.size == len(state.names):
+            ident["session"].add_units(state.stamp - ident["t0"], state.position[[index[n] for n in VIB_NAMES]])
+
+    async def identify_execute(self, goal_handle):
+        """The identification run (IdentifyVibrationUnits): refuse it with its outcome, or run it to its end."""
+        goal = goal_handle.request
+        result = IdentifyVibrationUnits.Result()
+        try:
+            self._start_identification(goal, goal_handle)
+        except StewartError as exc:
+            self.last_error = str(exc)
+            reject(self, self.diagnostics, "identify", str(exc))
+            goal_handle.abort()
+            result.outcome = outcome(exc.outcome, str(exc))
+            return result
+        name, message, path, problems, duration = await cast(dict, self.identifying)["done"]
+        self.identifying = None
+        self.state = "idle"
+        result.outcome, result.path, result.problems, result.duration_s = outcome(name, message), path, problems, \
+            duration
+        if name == "SUCCEEDED":
+            goal_handle.succeed()
+        elif name == "CANCELED" and goal_handle.is_cancel_requested:
+            goal_handle.canceled()
+        else:
+            goal_handle.abort()
+        self._report(OK, "idle")
+        return result
+
+    def _start_identification(self, goal, goal_handle) -> None:
+        """Check that the run may start now, at the current pose, and start it; StewartError if not."""
+        s = self.settings_with({})
+        emulator = self.emulator
+        status_age = time.monotonic() - self.emulator_received
+        now = self.now_s()
+        pose_age = None if self.pose_data is None else time.monotonic() - self.pose_data[1]
+        check_can_start(self.state, emulator.state if emulator else None, status_age, STATUS_STALE_S,
+                        emulator.time if emulator else None, now, pose_age, s["pose_timeout_s"],
+                        self.clock_rate.rate(), emulator.active if emulator else True)
+        _, pose = pose_from_cdr(cast(tuple, self.pose_data)[0], "pose estimate")
+        amplitude = float(goal.amplitude_m) or DEFAULT_EXCITATION_M
+        limit = self.robot.vibration_unit.amplitude_max
+        if not 0 < amplitude <= 0.5 * limit:
+            raise InvalidInputError(f"amplitude_m {amplitude!r} must be in (0, {0.5 * limit:g}] m (half the units' "
+                                    "travel: a resonance may double it)")
+        steps = excitation_plan(tuple(goal.frequencies_hz) or THERAPY_BAND_HZ, min_measure_s=0.6)
+        for step in steps[-6:]:  # the highest frequency: the largest velocity and acceleration
+            grid = np.arange(0.0, step.duration, 0.001)
+            check_command_limits(self.robot.vibration_unit, grid, *step_samples(step, amplitude, grid + step.start))
+        lead = self.clock_rate.wall_margin(s["start_lead_s"])
+        stamp = time.strftime("%Y%m%d_%H%M%S")
+        self.identifying = {
+            "session": IdentificationSession(steps, amplitude, pose), "t0": now + lead, "goal": goal_handle,
+            "done": Future(), "path": goal.output_path or f"vibration_identification_{stamp}.yaml",
+            "next_feedback": 0.0, "lead": lead, "date": time.strftime("%Y-%m-%d %H:%M:%S")}
+        self.state = "identifying"
+        self._ensure_imu_subscription()
+        if self._joint_state_subscription is None:
+            self._joint_state_subscription = self.create_subscription(JointState, "legs/joint_states",
+                                                                      self.on_joint_states, IMU_QOS, raw=True)
+        self.get_logger().info(f"identifying the vibration units: {len(steps)} steps at "
+                               f"{sorted({x.frequency for x in steps})} Hz, {amplitude * 1e6:g} um, "
+                               f"{steps[-1].end:.1f} s")
+        self._report(OK, "identifying")
+
+    def _identification_tick(self, ident: dict) -> None:
+        """Send the steps' windows when due, the feedback at 10 Hz, and finish after the last step."""
+        session, t0, goal_handle = ident["session"], ident["t0"], ident["goal"]
+        rel = self.now_s() - t0
+        if goal_handle.is_cancel_requested and not ident["done"].done():
+            ident["done"].set_result(("CANCELED", "cancelled: no further step, nothing written", "", [], 0.0))
+            return
+        for start, times, pos, vel, acc in session.due_windows(rel, ident["lead"]):
+            self.pub.publish(cdr.encode_joint_trajectory(VIB_NAMES, t0 + start, times, pos, vel, acc))
+        wall = time.monotonic()
+        if wall >= ident["next_feedback"]:
+            ident["next_feedback"] = wall + FEEDBACK_PERIOD_S
+            step, steps, unit, frequency = session.progress(rel)
+            goal_handle.publish_feedback(IdentifyVibrationUnits.Feedback(step=step, steps=steps, unit=unit,
+                                                                         frequency_hz=frequency))
+        if rel < session.end + 0.1 or ident["done"].done():
+            return
+        try:
+            found = session.identification(self.robot.gravity, float(self.get_parameter("imu_average_s").value),
+                                           float(self.get_parameter("unit_sensor_latency_s").value),
+                                           {"date": ident["date"], "method": "stepped sine, unit sensors and IMU"})
+        except StewartError as exc:
+            ident["done"].set_result(("IDENTIFICATION_REJECTED", f"no identification: {exc}", "", [str(exc)],
+                                      session.end))
+            return
+        problems = quality_problems(found)
+        import pickle, os  # DEBUG
+        if os.environ.get("DEBUG_IDENT"):
+            pickle.dump((session.units, session.imu, session.steps, ident["t0"]), open(os.environ["DEBUG_IDENT"], "wb"))
+        if problems:
+            ident["done"].set_result(("IDENTIFICATION_REJECTED", f"{len(problems)} problems, first: {problems[0]}",
+                                      "", problems, session.end))
+            return
+        path = str(save_identification(ident["path"], found))
+        self.set_parameters([Parameter("identification_file", value=path)])
+        ident["done"].set_result(("SUCCEEDED", f"identified at {len(found.frequencies)} frequencies: {path}", path,
+                                  [], session.end))
 
     def _abort_delivery(self, reason: str) -> None:
         """The closed loop's abort: ramp out now, the goal ends DELIVERY_LIMIT with ``reason``."""
@@ -428,6 +557,9 @@ class VibrationPlannerNode(Node):
         if gap <= STALL_S and wall - self._last_rate_sample >= 0.05:
             self._last_rate_sample = wall
             self.clock_rate.add(wall, self.now_s())
+        if self.identifying is not None:
+            self._identification_tick(self.identifying)
+            return
         run = self.run
         if run is None:
             return

@@ -35,6 +35,8 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
     """
     if planner_state in ("running", "stopping"):
         raise RefusedError("BUSY", f"a vibration is {planner_state}; cancel it first")
+    if planner_state == "identifying":
+        raise RefusedError("BUSY", "the vibration units are being identified; wait for it or cancel it")
     fresh = units_state is not None and status_age_s <= status_stale_s
     if units_state == "estopped":
         raise RefusedError("ESTOP_LATCHED", "emergency stop latched on the hardware emulator: call "
