@@ -53,3 +53,34 @@ def test_a_clock_running_faster_than_real_time_is_the_same_clock():
     """At 20x real time a 1 s old status lags the robot's clock by 20 s: that is no mismatch."""
     assert refusal(now_s=100.0 + 20.0, status_age_s=1.0, clock_rate=20.0) is None
     assert refusal(now_s=100.0 + CLOCK_MISMATCH_S + 1.0, status_age_s=0.0, clock_rate=1.0) == "CLOCK_MISMATCH"
+
+
+def report(**fields):
+    from stewart_vibration.emulation.vibration_status import VibrationReport
+
+    return VibrationReport(**{"state": "running", "level": "ok", "reason": "", "since": 10.0, "time": 10.5,
+                              **fields})
+
+
+T0 = 10.0
+
+
+@pytest.mark.parametrize("fields, new_event, outcome", [
+    ({}, False, None),  # running as started
+    ({"state": "idle", "since": 9.0}, False, None),  # idle from before the run: not a stop
+    ({"event": "refused", "event_stamp": T0 + 0.87, "event_outcome": "LIMIT_EXCEEDED"}, True, "ROBOT_REFUSED"),
+    ({"event": "refused", "event_stamp": T0 + 0.87}, False, None),  # an event seen already
+    ({"event": "refused", "event_stamp": T0 - 5.0}, True, None),  # a window of an earlier run
+    ({"state": "estopped"}, False, "EMERGENCY_STOPPED"),
+    ({"state": "estopped", "fault": "qacc diverged"}, False, "PHYSICS_FAULT"),
+    ({"state": "stopped", "since": 10.4, "event": "safety_ramp", "event_outcome": "UNIT_TRAVEL_STOPPED"}, True,
+     "UNIT_TRAVEL_STOPPED"),
+    ({"state": "stopped", "since": 10.4, "event": "accepted"}, False, "STOPPED_EARLY"),
+    ({"state": "stopped", "since": 9.5}, False, None),  # stopped before this run began
+])
+def test_the_robot_stopping_a_run_is_named_by_its_outcome(fields, new_event, outcome):
+    from stewart_vibration.vibration.start_gate import robot_stop
+
+    stop = robot_stop(report(**fields), T0, new_event)
+    assert (None if stop is None else stop[0]) == outcome
+    assert stop is None or stop[1]  # every stop says why

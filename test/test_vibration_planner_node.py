@@ -520,12 +520,13 @@ def test_the_closed_loop_over_dds(robot, ros_domain, tmp_path, case):
         assert proc.alive()
 
 
-def test_the_identification_action_beside_the_real_emulator(robot, ros_domain, tmp_path):
-    """identify_vibration_units with the hardware emulator (ideal plant, sim time): feedback per step, a file
-    whose unit responses are 1 (ideal units) and whose platform responses are the kinematic map (a common
-    sub-step delay aside), which the planner then loads; a second goal while one runs is BUSY."""
-    from stewart_vibration.kinematics.jacobian import jacobian
-    from stewart_vibration.vibration.unit_identification import load_identification
+IDENTIFY = "vibration_planner/identify_vibration_units"
+
+
+@contextmanager
+def beside_the_emulator(robot, ros_domain, tmp_path):
+    """(planner process, client, publish_home()) with the hardware emulator (ideal plant) and a planner on its
+    sim time, the identification action ready."""
     from stewart_vibration_interfaces.action import IdentifyVibrationUnits
 
     planner = "stewart_vibration.nodes.vibration_planner_node"
@@ -535,33 +536,83 @@ def test_the_identification_action_beside_the_real_emulator(robot, ros_domain, t
             poses = client.publisher("platform/pose_estimate", PoseStamped)
             home = pose_msg(robot.home_pose)
             assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
-            name = "vibration_planner/identify_vibration_units"
-            assert client.action_server_ready(IdentifyVibrationUnits, name, 20)
-            path = tmp_path / "units.yaml"
-            goal_msg = IdentifyVibrationUnits.Goal(frequencies_hz=[35.0], amplitude_m=2e-5, output_path=str(path))
-            deadline = time.monotonic() + 30
-            while True:  # until the planner has the pose estimate and the emulator's status
-                poses.publish(home)
-                client.spin_for(0.3)
-                goal = client.send_goal(name, goal_msg)
-                if not client.spin_until(goal.result_future.done, 0.5) or time.monotonic() > deadline:
-                    break
-                assert goal.result().outcome.code in (200, 204), goal.result().outcome  # NOT_READY, CLOCK
-            busy = client.send_goal(name, goal_msg).result()
-            assert busy.outcome.code == 201 and "identified" in busy.outcome.message  # BUSY
-            while not goal.result_future.done():
-                poses.publish(home)
-                client.spin_for(0.05)
-            result = goal.result()
-            assert result.outcome.code == 1, (result.outcome, list(result.problems), proc.log_text()[-2000:])
-            assert result.path == str(path) and abs(result.duration_s - 6 * 0.87) < 0.3
-            steps = {(f.feedback.step, f.feedback.unit) for f in goal.feedback}
-            assert {(k, k) for k in range(1, 7)} <= steps
-            ident = load_identification(path)
-            np.testing.assert_allclose(ident.unit_response[0], 1.0, atol=0.005)
-            kinematic = np.linalg.inv(jacobian(robot, robot.home_pose))
-            ratio = ident.platform_response[0] / kinematic
-            big = np.abs(kinematic) > 0.2 * np.abs(kinematic).max(axis=1, keepdims=True)
-            np.testing.assert_allclose(np.abs(ratio[big]), 1.0, atol=0.02)
-            assert np.degrees(np.abs(np.angle(ratio[big]))).max() < 5.0  # 35 Hz x under 0.5 ms
-            assert client.spin_until(lambda: "identification: " + str(path) in proc.log_text(), 5)
+            assert client.action_server_ready(IdentifyVibrationUnits, IDENTIFY, 20)
+            yield proc, client, lambda: poses.publish(home)
+
+
+def identification_started(client, publish_home, goal_msg):
+    """The identification goal once the planner took it to run (sent again while it had no pose estimate or
+    emulator status yet)."""
+    deadline = time.monotonic() + 30
+    while True:
+        publish_home()
+        client.spin_for(0.3)
+        goal = client.send_goal(IDENTIFY, goal_msg)
+        if not client.spin_until(goal.result_future.done, 0.5) or time.monotonic() > deadline:
+            return goal
+        assert goal.result().outcome.code in (200, 204), goal.result().outcome  # NOT_READY, CLOCK_NOT_RUNNING
+
+
+def test_the_identification_action_beside_the_real_emulator(robot, ros_domain, tmp_path):
+    """identify_vibration_units with the hardware emulator (ideal plant, sim time): a malformed goal refused
+    with its reason before anything moves; feedback per step, a file whose unit responses are 1 (ideal units)
+    and whose platform responses are the kinematic map (a common sub-step delay aside), which the planner then
+    loads; a second goal while one runs is BUSY."""
+    from stewart_vibration.kinematics.jacobian import jacobian
+    from stewart_vibration.vibration.unit_identification import load_identification
+    from stewart_vibration_interfaces.action import IdentifyVibrationUnits
+
+    with beside_the_emulator(robot, ros_domain, tmp_path) as (proc, client, publish_home):
+        path = tmp_path / "units.yaml"
+        for bad, why in ((dict(amplitude_m=1e-3), "amplitude_m"), (dict(frequencies_hz=[40.0, 35.0]), "increasing"),
+                         (dict(output_path=str(tmp_path / "no" / "u.yaml")), "writable")):
+            refused = client.send_goal(IDENTIFY, IdentifyVibrationUnits.Goal(**bad)).result()
+            assert refused.outcome.code == 100 and why in refused.outcome.message, refused  # INVALID_ARGUMENT
+            assert refused.path == "" and not (tmp_path / "no").exists()
+        goal_msg = IdentifyVibrationUnits.Goal(frequencies_hz=[35.0], amplitude_m=2e-5, output_path=str(path))
+        goal = identification_started(client, publish_home, goal_msg)
+        busy = client.send_goal(IDENTIFY, goal_msg).result()
+        assert busy.outcome.code == 201 and "identified" in busy.outcome.message  # BUSY
+        while not goal.result_future.done():
+            publish_home()
+            client.spin_for(0.05)
+        result = goal.result()
+        assert result.outcome.code == 1, (result.outcome, list(result.problems), proc.log_text()[-2000:])
+        assert result.path == str(path) and abs(result.duration_s - 6 * 0.87) < 0.3
+        steps = {(f.feedback.step, f.feedback.unit) for f in goal.feedback}
+        assert {(k, k) for k in range(1, 7)} <= steps
+        ident = load_identification(path)
+        np.testing.assert_allclose(ident.unit_response[0], 1.0, atol=0.005)
+        kinematic = np.linalg.inv(jacobian(robot, robot.home_pose))
+        ratio = ident.platform_response[0] / kinematic
+        big = np.abs(kinematic) > 0.2 * np.abs(kinematic).max(axis=1, keepdims=True)
+        np.testing.assert_allclose(np.abs(ratio[big]), 1.0, atol=0.02)
+        assert np.degrees(np.abs(np.angle(ratio[big]))).max() < 5.0  # 35 Hz x under 0.5 ms
+        assert client.spin_until(lambda: "identification: " + str(path) in proc.log_text(), 5)
+
+
+@pytest.mark.parametrize("how", ["cancel", "emergency_stop"])
+def test_an_identification_stopped_midway_writes_nothing(robot, ros_domain, tmp_path, how):
+    """A cancel (CANCELED) or the robot's e-stop (EMERGENCY_STOPPED) during the run ends it with that
+    outcome, no file, and the planner idle again (a vibrate goal is no longer BUSY)."""
+    from std_srvs.srv import Trigger
+
+    from stewart_vibration_interfaces.action import IdentifyVibrationUnits
+
+    with beside_the_emulator(robot, ros_domain, tmp_path) as (proc, client, publish_home):
+        path = tmp_path / "units.yaml"
+        goal = identification_started(client, publish_home, IdentifyVibrationUnits.Goal(frequencies_hz=[30.0, 40.0],
+                                                                                        output_path=str(path)))
+        assert client.spin_until(lambda: any(f.feedback.step >= 2 for f in goal.feedback), 20), proc.log_text()
+        if how == "cancel":
+            goal.cancel()
+        else:
+            assert client.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request()).success
+        result = goal.result(timeout=20)
+        expected = {"cancel": 300, "emergency_stop": 303}[how]  # CANCELED, EMERGENCY_STOPPED
+        assert result.outcome.code == expected and "nothing written" in result.outcome.message, result.outcome
+        assert result.path == "" and not path.exists()
+        assert goal.status() == (5 if how == "cancel" else 6)  # canceled / aborted
+        publish_home()
+        after = client.vibrate(duration_s=0.5).result()
+        assert after.outcome.code != 201, after.outcome  # not BUSY: the run is over

@@ -59,7 +59,7 @@ from stewart_vibration_interfaces.action import IdentifyVibrationUnits, Vibrate
 from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 from ..analysis.delivered import delivered_vibration
-from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError
+from ..errors import MalformedMessageError, RefusedError, StewartError
 from ..kinematics import inverse_kinematics
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import rotation_from_rpy
@@ -69,11 +69,9 @@ from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
 from ..vibration.closed_loop import ClosedLoop, closed_loop_for
-from ..vibration.feasibility import check_command_limits
-from ..vibration.identification_run import THERAPY_BAND_HZ, excitation_plan, step_samples
-from ..vibration.identification_session import IdentificationSession
+from ..vibration.identification_session import IdentificationSession, identification_steps, writable_output
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
-from ..vibration.start_gate import UNITS_MOVING, check_can_start
+from ..vibration.start_gate import UNITS_MOVING, check_can_start, robot_stop
 from ..vibration.streaming import StreamInterrupted, VibrationStream
 from ..vibration.unit_identification import load_identification_option, quality_problems, save_identification
 from ..vibration.waveform import envelope, fade_out
@@ -97,7 +95,6 @@ STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
-DEFAULT_EXCITATION_M = 20e-6  # each unit's demand in an identification run (m): a fifth of its travel
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
 
@@ -258,6 +255,9 @@ class VibrationPlannerNode(Node):
         name, message, path, problems, duration = await cast(dict, self.identifying)["done"]
         self.identifying = None
         self.state = "idle"
+        if self._joint_state_subscription is not None:  # 500 Hz the planner needs only while identifying
+            self.destroy_subscription(self._joint_state_subscription)
+            self._joint_state_subscription = None
         result.outcome, result.path, result.problems, result.duration_s = outcome(name, message), path, problems, \
             duration
         if name == "SUCCEEDED":
@@ -270,32 +270,21 @@ class VibrationPlannerNode(Node):
         return result
 
     def _start_identification(self, goal, goal_handle) -> None:
-        """Check that the run may start now, at the current pose, and start it; StewartError if not."""
+        """Check the goal, then that the run may start now, at the current pose, and start it; StewartError if
+        not."""
+        steps, amplitude = identification_steps(tuple(goal.frequencies_hz), float(goal.amplitude_m),
+                                                self.robot.vibration_unit)
+        path = writable_output(goal.output_path or f"vibration_identification_{time.strftime('%Y%m%d_%H%M%S')}.yaml")
         s = self.settings_with({})
-        emulator = self.emulator
-        status_age = time.monotonic() - self.emulator_received
-        now = self.now_s()
-        pose_age = None if self.pose_data is None else time.monotonic() - self.pose_data[1]
-        check_can_start(self.state, emulator.state if emulator else None, status_age, STATUS_STALE_S,
-                        emulator.time if emulator else None, now, pose_age, s["pose_timeout_s"],
-                        self.clock_rate.rate(), emulator.active if emulator else True)
+        now = self._check_can_start(s["pose_timeout_s"])
         _, pose = pose_from_cdr(cast(tuple, self.pose_data)[0], "pose estimate")
-        amplitude = float(goal.amplitude_m) or DEFAULT_EXCITATION_M
-        limit = self.robot.vibration_unit.amplitude_max
-        if not 0 < amplitude <= 0.5 * limit:
-            raise InvalidInputError(f"amplitude_m {amplitude!r} must be in (0, {0.5 * limit:g}] m (half the units' "
-                                    "travel: a resonance may double it)")
-        steps = excitation_plan(tuple(goal.frequencies_hz) or THERAPY_BAND_HZ, min_measure_s=0.6)
-        for step in steps[-6:]:  # the highest frequency: the largest velocity and acceleration
-            grid = np.arange(0.0, step.duration, 0.001)
-            check_command_limits(self.robot.vibration_unit, grid, *step_samples(step, amplitude, grid + step.start))
         lead = self.clock_rate.wall_margin(s["start_lead_s"])
-        stamp = time.strftime("%Y%m%d_%H%M%S")
         self.identifying = {
             "session": IdentificationSession(steps, amplitude, pose), "t0": now + lead, "goal": goal_handle,
-            "done": Future(), "path": goal.output_path or f"vibration_identification_{stamp}.yaml",
+            "done": Future(), "path": path,
             "next_feedback": 0.0, "lead": lead, "date": time.strftime("%Y-%m-%d %H:%M:%S")}
         self.state = "identifying"
+        self.seen_event = self.emulator.event_seq if self.emulator is not None else 0
         self._ensure_imu_subscription()
         if self._joint_state_subscription is None:
             self._joint_state_subscription = self.create_subscription(JointState, "legs/joint_states",
@@ -331,14 +320,16 @@ class VibrationPlannerNode(Node):
                                       session.end))
             return
         problems = quality_problems(found)
-        import pickle, os  # DEBUG
-        if os.environ.get("DEBUG_IDENT"):
-            pickle.dump((session.units, session.imu, session.steps, ident["t0"]), open(os.environ["DEBUG_IDENT"], "wb"))
         if problems:
             ident["done"].set_result(("IDENTIFICATION_REJECTED", f"{len(problems)} problems, first: {problems[0]}",
                                       "", problems, session.end))
             return
-        path = str(save_identification(ident["path"], found))
+        try:
+            path = str(save_identification(ident["path"], found))
+        except OSError as exc:
+            ident["done"].set_result(("INVALID_ARGUMENT", f"could not write {ident['path']}: {exc}", "",
+                                      [f"not written: {exc}"], session.end))
+            return
         self.set_parameters([Parameter("identification_file", value=path)])
         ident["done"].set_result(("SUCCEEDED", f"identified at {len(found.frequencies)} frequencies: {path}", path,
                                   [], session.end))
@@ -358,6 +349,9 @@ class VibrationPlannerNode(Node):
         self.diagnostics.seen("vibration/status")
         self.emulator = report
         self.emulator_received = time.monotonic()
+        if self.state == "identifying":
+            self._follow_identification(report)
+            return
         if self.state not in ("running", "stopping"):
             self.seen_event = report.event_seq
             return
@@ -366,23 +360,28 @@ class VibrationPlannerNode(Node):
             self.run["confirmed"] = True                         # subscriber may see only the idle at the end)
         new_event = report.event_seq != self.seen_event
         self.seen_event = report.event_seq
-        if new_event and report.event == "refused" and report.event_stamp is not None \
-                and abs(report.event_stamp - t0) < 1e-6:
-            self.abort(f"the hardware emulator refused a window of this vibration ({report.event_outcome}: "
-                       f"{report.event_reason})", WARN, "ROBOT_REFUSED")
-        elif report.state == "estopped":
-            self.abort("emergency stop on the hardware emulator (call hardware_emulator/reset)", ERROR,
-                       "PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED")
-        elif report.state == "stopped" and report.since >= t0:
-            # a safety ramp the robot made (deactivate, a unit's travel protection) names its outcome
-            self.abort(f"the vibration units stopped: {report.reason}", WARN,
-                       report.event_outcome if report.event == "safety_ramp" else "STOPPED_EARLY")
+        stop = robot_stop(report, t0, new_event)
+        if stop is not None:
+            self.abort(stop[1], ERROR if report.state == "estopped" else WARN, stop[0])
         elif report.state == "idle" and report.since > t0:
             end = cast(VibrationStream, self.stream).planned_end  # running or stopping: a stream is set
             if self.state == "running" and (end is None or report.since < t0 + end - 0.05):
                 self.abort(f"the vibration units went idle at {report.since:.3f} s, before the planned end "
                            f"({'until stop' if end is None else f'{t0 + end:.3f} s'}): {report.reason}", WARN,
                            "STOPPED_EARLY")
+
+    def _follow_identification(self, report) -> None:
+        """End the identification run when the robot stopped it (start_gate.robot_stop): nothing is written."""
+        new_event = report.event_seq != self.seen_event
+        self.seen_event = report.event_seq
+        ident = self.identifying
+        if ident is None or ident["done"].done():
+            return
+        stop = robot_stop(report, ident["t0"], new_event)
+        if stop is not None:
+            name, reason = stop
+            ident["done"].set_result((name, f"identification stopped, nothing written: {reason}", "", [reason],
+                                      max(report.since - ident["t0"], 0.0)))
 
     # -- state ---------------------------------------------------------------------------
     def _report(self, level, message: str) -> None:
@@ -438,15 +437,20 @@ class VibrationPlannerNode(Node):
             goal_handle.abort()
         return result
 
-    def _start(self, settings: dict, goal_handle) -> None:
-        """Check and start the vibration of ``settings`` for ``goal_handle``; RefusedError / StewartError if not."""
+    def _check_can_start(self, pose_timeout_s: float) -> float:
+        """The clock now (s) if the robot may be driven now (start_gate.check_can_start); RefusedError if not."""
         emulator = self.emulator
-        status_age = time.monotonic() - self.emulator_received
         now = self.now_s()
         pose_age = None if self.pose_data is None else time.monotonic() - self.pose_data[1]
-        check_can_start(self.state, emulator.state if emulator else None, status_age, STATUS_STALE_S,
-                        emulator.time if emulator else None, now, pose_age, settings["pose_timeout_s"],
+        check_can_start(self.state, emulator.state if emulator else None,
+                        time.monotonic() - self.emulator_received, STATUS_STALE_S,
+                        emulator.time if emulator else None, now, pose_age, pose_timeout_s,
                         self.clock_rate.rate(), emulator.active if emulator else True)
+        return now
+
+    def _start(self, settings: dict, goal_handle) -> None:
+        """Check and start the vibration of ``settings`` for ``goal_handle``; RefusedError / StewartError if not."""
+        now = self._check_can_start(settings["pose_timeout_s"])
         data, _ = cast(tuple, self.pose_data)
         try:
             pose_stamp, pose = pose_from_cdr(data, "pose estimate")
@@ -478,7 +482,7 @@ class VibrationPlannerNode(Node):
         self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,
                     "goal": goal_handle, "done": Future(), "plan": plan_msg, "next_feedback": 0.0, "stream": stream}
         self.state, self.last_error = "running", ""
-        self.seen_event = emulator.event_seq if emulator is not None else 0
+        self.seen_event = self.emulator.event_seq if self.emulator is not None else 0
         self.publish(first)
         self.get_logger().info(
             f"vibrating: {plan.frequency:g} Hz, platform amplitude {plan.amplitude * 1e6:.3f} um along "

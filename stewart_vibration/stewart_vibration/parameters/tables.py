@@ -33,7 +33,7 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
     P("loop_gain", "double", 0.5, "the closed loop's correction per update (of the estimated error)", "", 0.05, 1.0),
     P("imu_average_s", "double", 0.002, "the IMU's accelerometer averages over this interval before each sample (its "
       "sample period)", "s", 0.0, 0.1),
-    P("unit_sensor_latency_s", "double", 0.0005, "how old a vibration unit's sensor reading is when reported (its "
+    P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
       "firmware's control period): removed from the identified unit responses", "s", 0.0, 0.01),)
 
 HARDWARE_EMULATOR = (

@@ -7,12 +7,52 @@ streams stamped with the same state times; they are joined by stamp.
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
+
 import numpy as np
 
-from .identification_run import ExcitationStep, identify_units, step_samples
+from ..errors import InvalidInputError
+from .feasibility import check_command_limits
+from .identification_run import THERAPY_BAND_HZ, ExcitationStep, excitation_plan, identify_units, step_samples
 from .unit_identification import VibrationIdentification
 
 SAMPLE_PERIOD_S = 0.001  # the windows' grid
+MAX_RUN_S = 180.0  # the longest run (s): ~30 frequencies of the therapy band (six steps of ~0.9 s each)
+DEFAULT_AMPLITUDE_M = 20e-6  # each unit's demand: a fifth of a 100 um travel
+MIN_MEASURE_S = 0.6  # each step's measured part (s): >= 12 periods at 20 Hz
+
+
+def identification_steps(frequencies_hz: tuple, amplitude_m: float, unit) -> tuple[list[ExcitationStep], float]:
+    """The steps of a run at ``frequencies_hz`` (() = THERAPY_BAND_HZ) with each unit's demand ``amplitude_m``
+    (0 = DEFAULT_AMPLITUDE_M), checked against the VibrationUnit ``unit``'s limits: (steps, amplitude m).
+    InvalidInputError for a malformed request, VibrationLimitError for one past a unit's limit."""
+    amplitude = amplitude_m or DEFAULT_AMPLITUDE_M
+    limit = 0.5 * unit.amplitude_max  # a resonance may double the demand
+    if not 0 < amplitude <= limit:
+        raise InvalidInputError(f"amplitude_m {amplitude!r} must be in (0, {limit:g}] m (half the units' travel: "
+                                "a resonance may double it)")
+    outside = [f for f in frequencies_hz if not unit.frequency_min <= f <= unit.frequency_max]
+    if outside:
+        raise InvalidInputError(f"frequencies_hz {outside} outside the units' band [{unit.frequency_min:g}, "
+                                f"{unit.frequency_max:g}] Hz")
+    steps = excitation_plan(frequencies_hz or THERAPY_BAND_HZ, min_measure_s=MIN_MEASURE_S)
+    if steps[-1].end > MAX_RUN_S:
+        raise InvalidInputError(f"the run would take {steps[-1].end:.0f} s, more than {MAX_RUN_S:.0f} s: fewer or "
+                                "higher frequencies_hz (each step measures at least 12 periods)")
+    for step in steps[-6:]:  # the highest frequency: the largest velocity and acceleration
+        grid = np.arange(0.0, step.duration, SAMPLE_PERIOD_S)
+        check_command_limits(unit, grid, *step_samples(step, amplitude, grid + step.start))
+    return steps, amplitude
+
+
+def writable_output(path: str) -> Path:
+    """``path`` made absolute, if a file can be written there; InvalidInputError if not."""
+    target = Path(path).resolve()
+    if target.is_dir() or not os.access(target.parent, os.W_OK):
+        raise InvalidInputError(f"output_path {path!r}: not a file this node can write ({target.parent} must "
+                                "exist and be writable)")
+    return target
 
 
 class IdentificationSession:

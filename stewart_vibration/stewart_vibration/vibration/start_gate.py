@@ -66,3 +66,24 @@ def check_can_start(planner_state: str, units_state: str | None, status_age_s: f
     if pose_age_s > pose_timeout_s:
         raise RefusedError("NOT_READY", f"pose estimate is {pose_age_s:.3f} s old (wall time; pose_timeout_s "
                                         f"{pose_timeout_s})")
+
+
+def robot_stop(report, t0: float, new_event: bool) -> tuple[str, str] | None:
+    """Whether the robot stopped what the planner started at ``t0`` (s, the robot's clock), from its latest
+    vibration/status ``report`` (emulation.vibration_status.VibrationReport; ``new_event``: its event is one
+    not seen before): (outcome name, reason), or None while it goes on.
+
+    A refused window of this run (ROBOT_REFUSED), the emergency stop (EMERGENCY_STOPPED, or PHYSICS_FAULT
+    when a physics fault latched it), a safety ramp since t0 (its own outcome, e.g. UNIT_TRAVEL_STOPPED;
+    STOPPED_EARLY for another stop)."""
+    if new_event and report.event == "refused" and report.event_stamp is not None \
+            and report.event_stamp >= t0 - 1e-6:
+        return "ROBOT_REFUSED", (f"the hardware emulator refused a window of this run ({report.event_outcome}: "
+                                 f"{report.event_reason})")
+    if report.state == "estopped":
+        return ("PHYSICS_FAULT" if report.fault else "EMERGENCY_STOPPED",
+                "emergency stop on the hardware emulator (call hardware_emulator/reset)")
+    if report.state == "stopped" and report.since >= t0:
+        return (report.event_outcome if report.event == "safety_ramp" else "STOPPED_EARLY",
+                f"the vibration units stopped: {report.reason}")
+    return None
