@@ -11,6 +11,7 @@ import pytest
 from stewart_vibration.motion.guard_status import GuardStatus
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
 from stewart_vibration.runtime.steps import (
+    IdentificationEnd,
     MoveResult,
     RunOptions,
     RunRecord,
@@ -26,7 +27,7 @@ class ScriptedSuite:
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
     def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None,
-                 outcome="SUCCEEDED", move_outcome="SUCCEEDED"):
+                 outcome="SUCCEEDED", move_outcome="SUCCEEDED", identification="SUCCEEDED"):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
         # the robot as built: the truth is off the controller's estimate by this much (6,)
         self.truth_offset = np.zeros(6) if truth_offset is None else np.asarray(truth_offset, float)
@@ -38,6 +39,7 @@ class ScriptedSuite:
         self.t0 = self.duration = None
         self.following = []
         self.sent_parameters = {}
+        self.identification, self.identified = identification, []  # the outcome to give; (time, frequencies, path)
 
     def spin_until(self, predicate, timeout, what):
         for _ in range(100_000):
@@ -96,6 +98,13 @@ class ScriptedSuite:
             return GuardStatus("tripped", 50.0, 0.0, "tripped: force", "force", self.sent_at)
         return GuardStatus("armed", 50.0, 0.0, "armed")
 
+    def identify_units(self, frequencies_hz, output_path, timeout_s):
+        self.identified.append((self.clock, list(frequencies_hz), output_path))
+        self.clock += 5.2
+        if self.identification == "SUCCEEDED":
+            return IdentificationEnd("SUCCEEDED", f"identified: {output_path}", output_path, [])
+        return IdentificationEnd(self.identification, "1 problems, first: uncertain by 9.9%", "", ["uncertain"])
+
     def start_vibration(self, vibration):
         self.sent_parameters = dict(vibration)
         if self.refuse:
@@ -114,15 +123,36 @@ class ScriptedSuite:
         return False
 
 
-def run(client, steps):
+def run(client, steps, **options):
     record = RunRecord()
-    ScenarioSteps(client, RunOptions(progress=lambda *_: None), record).run(Scenario("test", steps))
+    ScenarioSteps(client, RunOptions(progress=lambda *_: None, **options), record).run(Scenario("test", steps))
     return record
+
+
+def test_each_vibration_is_identified_first_at_its_frequency_unless_control_is_off(tmp_path):
+    client = ScriptedSuite()
+    vibration = VibrateStep({"duration_s": 2.0, "frequency_hz": 40.0})
+    record = run(client, [vibration, vibration], out_dir=tmp_path)
+    assert [(f, p) for _, f, p in client.identified] == [([40.0], str(tmp_path / "vibration_identification_1.yaml")),
+                                                        ([40.0], str(tmp_path / "vibration_identification_2.yaml"))]
+    assert client.identified[0][0] < record.vibrations[0]["start_time"]  # before its vibration
+    assert [i["outcome"] for i in record.identifications] == ["SUCCEEDED"] * 2
+    off = ScriptedSuite()
+    record = run(off, [vibration], vibration_control="off")
+    assert off.identified == [] and record.identifications == [] and len(record.vibrations) == 1
+
+
+def test_a_rejected_identification_fails_the_step_before_anything_vibrates(tmp_path):
+    client = ScriptedSuite(identification="IDENTIFICATION_REJECTED")
+    with pytest.raises(StepFailed, match="IDENTIFICATION_REJECTED"):
+        run(client, [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})], out_dir=tmp_path)
+    assert client.sent_parameters == {}  # no vibrate goal
 
 
 def test_moves_settle_and_vibrations_are_recorded_with_the_settings_that_ran():
     client = ScriptedSuite()
-    record = run(client, [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0]), VibrateStep({"duration_s": 2.0})])
+    record = run(client, [MoveStep("home", np.r_[0, 0, 0.16, 0, 0, 0]),
+                          VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])
     assert record.moves[0]["pose_error_m"] == 0.0 and client.following == [True, False]
     vib = record.vibrations[0]
     assert vib["parameters"]["plan"]["ramp_s"] == 0.2 and vib["parameters"]["duration_s"] == 2.0  # the plan's
@@ -144,12 +174,12 @@ def test_a_move_settles_on_the_controllers_estimate_and_records_the_truths_error
 def test_a_short_vibration_or_a_refused_start_fails_the_step():
     client = ScriptedSuite(active_s=1.0)
     with pytest.raises(StepFailed, match="ended 1.000 s early"):
-        run(client, [VibrateStep({"duration_s": 2.0})])
+        run(client, [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])
     with pytest.raises(StepFailed, match=r"vibration start refused \(LIMIT_EXCEEDED\): infeasible"):
         run(ScriptedSuite(refuse=("LIMIT_EXCEEDED", "infeasible vibration (VibrationLimitError): ...")),
-            [VibrateStep({"duration_s": 2.0})])
+            [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])
     with pytest.raises(StepFailed, match=r"the planner ended the vibration \(STOPPED_EARLY\)"):
-        run(ScriptedSuite(outcome="STOPPED_EARLY"), [VibrateStep({"duration_s": 2.0})])
+        run(ScriptedSuite(outcome="STOPPED_EARLY"), [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])
 
 
 def test_a_guarded_move_must_be_stopped_by_the_force_guard():
@@ -173,7 +203,7 @@ def test_the_start_is_judged_from_a_report_from_t0_on():
     newest one can still say 'pending'; the step waits for a report from t0 on and finds the start in the state
     changes seen. A vibration that never began still fails."""
     client = ScriptedSuite(report_period_s=0.45)  # reports at 0.9 (pending), 1.35 (running) around t0 = 1.01
-    record = run(client, [VibrateStep({"duration_s": 2.0})])
+    record = run(client, [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])
     assert "failure" not in record.vibrations[0]
     with pytest.raises(StepFailed, match="did not begin"):
-        run(ScriptedSuite(active_s=0.0, report_period_s=0.45), [VibrateStep({"duration_s": 2.0})])
+        run(ScriptedSuite(active_s=0.0, report_period_s=0.45), [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})])

@@ -27,6 +27,7 @@ from ..runtime.processes import DOMAIN_RANGE, claim_ros_domain
 from ..runtime.run_folders import new_run_folder, reserve_file, write_reserved
 from ..runtime.scenario import load_scenario, resolve_tissue_path
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
+from ..runtime.steps import VIBRATION_CONTROL
 from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
 from .arguments import nonnegative_float, positive_float, ros_namespace
 from .output import to_jsonable
@@ -56,6 +57,11 @@ def register(subparsers) -> None:
                           "geometry errors, sensor noise) or a plant YAML (looked up in config/ too)")
     cmd.add_argument("--plant-seed", type=plant_seed, default=None,
                      help="seed of the plant's drawn errors (a whole number >= 0; default: the plant file's)")
+    cmd.add_argument("--vibration-control", choices=VIBRATION_CONTROL, default=VIBRATION_CONTROL[0],
+                     help="closed_loop (default): before each vibration the planner identifies the vibration units "
+                          "at its pose and frequency (~6 s), plans the leg demands with that identification's "
+                          "feed-forward and corrects them from the platform IMU; feedforward: the same without the "
+                          "correction; off: the drawing's decomposition, uncompensated")
     cmd.add_argument("--out", default=None,
                      help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
                           "runs/latest pointing at it")
@@ -186,7 +192,8 @@ def run(args) -> int:
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
                          lockstep=args.lockstep, out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue,
                          robot_config=robot_config, plant_config=plant_config,
-                         plant_seed=built.seed if built is not None else None)
+                         plant_seed=built.seed if built is not None else None,
+                         vibration_control=args.vibration_control)
     INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None
@@ -226,8 +233,8 @@ def run(args) -> int:
                "moves": record.moves, "vibrations": [], "failure": failure, "interrupted": record.interrupted,
                "problems": list(record.failures), "recorder": record.recorder_stats,
                "restarts": record.restarts, "ros_domain_id": domain, "tissue_config": tissue,
-               "plant": plant_summary,
-               "guard_stops": record.guard_stops}
+               "plant": plant_summary, "vibration_control": args.vibration_control,
+               "identifications": record.identifications, "guard_stops": record.guard_stops}
     if not list(out.glob("*.mcap")):
         _log("no MCAP was written")
         summary["problems"].append("no MCAP was written")

@@ -22,7 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from stewart_vibration_interfaces.action import MoveToPose, Vibrate
+from stewart_vibration_interfaces.action import IdentifyVibrationUnits, MoveToPose, Vibrate
 from stewart_vibration_interfaces.msg import ForceGuardStatus, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import StopRecording
 
@@ -33,7 +33,7 @@ from ..motion.guard_status import GuardStatus
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
-from ..runtime.steps import MoveResult, StepFailed, VibrationEnd, VibrationStart
+from ..runtime.steps import IdentificationEnd, MoveResult, StepFailed, VibrationEnd, VibrationStart
 from . import ensure_ament_prefix_path
 from .common import MalformedInputs, make_executor, stamp_seconds
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
@@ -109,6 +109,9 @@ class SuiteClient:
         self._decoded: dict[str, tuple] = {topic: (None, None) for topic in FOLLOWED_POSES}
         self.vibrate_client = ActionClient(self.node, Vibrate, "vibration_planner/vibrate")
         self.vibrate_acceptances = GoalAcceptances(self.node, "vibration_planner/vibrate")
+        self.identify_client = ActionClient(self.node, IdentifyVibrationUnits,
+                                            "vibration_planner/identify_vibration_units")
+        self.identify_acceptances = GoalAcceptances(self.node, "vibration_planner/identify_vibration_units")
         self._vibration: dict = {}  # the latest vibrate goal: handle, plan (record), result (VibrationEnd)
 
     # -- callbacks --------------------------------------------------------------------------------------
@@ -361,6 +364,28 @@ class SuiteClient:
                                                  r.cycles_delivered)
         if self._vibration.get("plan") is None and r.plan.frequency_hz > 0:
             self._vibration["plan"] = plan_record(r.plan)
+
+    def identify_units(self, frequencies_hz, output_path: str, timeout_s: float) -> IdentificationEnd:
+        """Run the planner's identify_vibration_units at the current pose (``frequencies_hz``, the file
+        ``output_path``) and wait for its result (sent again for up to 10 s while the planner only says "not
+        yet"); StepFailed if it does not end within ``timeout_s`` (wall s)."""
+        name = "vibration_planner/identify_vibration_units"
+        self.spin_until(self.identify_client.server_is_ready, 30.0, f"the planner's {name} action")
+        goal = IdentifyVibrationUnits.Goal(frequencies_hz=[float(f) for f in frequencies_hz], output_path=output_path)
+        deadline = time.monotonic() + 10.0
+        while True:
+            handle = send_goal_recovering(self.identify_client, goal, self.identify_acceptances, 30.0,
+                                          self._wait_answer(name))
+            if handle is None or not handle.accepted:
+                raise StepFailed("the planner did not take the identification goal")
+            answer = handle.get_result_async()
+            self.spin_until(answer.done, timeout_s, "the identification of the vibration units")
+            r = answer.result().result
+            end = IdentificationEnd(outcome_name(r.outcome.code), r.outcome.message, r.path, list(r.problems))
+            if end.outcome not in NOT_READY_YET or time.monotonic() >= deadline:
+                return end
+            wait = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
+            self.spin_until(lambda w=wait: time.monotonic() >= w, 1.0, "a moment")
 
     def vibration_result(self) -> VibrationEnd | None:
         """The latest vibrate goal's result, None while it runs (or before any)."""

@@ -71,7 +71,7 @@ from ..runtime.sim_clock import ClockRate
 from ..vibration.closed_loop import ClosedLoop, closed_loop_for
 from ..vibration.identification_session import IdentificationSession, identification_steps, writable_output
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
-from ..vibration.start_gate import UNITS_MOVING, check_can_start, robot_stop
+from ..vibration.start_gate import BUSY_STATES, UNITS_MOVING, check_can_start, robot_stop
 from ..vibration.streaming import StreamInterrupted, VibrationStream
 from ..vibration.unit_identification import load_identification_option, quality_problems, save_identification
 from ..vibration.waveform import envelope, fade_out
@@ -94,6 +94,7 @@ STALL_S = 0.1  # a tick this late means the process was held up: skip it (the si
 STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
+REST_REPORT_WAIT_S = 3.0  # sim s after an identification's last step for the robot's report of its units at rest
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
@@ -310,6 +311,10 @@ class VibrationPlannerNode(Node):
             goal_handle.publish_feedback(IdentifyVibrationUnits.Feedback(step=step, steps=steps, unit=unit,
                                                                          frequency_hz=frequency))
         if rel < session.end + 0.1 or ident["done"].done():
+            return
+        report = self.emulator  # ends once the robot reports its units at rest after the last step (a vibration
+        at_rest = report is not None and report.time >= t0 + session.end and report.state not in BUSY_STATES
+        if not at_rest and rel < session.end + REST_REPORT_WAIT_S:  # started next is refused before that)
             return
         try:
             found = session.identification(self.robot.gravity, float(self.get_parameter("imu_average_s").value),

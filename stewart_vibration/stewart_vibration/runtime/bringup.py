@@ -65,6 +65,7 @@ def node_arguments(options: RunOptions) -> dict[str, list[str]]:
         "hardware_emulator": ["-p", f"real_time_factor:={options.real_time_factor}", "-p", "autostart:=false",
                               "-p", f"lockstep:={str(options.lockstep).lower()}"],
         "mcap_recorder": ["-p", f"output_dir:={Path(options.out_dir).resolve()}"],
+        "vibration_planner": ["-p", f"closed_loop:={str(options.vibration_control == 'closed_loop').lower()}"],
     }
     if options.plant_config:  # the robot as built: the emulator alone reads it
         extra["hardware_emulator"] += ["-p", f"plant_config:={options.plant_config}"]

@@ -18,6 +18,11 @@ from .scenario import MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
 
+# how the main job controls a vibration: "closed_loop" (identify the units at the vibration's pose and
+# frequency, plan with the identification's feed-forward, correct from the platform IMU), "feedforward" (the
+# same without the loop), "off" (the drawing's decomposition, uncompensated)
+VIBRATION_CONTROL = ("closed_loop", "feedforward", "off")
+IDENTIFICATION_TIMEOUT_S = 120.0  # wall s for one identification at one frequency (~6 s of sim time)
 SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
 SETTLE_HOLD_S = 0.5  # a move is done when the ground truth held within tolerance this long (sim s)
 
@@ -41,6 +46,7 @@ class RunOptions:
     robot_config: str | None = None  # robot YAML for every node that reads one (None: config/robot.yaml)
     plant_config: str | None = None  # the emulator's robot as built (None: the drawing)
     plant_seed: int | None = None  # its seed (None: the plant file's)
+    vibration_control: str = "closed_loop"  # VIBRATION_CONTROL: identify the units before each vibration, and how
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -62,6 +68,7 @@ class RunRecord:
     restarts: list = field(default_factory=list)  # dicts: node, exit_code, sim_time_s (restarted, --keep-running)
     recording_span: list = field(default_factory=lambda: [None, None])  # sim s: recorder ready .. its stop
     guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
+    identifications: list = field(default_factory=list)  # dicts: label, frequency_hz, outcome, message, path, problems
 
 
 @dataclass(frozen=True)
@@ -104,6 +111,17 @@ class MoveResult:
     duration_s: float
 
 
+@dataclass(frozen=True)
+class IdentificationEnd:
+    """How an identification of the vibration units ended: the outcome name, the planner's message, the file
+    written ("" if none) and the problems of a rejected one."""
+
+    outcome: str
+    message: str
+    path: str
+    problems: list
+
+
 class SuiteClient(Protocol):
     """What the steps need from the running suite (``nodes.suite_client.SuiteClient`` over ROS)."""
 
@@ -139,6 +157,9 @@ class SuiteClient(Protocol):
     def start_vibration(self, vibration: dict) -> VibrationStart:
         """Send the planner's vibrate goal of ``vibration`` (every key of VIBRATION_KEYS) and wait until it began
         (its plan) or was refused."""
+
+    def identify_units(self, frequencies_hz, output_path: str, timeout_s: float) -> IdentificationEnd:
+        """Run the planner's identification of the vibration units at the current pose and return how it ended."""
 
     def vibration_result(self) -> VibrationEnd | None:
         """The latest vibrate goal's result; None while it runs."""
@@ -244,11 +265,28 @@ class ScenarioSteps:
                       f"held {record['short_of_target_m'] * 1e3:.2f} mm short of the target")
 
     # -- vibration -----------------------------------------------------------------------------------------
+    def identify(self, step: VibrateStep, label: str) -> None:
+        """Identify the vibration units here at the vibration's frequency (the planner then plans with the
+        file, which is kept in the run's folder); a refused or rejected identification fails the step."""
+        frequency = float(step.parameters["frequency_hz"])
+        number = len(self.record.identifications) + 1
+        path = Path(self.options.out_dir).resolve() / f"vibration_identification_{number}.yaml"
+        self.options.progress(f"{label}: identifying the vibration units at {frequency:g} Hz")
+        end = self.client.identify_units([frequency], str(path), IDENTIFICATION_TIMEOUT_S / max(
+            self.options.real_time_factor, 0.05))
+        self.record.identifications.append({"label": label, "frequency_hz": frequency, "outcome": end.outcome,
+                                            "message": end.message, "path": end.path, "problems": end.problems})
+        if end.outcome != "SUCCEEDED":
+            raise StepFailed(f"identification of the vibration units ({end.outcome}): {end.message}")
+        self.options.progress(f"{label}: identified: {end.message}")
+
     def vibrate(self, step: VibrateStep, label: str) -> None:
         """Send the planner's vibrate goal and follow the emulator's vibration/status until the vibration is
         over; a refusal, an outcome other than SUCCEEDED or a vibration shorter than planned fails the step. The
         record keeps the settings and the plan the planner ran, which the summary judges against."""
         opts, client = self.options, self.client
+        if opts.vibration_control != "off":
+            self.identify(step, label)
         start = client.clock  # before the goal: a lower bound of its t0 (the summary finds the windows from it)
         started = client.start_vibration(step.parameters)
         if started.plan is None:
