@@ -94,6 +94,9 @@ STALL_S = 0.1  # a tick this late means the process was held up: skip it (the si
 STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
+# an identification step's window is sent this long (sim s) before it starts: a planner held up for less
+# delays nothing (the robot queues it behind the step it runs)
+IDENTIFICATION_QUEUE_S = 1.0
 REST_REPORT_WAIT_S = 3.0  # sim s after an identification's last step for the robot's report of its units at rest
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
@@ -283,7 +286,8 @@ class VibrationPlannerNode(Node):
         self.identifying = {
             "session": IdentificationSession(steps, amplitude, pose), "t0": now + lead, "goal": goal_handle,
             "done": Future(), "path": path,
-            "next_feedback": 0.0, "lead": lead, "date": time.strftime("%Y-%m-%d %H:%M:%S")}
+            "next_feedback": 0.0, "queue_s": max(lead, IDENTIFICATION_QUEUE_S),
+            "date": time.strftime("%Y-%m-%d %H:%M:%S")}
         self.state = "identifying"
         self.seen_event = self.emulator.event_seq if self.emulator is not None else 0
         self._ensure_imu_subscription()
@@ -302,7 +306,7 @@ class VibrationPlannerNode(Node):
         if goal_handle.is_cancel_requested and not ident["done"].done():
             ident["done"].set_result(("CANCELED", "cancelled: no further step, nothing written", "", [], 0.0))
             return
-        for start, times, pos, vel, acc in session.due_windows(rel, ident["lead"]):
+        for start, times, pos, vel, acc in session.due_windows(rel, ident["queue_s"]):
             self.pub.publish(cdr.encode_joint_trajectory(VIB_NAMES, t0 + start, times, pos, vel, acc))
         wall = time.monotonic()
         if wall >= ident["next_feedback"]:
