@@ -124,9 +124,10 @@ def test_main_job_on_the_realistic_plant_runs_end_to_end_with_the_truth_and_the_
     assert vib["failure"] is None
     assert vib["direction_error_deg"] <= 0.5 and abs(vib["amplitude_error"]) <= 0.02 and vib["off_axis_ratio"] <= 0.01
     assert any("pose error" in line for line in summary["bound_failures"])
-    ground_truth_misses = [line for line in summary["bound_failures"] if line.startswith("vibration 1:") and
-                           "controller's view" not in line and "force" not in line]
-    assert not ground_truth_misses, summary["bound_failures"]
+    platform_misses = [line for line in summary["bound_failures"] if line.startswith(
+        ("vibration 1: direction error ", "vibration 1: amplitude error ", "vibration 1: off-axis ratio "))
+        and "controller's view" not in line]  # the controller's own view is off by its geometry (calibration)
+    assert not platform_misses, summary["bound_failures"]
     assert not processes_on_domain(ros_domain)
 
 

@@ -114,6 +114,7 @@ class BenchRun:
     verdicts: list[str] = field(default_factory=list)
     outcome: str = "completed"
     frequency_error: float = 0.0
+    leg_phase_spread_deg: float = float("nan")  # the true legs' phases against the plan's, max - min (deg)
 
 
 def true_motion(times, poses, frequency: float, nominal_rotation) -> np.ndarray:
@@ -169,7 +170,7 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
 
     send(-0.1)
     next_send, period = 0.25, 1.0 / frequency
-    times, accel, gyro, poses = [], [], [], []
+    times, accel, gyro, poses, legs = [], [], [], [], []
     next_judge = 0.0
     while emu.time < t0 + duration_s + 0.05:
         emu.advance(STATE_PERIOD_S)
@@ -185,6 +186,8 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
         accel.append(imu.linear_acceleration)
         gyro.append(imu.angular_velocity)
         poses.append(emu.platform_pose())
+        true_lengths = emu.true_joint_state()[1]
+        legs.append(true_lengths[:6] + true_lengths[6:])  # strut and unit in series: the leg's vibration
         span = measure_periods * period
         if now > ramp_s + span and now <= duration_s - ramp_s:
             t = np.asarray(times)
@@ -218,7 +221,19 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
     if steady.sum() > 100:
         z = np.asarray(poses)[steady, :3] @ plan.direction
         run.frequency_error = _frequency_error(np.asarray(times)[steady], z, frequency)
+        last = steady & (np.asarray(times) > np.asarray(times)[steady][-1] - measure_periods * period)
+        run.leg_phase_spread_deg = leg_phase_spread(np.asarray(times)[last], np.asarray(legs)[last], frequency, plan)
     return run
+
+
+def leg_phase_spread(times, legs, frequency: float, plan) -> float:
+    """max - min over the legs of the phase (deg) of each leg's vibration in ``legs`` (N, 6) m against the plan's
+    leg vibration (its gains' signs and phase): 0 when the six legs keep the planned phases."""
+    measured = fit_sinusoid(times, legs - legs.mean(axis=0), frequency).complex_amplitude
+    planned = plan.leg_amplitudes * np.exp(1j * plan.leg_phases)
+    offsets = np.angle(measured / planned)
+    offsets = np.angle(np.exp(1j * (offsets - np.angle(np.exp(1j * offsets).mean()))))  # about their mean
+    return float(np.degrees(offsets.max() - offsets.min()))
 
 
 def _frequency_error(times, signal, frequency: float) -> float:
