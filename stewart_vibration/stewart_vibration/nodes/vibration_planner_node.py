@@ -102,6 +102,17 @@ FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
 
 
+def end_goal(goal_handle, name: str) -> None:
+    """Set an action goal's final status from its outcome ``name``: succeeded, canceled (a cancel asked for
+    it) or aborted."""
+    if name == "SUCCEEDED":
+        goal_handle.succeed()
+    elif name == "CANCELED" and goal_handle.is_cancel_requested:
+        goal_handle.canceled()
+    else:
+        goal_handle.abort()
+
+
 class VibrationPlannerNode(Node):
     """Thin adapter over stewart_vibration.vibration (start_gate, start_check, VibrationStream) and
     analysis.delivered, behind the vibrate action."""
@@ -264,12 +275,7 @@ class VibrationPlannerNode(Node):
             self._joint_state_subscription = None
         result.outcome, result.path, result.problems, result.duration_s = outcome(name, message), path, problems, \
             duration
-        if name == "SUCCEEDED":
-            goal_handle.succeed()
-        elif name == "CANCELED" and goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        else:
-            goal_handle.abort()
+        end_goal(goal_handle, name)
         self._report(OK, "idle")
         return result
 
@@ -438,12 +444,7 @@ class VibrationPlannerNode(Node):
         result = Vibrate.Result(plan=run["plan"])
         result.outcome = outcome(name, message)
         result.active_s, result.cycles_delivered = self._delivered_dose(run)
-        if name == "SUCCEEDED":
-            goal_handle.succeed()
-        elif name == "CANCELED" and goal_handle.is_cancel_requested:
-            goal_handle.canceled()
-        else:
-            goal_handle.abort()
+        end_goal(goal_handle, name)
         return result
 
     def _check_can_start(self, pose_timeout_s: float) -> float:
