@@ -367,7 +367,9 @@ def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, 
 
 
 def vibration_start(signals: dict, after: float) -> float:
-    """The vibration's common start time t0 (sim s): the first vib window stamp from ``after`` - 1 s on.
+    """The vibration's common start time t0 (sim s): a window stamped ``after`` exactly (the plan's t0: an
+    identification's windows on the same topic, stamped just before, do not count), else the first vib window
+    stamp from ``after`` - 1 s on.
 
     Args:
         signals: from ``load_signals`` (vibration_starts, s).
@@ -380,6 +382,9 @@ def vibration_start(signals: dict, after: float) -> float:
         ValueError: no vibration/joint_trajectory window is stamped at or after ``after`` - 1 s.
     """
     starts = signals["vibration_starts"]
+    exact = starts[np.abs(starts - after) < 1e-6]  # ``after`` is t0 itself (the plan's): no other window counts
+    if exact.size:
+        return float(exact[0])
     later = starts[starts >= after - 1.0]  # the caller's clock may run ahead of the planner's
     if later.size == 0:
         raise ValueError(f"no vibration/joint_trajectory window stamped after {after:.3f} s in the run")

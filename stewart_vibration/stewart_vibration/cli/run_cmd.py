@@ -290,7 +290,7 @@ def _summarize(robot, record, summary: dict, scenario, out: Path, robot_config: 
     for step_move, vib in _pair_vibrations(record):
         nominal = np.asarray(step_move["target"]) if step_move else nominal
         try:
-            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib["start_time"])
+            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
         except Exception as exc:  # noqa: BLE001 - e.g. interrupted before it vibrated
             summary["problems"].append(f"vibration starting at {vib['start_time']:.3f} s cannot be analysed: "
                                        f"{type(exc).__name__}: {exc}")
