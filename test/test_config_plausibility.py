@@ -87,7 +87,7 @@ def refused(call, *args) -> str:
     ("inertia.payload.inertia_kg_m2", [1.0, 1.0, 5.0], "'inertia.payload.inertia_kg_m2' [1.0, 1.0, 5.0] is not a body"),
     ("inertia.payload.com_m", [0.0, 0.0], "'inertia.payload.com_m' must be a list of 3 numbers"),
     ("geometry.base.radius_m", 1e-4, "'geometry.base.radius_m' = 0.0001 is outside"),
-    ("geometry.platform", "round", "missing field 'geometry.platform.radius_m'"),
+    ("geometry.platform", "round", "'geometry.platform' must be a mapping"),
     ("vibration_unit.frequency_min_hz", 200.0, "'vibration_unit.frequency_min_hz' 200 must be <"),
     # the home pose must be one the robot can take: strokes, joints and conditioning (kinematics.check_pose)
     ("geometry.home_pose", [0.0, 0.0, 0.5, 0.0, 0.0, 0.0], "'geometry.home_pose' [0.0, 0.0, 0.5, 0.0, 0.0, 0.0] "

@@ -155,3 +155,14 @@ class PhysicsFaultError(StewartError):
         super().__init__(message)
         self.time = time
         self.reason = reason
+
+
+class CalibrationError(StewartError):
+    """Calibration data that cannot give a trustworthy robot file; ``reason`` is one of TOO_FEW_POSES,
+    UNIDENTIFIABLE, TOO_MANY_OUTLIERS, TRACKER_FROZEN, BAD_DATA."""
+
+    outcome = "CALIBRATION_REJECTED"
+
+    def __init__(self, reason: str, message: str):
+        super().__init__(message)
+        self.reason = reason

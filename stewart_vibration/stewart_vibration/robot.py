@@ -118,7 +118,9 @@ class Robot:
 
     base_hinges: (6, 3) B_i in the base frame; platform_hinges: (6, 3) A_i in
     the platform frame; home_pose: (6,) [x, y, z, roll, pitch, yaw]; gravity (3,) m/s^2 in the base
-    frame. The arrays are read-only. Two robots are equal only if they are the same object (constants
+    frame; strut_zero_offsets (6,) m: what each strut's encoder reads short of its hinge-to-hinge length
+    (encoder = length - offset; zero for the drawing, identified by a kinematic calibration). The arrays
+    are read-only. Two robots are equal only if they are the same object (constants
     derived from a robot are cached per object, see ``derived``).
     """
 
@@ -131,12 +133,14 @@ class Robot:
     payload: RigidBody
     leg: LegInertia
     gravity: np.ndarray
+    strut_zero_offsets: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    calibrated: bool = False  # the file carries a calibration's corrections (not the drawing)
     source: str = ""
     characteristic_length: float = field(default=0.0)
 
     def __post_init__(self):
         for f in fields(self):
-            if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity"):
+            if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity", "strut_zero_offsets"):
                 object.__setattr__(self, f.name, read_only_array(getattr(self, f.name)))
 
     @property
@@ -232,6 +236,9 @@ _PLAUSIBLE = {
     "inertia.vibration_unit.mass_kg": Plausible(0.0, 1.0, "kg"),
     "gravity_m_s2": Plausible(-20.0, 20.0, "m/s^2"),
 }
+# a calibration's hinge corrections and strut zero offsets: a few tenths of a millimetre on a real fixator;
+# more than 5 mm is another robot, not a calibrated drawing
+CALIBRATION_CORRECTION = Plausible(-0.005, 0.005, "m")
 STROKE_RANGE = Plausible(0.01, 1.0, "m")  # stroke_max_m - stroke_min_m: a few cm to a metre
 GRAVITY_MAGNITUDE = Plausible(0.0, 20.0, "m/s^2")  # |gravity|: up to about 2 g
 
@@ -245,10 +252,27 @@ def _vector(tree: dict, dotted: str, length: int, where: str) -> np.ndarray:
 
 
 def _hinges(tree: dict, which: str, where: str) -> np.ndarray:
+    """The drawn hinge circle's points (6, 3) m plus the optional ``hinge_corrections_m`` (a calibration's)."""
     radius = _number(tree, f"geometry.{which}.radius_m", where)
     angles = np.radians(_vector(tree, f"geometry.{which}.angles_deg", 6, where))
     z = _number(tree, f"geometry.{which}.z_m", where)
-    return np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(6, z)], axis=1)
+    drawn = np.stack([radius * np.cos(angles), radius * np.sin(angles), np.full(6, z)], axis=1)
+    key = f"geometry.{which}.hinge_corrections_m"
+    corrections = tree["geometry"][which].get("hinge_corrections_m")
+    if corrections is None:
+        return drawn
+    if not isinstance(corrections, list) or len(corrections) != 6:
+        raise ConfigError(f"{where}: '{key}' must be a list of 6 [x, y, z] corrections (m)")
+    return drawn + np.array([as_vector(row, f"{key}[{i}]", where, 3, CALIBRATION_CORRECTION)
+                             for i, row in enumerate(corrections)])
+
+
+def _strut_zero_offsets(tree: dict, where: str) -> np.ndarray:
+    """The optional ``geometry.strut_zero_offsets_m`` (6,) m (a calibration's), zeros without it."""
+    if "strut_zero_offsets_m" not in tree["geometry"]:
+        return np.zeros(6)
+    return as_vector(tree["geometry"]["strut_zero_offsets_m"], "geometry.strut_zero_offsets_m", where, 6,
+                     CALIBRATION_CORRECTION)
 
 
 def _body(tree: dict, key: str, where: str) -> RigidBody:
@@ -282,6 +306,9 @@ def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
     where = f"robot config {source}"
     if not isinstance(tree, dict):
         raise ConfigError(f"{where}: top level must be a mapping")
+    for section in ("geometry", "geometry.base", "geometry.platform"):
+        if not isinstance(lookup(tree, section, where), dict):
+            raise ConfigError(f"{where}: '{section}' must be a mapping")
     base = _hinges(tree, "base", where)
     platform = _hinges(tree, "platform", where)
     limits = Limits(
@@ -331,6 +358,10 @@ def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
         payload=_body(tree, "payload", where),
         leg=leg,
         gravity=gravity,
+        strut_zero_offsets=_strut_zero_offsets(tree, where),
+        calibrated=any(key in tree["geometry"][part] for part, key in (
+            ("base", "hinge_corrections_m"), ("platform", "hinge_corrections_m"))) or "strut_zero_offsets_m" in
+        tree["geometry"],
         source=source,
         characteristic_length=float(np.linalg.norm(platform[:, :2], axis=1).mean()),
     )

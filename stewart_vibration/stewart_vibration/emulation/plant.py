@@ -170,6 +170,10 @@ def plant_from_dict(tree, nominal: Robot, source: str = "<dict>") -> Plant:
     if not isinstance(tree, dict):
         raise ConfigError(f"{where}: must be a mapping")
     check_keys(tree, SECTIONS, where)
+    if nominal.calibrated:
+        raise ConfigError(f"{where}: the plant is stated as deviations from the drawing (config/robot.yaml), but "
+                          f"the robot given ({nominal.source}) is a calibrated robot file: the emulated robot is "
+                          "built from the drawing")
     kind = as_choice(tree.get("plant", "ideal"), "plant", where, PLANT_KINDS)
     seed = int(as_number(tree.get("seed", 0), "seed", where, SEED, integer=True))
     rng = np.random.default_rng(seed)

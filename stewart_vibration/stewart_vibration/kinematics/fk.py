@@ -82,7 +82,8 @@ def forward_kinematics(
 
     Args:
         robot: the robot.
-        lengths: target strut lengths l_i [..., 6] (m), all > 0.
+        lengths: strut lengths [..., 6] (m) as the encoders read them (``inverse_kinematics``): l_i minus
+            ``robot.strut_zero_offsets``, all l_i > 0.
         guess: optional start poses [..., 6] = [x, y, z, roll, pitch, yaw] (m, rad, base frame), broadcast
             to the batch shape of ``lengths`` (warm start).
         tol: convergence threshold on max_i |g_i| (m).
@@ -101,6 +102,8 @@ def forward_kinematics(
         ValueError: ``guess`` does not broadcast to the batch shape of ``lengths`` (numpy).
     """
     lengths = as_batch(lengths, 6, "lengths")
+    if robot.strut_zero_offsets.any():  # encoder readings -> hinge-to-hinge lengths
+        lengths = lengths + robot.strut_zero_offsets
     low, high = float(lengths.min()), float(lengths.max())
     if low <= 0:
         raise InvalidInputError("lengths: leg lengths must be > 0")

@@ -31,7 +31,8 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
         check_limits: check every pose with ``limits.check_reachable`` (default).
 
     Returns:
-        Hinge-to-hinge leg lengths [..., 6] (m).
+        Strut lengths [..., 6] (m) as the encoders read them: hinge-to-hinge lengths minus
+        ``robot.strut_zero_offsets`` (the same for the drawing). The limits check the hinge-to-hinge lengths.
 
     Raises:
         InvalidInputError: a pose is not finite or not [..., 6].
@@ -46,7 +47,7 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
         lengths = np.sqrt(np.einsum("...ij,...ij->...i", d, d))
         if check_limits:
             check_reachable(robot.limits, d, lengths, rot)
-        return lengths
+        return encoder_lengths(robot, lengths)
     lengths = np.empty_like(flat)
     starts = map_row_ranges(
         lambda start, stop: _ik_rows(robot, flat, lengths, start, stop, check_limits),
@@ -64,7 +65,13 @@ def inverse_kinematics(robot: Robot, poses, *, check_limits: bool = True) -> np.
             exc.sample = (exc.sample or 0) + violated
             exc.args = (str(exc).replace(f"(sample {exc.sample - violated})", f"(sample {exc.sample})", 1),)
             raise
-    return lengths.reshape(poses.shape)
+    return encoder_lengths(robot, lengths.reshape(poses.shape))
+
+
+def encoder_lengths(robot: Robot, lengths: np.ndarray) -> np.ndarray:
+    """What the strut encoders read (m) at hinge-to-hinge ``lengths`` [..., 6] (m): lengths - zero offsets."""
+    offsets = robot.strut_zero_offsets
+    return lengths - offsets if offsets.any() else lengths
 
 
 

@@ -1,0 +1,66 @@
+"""The calibrated robot file: the drawing's robot.yaml with the identified hinge corrections and strut zero
+offsets, and the calibration's provenance (the same schema; every node loads it through ``robot_config``)."""
+
+from __future__ import annotations
+
+import copy
+import datetime
+
+import numpy as np
+import yaml
+
+from ..kinematics.robot_config import robot_from_config
+from .geometry_parameters import parameter_names, split_parameters
+from .identification import CalibrationResult
+
+HEADER = """\
+# A calibrated robot file: config/robot.yaml (the drawing) with the hinge corrections and strut zero offsets a
+# kinematic calibration identified from tracker poses (geometry.*.hinge_corrections_m, geometry.strut_zero_offsets_m)
+# and its provenance (calibration). Load it wherever robot.yaml is loaded (robot_config parameter, --robot).
+# Written by the calibration; edit the drawing, not this file.
+"""
+
+
+def drawing_tree(tree: dict) -> dict:
+    """A copy of a robot file's tree without any calibration (the drawing it corrects)."""
+    tree = copy.deepcopy(tree)
+    tree.pop("calibration", None)
+    tree["geometry"].pop("strut_zero_offsets_m", None)
+    for part in ("base", "platform"):
+        tree["geometry"][part].pop("hinge_corrections_m", None)
+    return tree
+
+
+def calibrated_tree(tree: dict, result: CalibrationResult, provenance: dict) -> dict:
+    """The robot file tree of ``result`` on the drawing ``tree`` (a parsed robot.yaml, calibrated or not):
+    corrections = identified - drawn; ``provenance`` (plain values) goes into ``calibration`` with the fit's
+    figures."""
+    drawing = robot_from_config(drawing_tree(tree), "the drawing")
+    base, platform, offsets = split_parameters(result.theta)
+    out = drawing_tree(tree)
+
+    def rows(values: np.ndarray) -> list:
+        return [[float(f"{v:.9f}") for v in row] for row in values]
+
+    out["geometry"]["base"]["hinge_corrections_m"] = rows(base - drawing.base_hinges)
+    out["geometry"]["platform"]["hinge_corrections_m"] = rows(platform - drawing.platform_hinges)
+    out["geometry"]["strut_zero_offsets_m"] = [float(f"{v:.9f}") for v in offsets]
+    used = result.used
+    out["calibration"] = {
+        **provenance,
+        "written": datetime.datetime.now(datetime.UTC).isoformat(timespec="seconds"),
+        "poses": int(used.size),
+        "poses_used": int(used.sum()),
+        "poses_dropped": [{"pose": d.index + 1, "chi2": round(d.chi2, 3),
+                           "residual_rms_m": float(f"{d.residual_rms_m:.3g}")} for d in result.dropped],
+        "residual_rms_m": float(f"{np.sqrt(np.mean(result.residual_rms_m[used] ** 2)):.3g}"),
+        "reduced_chi2": round(result.reduced_chi2, 4),
+        "condition_number": round(result.condition_number, 2),
+        "parameter_std_m": {name: float(f"{s:.3g}") for name, s in zip(parameter_names(), result.std)},
+    }
+    return out
+
+
+def dump_robot_file(tree: dict) -> str:
+    """The YAML text of a calibrated robot file tree, with its header."""
+    return HEADER + yaml.safe_dump(tree, sort_keys=False, default_flow_style=None, width=110)
