@@ -14,7 +14,10 @@ an abort) and unit 1's force constant halved at 2 s (beyond the loop's limits: i
 Required (closed loop, every seed): direction <= 0.5 deg, amplitude <= 2 %, off-axis <= 1 %, frequency
 <= 0.01 %; goal: direction <= 0.1 deg, amplitude <= 0.5 %, within 0.5 s of the ramp's end.
 
-Run: .venv/bin/python benchmarks/sine_control.py [--seeds 20] [--disturb 3] [--json]
+With --calibrated the controller plans with each seed's kinematic calibration (benchmarks/calibration.py's
+procedure) instead of the drawing, so the difference between the two tables is what geometry contributes.
+
+Run: .venv/bin/python benchmarks/sine_control.py [--seeds 20] [--disturb 3] [--calibrated] [--json]
 Exit code 0 when every closed-loop run meets the required band (and every disturbance run behaves as stated).
 """
 
@@ -26,14 +29,22 @@ import sys
 import time
 from dataclasses import replace
 
+import numpy as np
+
 from stewart_vibration import load_robot
+from stewart_vibration.calibration.geometry_parameters import robot_with_parameters
+from stewart_vibration.calibration.identification import identify
+from stewart_vibration.calibration.measurement_model import TrackerNoise
+from stewart_vibration.calibration.pose_plan import plan_calibration_poses
 from stewart_vibration.dynamics.tissue import load_tissue
 from stewart_vibration.emulation import control_bench as bench
+from stewart_vibration.emulation.calibration_bench import measure_poses
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.plant import load_plant
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.paper import paper_pose
+from stewart_vibration.robot import Robot
 from stewart_vibration.sim.mjcf import load_simulation_settings
 
 REQUIRED = {"direction_deg": 0.5, "amplitude_pct": 2.0, "off_axis_pct": 1.0, "frequency_pct": 0.01}
@@ -60,11 +71,21 @@ def figures(run: bench.BenchRun) -> dict:
     return row
 
 
-def one_seed(robot, seed: int, tissue) -> list[dict]:
+def calibrated_model(robot, plant) -> Robot:
+    """The controller's model of the plant after a kinematic calibration (calibration_bench, 60 poses)."""
+    s = plant.sensors
+    noise = TrackerNoise(s.tracker_position_noise_m, np.radians(s.tracker_orientation_noise_deg))
+    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant)
+    measured = measure_poses(emu, plan_calibration_poses(robot, 60, 60, noise))
+    return robot_with_parameters(robot, identify(robot, measured.data, noise).theta)
+
+
+def one_seed(drawing, seed: int, tissue, calibrated: bool = False) -> list[dict]:
+    plant = load_plant(default_config_dir() / "plant_realistic.yaml", drawing, seed=seed)
+    robot = calibrated_model(drawing, plant) if calibrated else drawing  # the controller's model
     pose = paper_pose(robot)
     direction = rotation_from_rpy(pose[3:])[:, 2]  # the force line: the platform's z axis (the tibia's)
-    plant = load_plant(default_config_dir() / "plant_realistic.yaml", robot, seed=seed)
-    emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant, tissue=tissue)
+    emu = HardwareEmulator(drawing, load_simulation_settings(timestep=1 / 2000), plant=plant, tissue=tissue)
     bench.move_to(emu, robot, pose)
     rows = []
     axes = bench.tracked_rotation(emu)
@@ -72,7 +93,7 @@ def one_seed(robot, seed: int, tissue) -> list[dict]:
     for mode in ("open_loop", "feedforward", "closed_loop"):
         run = bench.vibrate(emu, robot, pose, direction, mode, identification=ident, ramp_s=RAMP_S,
                             measured_rotation=axes)
-        rows.append({"seed": seed, "tissue": tissue is not None, **figures(run)})
+        rows.append({"seed": seed, "tissue": tissue is not None, "calibrated": calibrated, **figures(run)})
         end = emu.time + 0.3
         while emu.time < end:
             emu.advance(bench.STATE_PERIOD_S)
@@ -119,12 +140,16 @@ def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seeds", type=int, default=20)
     parser.add_argument("--disturb", type=int, default=3, help="seeds with the mid-vibration plant changes")
+    parser.add_argument("--calibrated", action="store_true",
+                        help="the controller plans with a kinematic calibration of each seed (in process, 60 poses) "
+                             "instead of the drawing: what geometry contributes to each mode's figures")
     parser.add_argument("--json", action="store_true")
     args = parser.parse_args(argv)
     robot = load_robot()
     tissue = load_tissue(default_config_dir() / "tissue.yaml", robot)
     started = time.monotonic()
-    rows = [row for seed in range(1, args.seeds + 1) for t in (None, tissue) for row in one_seed(robot, seed, t)]
+    rows = [row for seed in range(1, args.seeds + 1) for t in (None, tissue)
+            for row in one_seed(robot, seed, t, args.calibrated)]
     disturbances = [disturbed(robot, seed, tissue if d is tissue_stiffer else None, d)
                     for seed in range(1, args.disturb + 1) for d in (payload_up, tissue_stiffer, unit_halved)]
     closed = [r for r in rows if r["mode"] == "closed_loop"]

@@ -52,7 +52,7 @@ KINDS = [  # (kind, pattern on the line without its comment)
     ("ros2", r"ros2 (topic|service|param|action) "),
     ("colcon", r"colcon build "),
     ("pip", r"pip install "),
-    ("suite_cli", r"stewart-vibration topic-rate "),  # needs the running suite: run with the UI commands
+    ("suite_cli", r"stewart-vibration (topic-rate|calibrate) "),  # need the running suite: run with the UI commands
     ("cli", r"stewart-vibration "),
     ("python", r"python -m "),
 ]
@@ -272,8 +272,15 @@ def run_ui_command(workspace: Workspace, command: str) -> None:
         finally:
             echo.interrupt()
         return
-    result = workspace.run(command, timeout=120)
+    calibrate = strip_comment(command).startswith("stewart-vibration calibrate")
+    result = workspace.run(command, timeout=900 if calibrate else 120)
     assert result.returncode == 0, f"{command}\n{result.stdout[-3000:]}"
+    if calibrate:  # the robot file it names loads as a calibrated robot
+        from stewart_vibration.kinematics.robot_config import load_robot
+
+        assert "calibrate: SUCCEEDED" in result.stdout, result.stdout[-3000:]
+        path = re.search(r"^robot file: (\S+)", result.stdout, re.M)
+        assert path and load_robot(path.group(1)).calibrated, result.stdout[-3000:]
     # ros2cli exits 0 on a refusal too: what happened is in what it prints, as a user reads it
     if "param set" in command:
         assert "Set parameter successful" in result.stdout, result.stdout[-3000:]

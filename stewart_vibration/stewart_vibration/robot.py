@@ -9,6 +9,7 @@ platform) and ``platform`` (origin at the platform hinge-circle centre).
 
 from __future__ import annotations
 
+import copy
 import weakref
 from collections.abc import Callable
 from dataclasses import dataclass, field, fields
@@ -283,6 +284,20 @@ def _body(tree: dict, key: str, where: str) -> RigidBody:
         raise ConfigError(f"{where}: 'inertia.{key}.inertia_kg_m2' {moments.tolist()} is not a body's inertia "
                           "(each principal moment must be at most the sum of the other two)")
     return RigidBody(mass, com, np.diag(moments))
+
+
+def drawing_tree(tree: dict) -> dict:
+    """A copy of a parsed robot file without any calibration (its hinge corrections, strut zero offsets and
+    provenance): the drawing the calibration corrects."""
+    tree = copy.deepcopy(tree)
+    tree.pop("calibration", None)
+    geometry = tree.get("geometry")
+    if isinstance(geometry, dict):
+        geometry.pop("strut_zero_offsets_m", None)
+        for part in ("base", "platform"):
+            if isinstance(geometry.get(part), dict):
+                geometry[part].pop("hinge_corrections_m", None)
+    return tree
 
 
 def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:

@@ -681,6 +681,11 @@ def check_bounds(summary: dict, bounds: dict) -> list[str]:
         if not (move["pose_error_m"] <= bounds["pose_error_m"] and move["pose_error_deg"] <= bounds["pose_error_deg"]):
             failures.append(f"move to {move['name']}: pose error {move['pose_error_m'] * 1e6:.2f} um / "
                             f"{move['pose_error_deg']:.4f} deg")
+        for key, unit in (("fracture_displacement_mm", "mm"), ("fracture_angulation_deg", "deg"),
+                          ("fracture_rotation_deg", "deg")):  # reduction accuracy, where the record has it
+            if key in move and not move[key] <= bounds[key]:
+                failures.append(f"move to {move['name']}: {key.replace('_', ' ').rsplit(' ', 1)[0]} "
+                                f"{move[key]:.4f} {unit} at the fracture site (bound {bounds[key]:g})")
         # the controller's own view of the move (what the runner settled on), where the record has it
         believed = (move.get("estimate_error_m", 0.0), move.get("estimate_error_deg", 0.0))
         if not (believed[0] <= bounds["pose_error_m"] and believed[1] <= bounds["pose_error_deg"]):

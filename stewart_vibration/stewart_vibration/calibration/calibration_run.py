@@ -13,7 +13,7 @@ from .identification import MIN_POSES
 from .pose_average import PoseMeasurement, average_window
 
 MAX_POSES = 200
-DEFAULTS = {"poses": 60, "settle_s": 0.5, "window_s": 1.0, "reach_m": 0.04, "tilt_deg": 25.0}
+DEFAULTS = {"poses": 60, "settle_s": 0.5, "window_s": 1.0, "reach_m": 0.02, "tilt_deg": 15.0}
 LIMITS = {"settle_s": (0.0, 10.0), "window_s": (0.1, 10.0), "reach_m": (0.001, 0.1), "tilt_deg": (0.0, 45.0)}
 
 

@@ -67,12 +67,13 @@ def short_tour(poses: np.ndarray, start: np.ndarray, scale: np.ndarray) -> np.nd
 
 
 def plan_calibration_poses(robot: Robot, count: int, frames: int, noise: TrackerNoise, seed: int = 0,
-                           reach_m: float = 0.04, tilt_rad: float = np.radians(25.0)) -> np.ndarray:
+                           reach_m: float = 0.02, tilt_rad: float = np.radians(15.0)) -> np.ndarray:
     """``count`` calibration poses (count, 6) (m, rad) inside every limit, D-optimal for the 42 parameters
     with ``frames`` tracker frames averaged per pose, in a short visiting order from home.
 
-    The defaults reach beyond the reduction workspace (+-20 mm, +-15 deg) as far as the limits allow: the
-    hinges' heights and the struts' zero offsets are told apart only by how much the legs turn."""
+    The defaults span the reduction workspace (+-20 mm, +-15 deg): calibrated where the robot works. A wider
+    span determines each parameter better (the hinges' heights and the struts' zero offsets are told apart
+    only by how much the legs turn), but the pose error inside the workspace hardly changes."""
     candidates = reachable_candidates(robot, CANDIDATES, reach_m, tilt_rad, np.random.default_rng(seed))
     chosen = candidates[d_optimal_subset(robot, candidates, count, frames, noise)]
     scale = np.array([reach_m] * 3 + [tilt_rad] * 3)

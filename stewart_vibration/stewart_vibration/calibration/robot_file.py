@@ -3,13 +3,13 @@ offsets, and the calibration's provenance (the same schema; every node loads it 
 
 from __future__ import annotations
 
-import copy
 import datetime
 
 import numpy as np
 import yaml
 
 from ..kinematics.robot_config import robot_from_config
+from ..robot import drawing_tree
 from .geometry_parameters import parameter_names, split_parameters
 from .identification import CalibrationResult
 
@@ -19,16 +19,6 @@ HEADER = """\
 # and its provenance (calibration). Load it wherever robot.yaml is loaded (robot_config parameter, --robot).
 # Written by the calibration; edit the drawing, not this file.
 """
-
-
-def drawing_tree(tree: dict) -> dict:
-    """A copy of a robot file's tree without any calibration (the drawing it corrects)."""
-    tree = copy.deepcopy(tree)
-    tree.pop("calibration", None)
-    tree["geometry"].pop("strut_zero_offsets_m", None)
-    for part in ("base", "platform"):
-        tree["geometry"][part].pop("hinge_corrections_m", None)
-    return tree
 
 
 def calibrated_tree(tree: dict, result: CalibrationResult, provenance: dict) -> dict:

@@ -25,6 +25,7 @@ SUBCOMMAND_MODULES = [
     "stewart_vibration.cli.validate_dynamics_cmd",
     "stewart_vibration.cli.mcap_recover_cmd",
     "stewart_vibration.cli.topic_rate_cmd",
+    "stewart_vibration.cli.calibrate_cmd",
 ]
 
 

@@ -21,7 +21,7 @@ import numpy as np
 from ..dynamics.tissue import load_tissue
 from ..emulation.plant import load_plant_option
 from ..errors import InvalidInputError
-from ..kinematics.robot_config import load_robot
+from ..kinematics.robot_config import load_drawing, load_robot
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DOMAIN_RANGE, claim_ros_domain
 from ..runtime.run_folders import new_run_folder, reserve_file, write_reserved
@@ -172,7 +172,8 @@ def run(args) -> int:
         tissue = None if args.tissue.lower() in ("", "none") else resolve_tissue_path(args.tissue, Path.cwd())
         if tissue is not None:
             load_tissue(tissue, robot)
-    plant = load_plant_option(args.plant, robot, args.plant_seed)  # refused here, before anything starts
+    # refused here, before anything starts; the emulated robot is built from the drawing of the robot file
+    plant = load_plant_option(args.plant, load_drawing(args.robot), args.plant_seed)
     # the ideal plant is the drawing: the emulator runs today's model without a plant file
     built = plant if plant is not None and plant.kind != "ideal" else None
     plant_config = str(Path(built.source).resolve()) if built is not None else None
@@ -368,6 +369,10 @@ def _print_summary(summary: dict, bounds: dict) -> None:
               f"{move['pose_error_deg']:.5f} deg; the controller's estimate {move['estimate_error_m'] * 1e6:.3f} um, "
               f"{move['estimate_error_deg']:.5f} deg (bounds {bounds['pose_error_m'] * 1e6:g} um, "
               f"{bounds['pose_error_deg']:g} deg, both)")
+        if "fracture_displacement_mm" in move:
+            print(f"  at the fracture site (reduction accuracy): displacement {move['fracture_displacement_mm']:.3f} "
+                  f"mm, angulation {move['fracture_angulation_deg']:.4f} deg, rotation "
+                  f"{move['fracture_rotation_deg']:.4f} deg")
     for i, vib in enumerate(summary["vibrations"], start=1):
         print(f"vibration {i}: {vib['frequency_hz']:g} Hz, planned {vib['planned_amplitude_m'] * 1e6:.2f} um along "
               f"{np.round(vib['planned_direction'], 4).tolist()} (base frame)")

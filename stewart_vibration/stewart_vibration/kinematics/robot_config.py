@@ -13,7 +13,7 @@ from pathlib import Path
 
 from ..errors import ConfigError, StewartError
 from ..install import default_config_dir
-from ..robot import Robot, robot_from_dict
+from ..robot import Robot, drawing_tree, robot_from_dict
 from ..safe_yaml import load_yaml
 from .ik import check_pose
 
@@ -58,3 +58,10 @@ def load_robot(path: str | os.PathLike | None = None) -> Robot:
     """
     path = Path(path).expanduser() if path is not None else default_config_dir() / "robot.yaml"
     return robot_from_config(load_yaml(path, "robot config"), str(path))
+
+
+def load_drawing(path: str | os.PathLike | None = None) -> Robot:
+    """The robot of a robot file as drawn (``load_robot`` without a calibration's corrections): what the
+    emulated robot is built from, whichever file the controller runs with."""
+    path = Path(path).expanduser() if path is not None else default_config_dir() / "robot.yaml"
+    return robot_from_config(drawing_tree(load_yaml(path, "robot config")), str(path))

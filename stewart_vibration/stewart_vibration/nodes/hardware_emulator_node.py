@@ -57,7 +57,7 @@ from ..emulation.physics_guard import PhysicsFault
 from ..emulation.plant import load_plant_option
 from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..errors import RefusedError, StewartError
-from ..kinematics.robot_config import load_robot
+from ..kinematics.robot_config import load_drawing
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
 from ..messages.fields import PLATFORM_FRAME
@@ -160,7 +160,8 @@ class HardwareEmulatorNode(LifecycleNode):
     def on_configure(self, state: LifecycleState) -> TransitionCallbackReturn:
         param = self.get_parameter
         try:
-            robot = load_robot(param("robot_config").value or None)
+            # the robot as drawn: a calibrated file is the controller's model of this robot, not the robot
+            robot = load_drawing(param("robot_config").value or None)
             settings = load_simulation_settings(param("simulation_config").value or None,
                                                 timestep=1.0 / param("physics_rate_hz").value)
             tissue = load_tissue_option(param("tissue_config").value, robot)

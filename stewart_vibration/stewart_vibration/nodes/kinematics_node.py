@@ -15,6 +15,8 @@ Cancel = a controlled stop along the path (ForceGuard.cancel). A goal is refused
 one runs or a move is under way, beyond ``target_rate_hz``: motion.target_gate). A goal that arrives while
 the struts move on their own (the way home after an e-stop reset, motion.strut_rest) waits for them to stop
 before it is planned (STRUTS_NOT_AT_REST if they do not within REST_WAIT_S).
+Action kinematics/calibrate (Calibrate): a kinematic calibration run that writes a calibrated robot file
+(nodes.calibration_server); platform/tracker_pose is read for it, kinematics/calibration_samples published.
 Services: kinematics/plan_path (PlanPath: a checked path through waypoints, nothing moves), kinematics/reset_guard
 (std_srvs/Trigger).
 Diagnostics on /diagnostics, with the state stream's health (received, lost,
@@ -81,6 +83,7 @@ from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..motion.strut_rest import StrutRest
 from ..motion.target_gate import TargetGate
 from ..parameters.tables import KINEMATICS
+from .calibration_server import CalibrationServer
 from .common import (
     BASE_FRAME,
     ERROR,
@@ -185,6 +188,7 @@ class KinematicsNode(Node):
         self.create_timer(FEEDBACK_PERIOD_S, self.publish_goal_feedback, clock=Clock(clock_type=ClockType.STEADY_TIME))
         self.action = ActionServer(self, MoveToPose, "kinematics/move_to_pose", execute_callback=self.execute,
                                    goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
+        self.calibration = CalibrationServer(self)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         self.publish_guard_status()
         self.diagnostics.set(OK, "waiting for legs/joint_states")
@@ -250,6 +254,7 @@ class KinematicsNode(Node):
         self.state_time = float(stamps[-1])
         self.rest.observe(stamps[ok], legs[ok])
         self.settle_rest_wait()
+        self.calibration.on_states(stamps[ok], lengths[ok])
         self.guard.observe_states(stamps, legs)
         # estimates already queued here are newer news than their absence: after a stall of this node the
         # states are taken first, and judging the guard blind before reading them would stop for nothing
@@ -607,6 +612,7 @@ class KinematicsNode(Node):
     def shutdown(self) -> None:
         """A goal still running ends SHUTDOWN (the robot finishes or holds what it was sent)."""
         self.settle_rest_wait(ending=True)
+        self.calibration.shutdown()
         self.finish_goal(MoveEnd("SHUTDOWN", "kinematics is shutting down"))
 
     def move_to(self, request: MoveRequest) -> float:

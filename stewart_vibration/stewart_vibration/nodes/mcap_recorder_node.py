@@ -106,6 +106,7 @@ SUITE_TOPICS = [
     "platform/external_wrench_estimate",
     "ground_truth/tissue_wrench",
     "kinematics/guard_status",
+    "kinematics/calibration_samples",
     "vibration/status",
     "robot_markers",
     "/clock",

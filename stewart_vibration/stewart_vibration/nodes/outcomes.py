@@ -22,3 +22,14 @@ def outcome(name: str, message: str = "") -> Outcome:
 def outcome_of(exc: StewartError) -> Outcome:
     """The Outcome of a core error: its class's (or a RefusedError's own) outcome and its text."""
     return outcome(exc.outcome, str(exc))
+
+
+def end_goal(goal_handle, name: str) -> None:
+    """Set an action goal's final status from its outcome ``name``: succeeded, canceled (a cancel asked for
+    it) or aborted."""
+    if name == "SUCCEEDED":
+        goal_handle.succeed()
+    elif name == "CANCELED" and goal_handle.is_cancel_requested:
+        goal_handle.canceled()
+    else:
+        goal_handle.abort()

@@ -86,7 +86,7 @@ from .common import (
     reject,
     run_node,
 )
-from .outcomes import outcome
+from .outcomes import end_goal, outcome
 from .vibration_goal import UNIT_STATES, goal_settings, plan_message
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
@@ -100,17 +100,6 @@ IDENTIFICATION_QUEUE_S = 1.0
 REST_REPORT_WAIT_S = 3.0  # sim s after an identification's last step for the robot's report of its units at rest
 FEEDBACK_PERIOD_S = 0.1  # wall s between a goal's feedback messages
 DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered figures are judged over
-
-
-def end_goal(goal_handle, name: str) -> None:
-    """Set an action goal's final status from its outcome ``name``: succeeded, canceled (a cancel asked for
-    it) or aborted."""
-    if name == "SUCCEEDED":
-        goal_handle.succeed()
-    elif name == "CANCELED" and goal_handle.is_cancel_requested:
-        goal_handle.canceled()
-    else:
-        goal_handle.abort()
 
 
 class VibrationPlannerNode(Node):

@@ -111,6 +111,12 @@ KINEMATICS = (
       "planned end ends TIMEOUT (robot's clock)", "s", 0.0, 60.0),
     P("pause_timeout_s", "double", 30.0, "a move goal paused for late external-wrench estimates longer than this "
       "ends TIMEOUT, the robot holding (robot's clock)", "s", 1.0, 600.0),
+    P("tracker_rate_hz", "double", 60.0, "the external tracker's frame rate (its data sheet; the calibrate action "
+      "refuses a window with fewer than half of the frames it promises)", "Hz", 1.0, 1000.0),
+    P("tracker_position_noise_m", "double", 2e-5, "the tracker's RMS position noise per axis and frame (its data "
+      "sheet; weighs the calibration's residuals; 0 = a noiseless tracker)", "m", 0.0, 1e-3),
+    P("tracker_orientation_noise_deg", "double", 0.005, "the tracker's RMS orientation noise per axis and frame "
+      "(its data sheet)", "deg", 0.0, 1.0),
 )
 
 LEG_FORCE_ESTIMATOR = (

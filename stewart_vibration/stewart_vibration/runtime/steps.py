@@ -13,8 +13,9 @@ from typing import Any, Protocol, cast
 
 import numpy as np
 
+from ..analysis.reduction_accuracy import fracture_residual
 from ..motion.guard_status import GuardStatus
-from .scenario import MoveStep, Scenario, VibrateStep
+from .scenario import DEFAULT_FRACTURE_SITE_M, MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
 
@@ -173,9 +174,11 @@ class ScenarioSteps:
 
     def __init__(self, client: SuiteClient, options: RunOptions, record: RunRecord):
         self.client, self.options, self.record = client, options, record
+        self.fracture_site = np.array(DEFAULT_FRACTURE_SITE_M)  # the scenario's, once run
 
     def run(self, scenario: Scenario) -> RunRecord:
         """Run the scenario's steps in order; returns the record. Raises StepFailed at a step that fails."""
+        self.fracture_site = np.array(scenario.fracture_site_m, float)
         for index, step in enumerate(scenario.steps, start=1):
             label = f"step {index}/{len(scenario.steps)}"
             if isinstance(step, MoveStep):
@@ -218,19 +221,25 @@ class ScenarioSteps:
             return held.update(bool(ok), client.clock)
 
         client.spin_until(settled, opts.step_timeout_s, f"the platform to settle at {step.name}")
-        err = cast(np.ndarray, client.ground_truth()) - step.pose
+        truth = cast(np.ndarray, client.ground_truth())
+        err = truth - step.pose
         believed = cast(np.ndarray, client.pose_estimate()) - step.pose
+        fracture = fracture_residual(truth, step.pose, self.fracture_site).record()
         self.record.moves.append({
             "name": step.name, "target": step.pose.tolist(), "time": client.clock,
             "pose_error_m": float(np.abs(err[:3]).max()), "pose_error_deg": float(np.degrees(np.abs(err[3:]).max())),
             "estimate_error_m": float(np.abs(believed[:3]).max()),
             "estimate_error_deg": float(np.degrees(np.abs(believed[3:]).max())),
             "outcome": result.outcome, "peak_force_n": result.peak_force_n, "move_duration_s": result.duration_s,
+            **fracture,
         })
         opts.progress(f"{label}: settled at {step.name} in {cast(float, client.clock) - start:.2f} s sim; "
                       f"ground-truth error {np.abs(err[:3]).max() * 1e6:.3f} um, "
                       f"{np.degrees(np.abs(err[3:]).max()):.5f} deg; the controller's estimate "
-                      f"{np.abs(believed[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(believed[3:]).max()):.5f} deg")
+                      f"{np.abs(believed[:3]).max() * 1e6:.3f} um, {np.degrees(np.abs(believed[3:]).max()):.5f} deg; "
+                      f"at the fracture site {fracture['fracture_displacement_mm']:.3f} mm, angulation "
+                      f"{fracture['fracture_angulation_deg']:.4f} deg, rotation "
+                      f"{fracture['fracture_rotation_deg']:.4f} deg")
 
     def _guarded(self, step: MoveStep, label: str, start: float) -> None:
         """A move the force guard must stop: its goal must end GUARD_STOPPED (the struts at rest short of the
