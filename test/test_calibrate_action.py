@@ -81,6 +81,8 @@ def test_plan_only_moves_nothing_and_bad_goals_and_a_cancel_write_nothing(suite,
     client, _, procs = suite
     assert client.action_server_ready(Calibrate, "kinematics/calibrate", 60.0), logs(procs)
     output = tmp_path / "never.yaml"
+    precious = tmp_path / "precious.yaml"  # an existing file that is not a calibrated robot file
+    precious.write_text("patient: data\n")
     planned = client.send_goal("kinematics/calibrate", Calibrate.Goal(poses=20, plan_only=True,
                                                                        output_path=str(output)), 30.0)
     name, message = planned.outcome(60.0)
@@ -89,7 +91,9 @@ def test_plan_only_moves_nothing_and_bad_goals_and_a_cancel_write_nothing(suite,
     assert result.predicted_std_max_m > 0 and result.path == "" and not output.exists()
     for goal, words in ((Calibrate.Goal(poses=5), "poses 5 outside"), (Calibrate.Goal(window_s=-1.0), "window_s"),
                         (Calibrate.Goal(tilt_deg=float("nan")), "tilt_deg must be finite"),
-                        (Calibrate.Goal(output_path="/nonexistent/dir/robot.yaml"), "not a file")):
+                        (Calibrate.Goal(output_path="/nonexistent/dir/robot.yaml"), "not a file"),
+                        (Calibrate.Goal(output_path=str(precious)), "not overwritten"),
+                        (Calibrate.Goal(output_path=str(tmp_path / "robot.txt")), "YAML file")):
         refused = client.send_goal("kinematics/calibrate", goal, 30.0)
         assert refused.outcome(30.0)[0] == "INVALID_ARGUMENT" and words in refused.outcome()[1], (
             refused.outcome(), logs(procs))
@@ -98,3 +102,4 @@ def test_plan_only_moves_nothing_and_bad_goals_and_a_cancel_write_nothing(suite,
     running.handle.cancel_goal_async()
     assert running.outcome(60.0)[0] == "CANCELED", (running.outcome(), logs(procs))
     assert not output.exists() and not list(tmp_path.glob(".never.yaml*"))
+    assert precious.read_text() == "patient: data\n"

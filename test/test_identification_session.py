@@ -14,6 +14,7 @@ from emulator_runs import move_and_settle
 from stewart_vibration.emulation.control_bench import run_excitation
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.errors import InvalidInputError, VibrationLimitError
+from stewart_vibration.output_files import writable_output
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.sim.mjcf import load_simulation_settings
 from stewart_vibration.vibration.identification_run import THERAPY_BAND_HZ, identify_units
@@ -22,7 +23,6 @@ from stewart_vibration.vibration.identification_session import (
     MAX_RUN_S,
     IdentificationSession,
     identification_steps,
-    writable_output,
 )
 
 
@@ -58,17 +58,33 @@ def test_the_default_run_covers_the_therapy_band_one_unit_at_a_time(robot):
     assert steps[-1].end <= MAX_RUN_S
 
 
-def test_the_output_must_be_a_writable_file(tmp_path):
-    assert writable_output(str(tmp_path / "units.yaml")) == tmp_path / "units.yaml"
+def test_the_output_must_be_a_writable_yaml_file_that_clobbers_nothing_else(tmp_path):
+    def own(tree):
+        return tree.get("kind") == "mine"
+
+    assert writable_output(str(tmp_path / "units.yaml"), "test file", own) == tmp_path / "units.yaml"
     with pytest.raises(InvalidInputError, match="writable"):
-        writable_output(str(tmp_path / "missing" / "units.yaml"))
+        writable_output(str(tmp_path / "missing" / "units.yaml"), "test file", own)
+    (tmp_path / "dir.yaml").mkdir()
     with pytest.raises(InvalidInputError, match="not a file"):
-        writable_output(str(tmp_path))
+        writable_output(str(tmp_path / "dir.yaml"), "test file", own)
+    with pytest.raises(InvalidInputError, match="YAML file"):
+        writable_output("/etc/passwd", "test file", own)  # not a .yaml name: refused before it is looked at
+    (tmp_path / "other.yaml").write_text("robot: something else\n")
+    (tmp_path / "binary.yaml").write_bytes(b"\xff\xfe\x00")
+    for name in ("other.yaml", "binary.yaml"):
+        with pytest.raises(InvalidInputError, match="not overwritten"):
+            writable_output(str(tmp_path / name), "test file", own)
+    (tmp_path / "again.yaml").write_text("kind: mine\n")  # one of its own, written before: may be replaced
+    assert writable_output(str(tmp_path / "again.yaml"), "test file", own) == tmp_path / "again.yaml"
+    (tmp_path / "link.yaml").symlink_to(tmp_path / "again.yaml")  # never written through a link
+    with pytest.raises(InvalidInputError, match="not overwritten"):
+        writable_output(str(tmp_path / "link.yaml"), "test file", own)
     if os.geteuid() != 0:  # root writes anywhere
         locked = tmp_path / "locked"
         locked.mkdir(mode=0o500)
         with pytest.raises(InvalidInputError):
-            writable_output(str(locked / "units.yaml"))
+            writable_output(str(locked / "units.yaml"), "test file", own)
 
 
 def test_each_step_is_streamed_once_when_due_from_rest_to_rest(robot):

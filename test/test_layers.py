@@ -11,7 +11,7 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_v
 
 # top-level modules first, then the folders in the order they may import one another
 TOP = {"errors", "install", "input_checks", "safe_yaml", "config_values", "robot", "paper", "parallel", "splines",
-       "rate_limit"}
+       "rate_limit", "output_files"}
 LAYERS = ["<top>", "kinematics", "calibration", "vibration", "sim", "dynamics", "motion", "emulation", "estimation",
           "messages", "mcap_log", "analysis", "runtime", "visualization", "ui", "parameters"]
 APPLICATIONS = {"nodes", "cli", "__init__", "__main__"}  # may use every layer

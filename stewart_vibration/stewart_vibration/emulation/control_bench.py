@@ -37,8 +37,9 @@ UNIT_SENSOR_LATENCY_S = 0.0005  # a unit's sensor reports its 2 kHz firmware's l
 
 
 def move_to(emu: HardwareEmulator, robot: Robot, pose, settle_s: float = 0.5) -> None:
-    """A minimum-jerk move from home to ``pose`` at 10 mm/s (0.5 s at least), then ``settle_s`` at rest."""
-    start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, pose)
+    """A minimum-jerk move from where the struts read now to ``pose`` (``robot``: the controller's model) at
+    10 mm/s (0.5 s at least), then ``settle_s`` at rest."""
+    start, goal = np.asarray(emu.joint_state()[1][:6], float), inverse_kinematics(robot, pose)
     duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
     times = np.linspace(duration / 40, duration, 40)
     emu.command_struts(LEG_NAMES, 0.0, times, *minimum_jerk(start, goal, duration, times))

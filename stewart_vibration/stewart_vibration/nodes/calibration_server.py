@@ -48,8 +48,8 @@ from ..kinematics.rotations import (
     rpy_from_rotation,
 )
 from ..messages.stamped import poses_from_cdr
+from ..output_files import writable_output
 from ..safe_yaml import load_yaml
-from ..vibration.identification_session import writable_output
 from .common import BASE_FRAME, time_message
 from .move_messages import move_goal
 from .outcomes import end_goal, outcome, outcome_name
@@ -176,7 +176,7 @@ class CalibrationServer:
             raise RefusedError("NOT_READY", "calibrate: no legs/joint_states received yet (is the hardware emulator "
                                             "running?)")
         output = None if s.plan_only else writable_output(s.output_path or datetime.datetime.now().strftime(
-            "robot_calibrated_%Y%m%d_%H%M%S.yaml"))
+            "robot_calibrated_%Y%m%d_%H%M%S.yaml"), "calibrated robot file", lambda tree: "calibration" in tree)
         rate = float(node.get_parameter("tracker_rate_hz").value)
         noise = self.noise()
         frames = max(int(s.window_s * rate), 1)

@@ -66,14 +66,15 @@ from ..kinematics.rotations import rotation_from_rpy
 from ..messages import cdr
 from ..messages.stamped import pose_from_cdr, poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
+from ..output_files import writable_output
 from ..parameters.tables import VIBRATION_PLANNER
 from ..runtime.sim_clock import ClockRate
 from ..vibration.closed_loop import ClosedLoop, closed_loop_for
-from ..vibration.identification_session import IdentificationSession, identification_steps, writable_output
+from ..vibration.identification_session import IdentificationSession, identification_steps
 from ..vibration.settings import STREAM_KEYS, default_settings, settings_reason, start_check, start_refusal
 from ..vibration.start_gate import BUSY_STATES, UNITS_MOVING, check_can_start, robot_stop
 from ..vibration.streaming import StreamInterrupted, VibrationStream
-from ..vibration.unit_identification import load_identification_option, quality_problems, save_identification
+from ..vibration.unit_identification import FILE_KIND, load_identification_option, quality_problems, save_identification
 from ..vibration.waveform import envelope, fade_out
 from .common import (
     ERROR,
@@ -273,7 +274,8 @@ class VibrationPlannerNode(Node):
         not."""
         steps, amplitude = identification_steps(tuple(goal.frequencies_hz), float(goal.amplitude_m),
                                                 self.robot.vibration_unit)
-        path = writable_output(goal.output_path or f"vibration_identification_{time.strftime('%Y%m%d_%H%M%S')}.yaml")
+        path = writable_output(goal.output_path or f"vibration_identification_{time.strftime('%Y%m%d_%H%M%S')}.yaml",
+                               "vibration identification", lambda tree: tree.get("kind") == FILE_KIND)
         s = self.settings_with({})
         now = self._check_can_start(s["pose_timeout_s"])
         _, pose = pose_from_cdr(cast(tuple, self.pose_data)[0], "pose estimate")

@@ -7,9 +7,6 @@ streams stamped with the same state times; they are joined by stamp.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-
 import numpy as np
 
 from ..errors import InvalidInputError
@@ -44,15 +41,6 @@ def identification_steps(frequencies_hz: tuple, amplitude_m: float, unit) -> tup
         grid = np.arange(0.0, step.duration, SAMPLE_PERIOD_S)
         check_command_limits(unit, grid, *step_samples(step, amplitude, grid + step.start))
     return steps, amplitude
-
-
-def writable_output(path: str) -> Path:
-    """``path`` made absolute, if a file can be written there; InvalidInputError if not."""
-    target = Path(path).resolve()
-    if target.is_dir() or not os.access(target.parent, os.W_OK):
-        raise InvalidInputError(f"output_path {path!r}: not a file this node can write ({target.parent} must "
-                                "exist and be writable)")
-    return target
 
 
 class IdentificationSession:
