@@ -85,3 +85,19 @@ def test_what_the_recorder_counts_fails_a_run():
                         "3 samples were lost before they reached the recorder (sequence gaps: "
                         "/diagnostics 3)",
                         "the recording failed: writing x failed: No space left on device (ENOSPC)"]
+
+
+def test_a_hardware_parameter_file_comes_after_the_suites_and_reaches_every_node(tmp_path):
+    """--params-file (RunOptions.hardware_params_file): every node gets the suite's parameter file, then this one
+    (rcl applies them in order: the hardware's values win), as an absolute path."""
+    from stewart_vibration.install import default_config_dir
+    from stewart_vibration.runtime.bringup import SUITE_PARAMS_FILE, node_arguments
+    from stewart_vibration.runtime.steps import RunOptions
+
+    args = node_arguments(RunOptions(out_dir=tmp_path, hardware_params_file=Path("datasheet.yaml")))
+    suite = str(default_config_dir() / SUITE_PARAMS_FILE)
+    for name, a in args.items():
+        files = [a[i + 1] for i, v in enumerate(a) if v == "--params-file"]
+        assert files == [suite, str((Path.cwd() / "datasheet.yaml").resolve())], (name, files)
+    plain = node_arguments(RunOptions(out_dir=tmp_path))
+    assert all(a.count("--params-file") == 1 for a in plain.values())

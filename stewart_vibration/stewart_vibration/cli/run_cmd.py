@@ -29,6 +29,7 @@ from ..runtime.scenario import load_scenario, resolve_tissue_path
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
 from ..runtime.steps import VIBRATION_CONTROL
 from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
+from ..safe_yaml import load_yaml
 from .arguments import nonnegative_float, positive_float, ros_namespace
 from .output import to_jsonable
 
@@ -62,6 +63,10 @@ def register(subparsers) -> None:
                           "at its pose and frequency (~6 s), plans the leg demands with that identification's "
                           "feed-forward and corrects them from the platform IMU; feedforward: the same without the "
                           "correction; off: the drawing's decomposition, uncompensated")
+    cmd.add_argument("--params-file", default=None,
+                     help="a ROS 2 parameter file applied to the nodes after the suite's own "
+                          "(config/suite_params.yaml): your hardware's data-sheet figures, e.g. kinematics' and the "
+                          "planner's unit_sensor_latency_s, kinematics' tracker_* (keys /**/<node name>)")
     cmd.add_argument("--out", default=None,
                      help="output directory (MCAP, logs, report); default: a new runs/run_<stamp>/, with "
                           "runs/latest pointing at it")
@@ -172,6 +177,8 @@ def run(args) -> int:
         tissue = None if args.tissue.lower() in ("", "none") else resolve_tissue_path(args.tissue, Path.cwd())
         if tissue is not None:
             load_tissue(tissue, robot)
+    if args.params_file:  # a parameter file that cannot be read safely is refused before anything starts
+        load_yaml(Path(args.params_file), "node parameter file")
     # refused here, before anything starts; the emulated robot is built from the drawing of the robot file
     plant = load_plant_option(args.plant, load_drawing(args.robot), args.plant_seed)
     # the ideal plant is the drawing: the emulator runs today's model without a plant file
@@ -194,7 +201,8 @@ def run(args) -> int:
                          lockstep=args.lockstep, out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue,
                          robot_config=robot_config, plant_config=plant_config,
                          plant_seed=built.seed if built is not None else None,
-                         vibration_control=args.vibration_control)
+                         vibration_control=args.vibration_control,
+                         hardware_params_file=Path(args.params_file) if args.params_file else None)
     INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None

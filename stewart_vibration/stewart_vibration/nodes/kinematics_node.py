@@ -4,7 +4,8 @@ estimates; a force guard over every move.
 Topics (relative): sub legs/joint_states (JointState), platform/external_wrench_estimate (WrenchStamped, the
 guard's input), legs/trajectory_status (LegTrajectoryStatus: the robot's answer to each leg trajectory),
 vibration/status; pub legs/joint_trajectory (JointTrajectory, leg_* absolute lengths, m),
-platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per state with its stamp),
+platform/pose_estimate (PoseStamped, FK of leg_i + vib_i, one per state with its stamp; vib_i carried forward
+by ``unit_sensor_latency_s``, estimation.sensed_lengths),
 kinematics/guard_status (stewart_vibration_interfaces/ForceGuardStatus, reliable + transient local: the force
 guard armed or tripped, with its limits, the trip's figures and the peak load since).
 Action kinematics/move_to_pose (MoveToPose): the goal is the target (frame base or empty, finite, a unit
@@ -67,6 +68,7 @@ from ..dynamics.tissue import load_tissue_option
 from ..emulation.command_size import MAX_TRAJECTORY_POINTS
 from ..emulation.vibration_status import STRUT_STOP_CAUSES
 from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError
+from ..estimation.sensed_lengths import sensed_leg_lengths
 from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import pose_to_position_quaternion
@@ -143,6 +145,7 @@ class KinematicsNode(Node):
                                 param("guard_deceleration_scale").value, param("guard_max_estimate_age_s").value,
                                 param("guard_blind_travel_m").value)
         self.batch_period = period
+        self.unit_latency = float(self.get_parameter("unit_sensor_latency_s").value)
         self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
         self.diagnostics = GuardedDiagnostics(self, "kinematics")
         self.diagnostics.guard = self.guard
@@ -222,7 +225,8 @@ class KinematicsNode(Node):
                             len(batch.stamps))
             return
         legs = batch.position[:, legs_at]
-        lengths = legs + (batch.position[:, vib_at] if vib_at is not None else 0.0)
+        lengths = sensed_leg_lengths(legs, batch.position[:, vib_at] if vib_at is not None else None,
+                                     batch.velocity[:, vib_at] if vib_at is not None else None, self.unit_latency)
         good = rows_within(lengths, MAX_JOINT_POSITION_M)
         if not good.all():
             self._malformed(MalformedMessageError(f"leg positions not finite or beyond {MAX_JOINT_POSITION_M:g} m (or "

@@ -111,6 +111,9 @@ KINEMATICS = (
       "planned end ends TIMEOUT (robot's clock)", "s", 0.0, 60.0),
     P("pause_timeout_s", "double", 30.0, "a move goal paused for late external-wrench estimates longer than this "
       "ends TIMEOUT, the robot holding (robot's clock)", "s", 1.0, 600.0),
+    P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
+      "firmware's control period; the units' data sheet): the pose estimate carries it forward (read at start)",
+      "s", 0.0, 0.01, read_only=True),
     P("tracker_rate_hz", "double", 60.0, "the external tracker's frame rate (its data sheet; the calibrate action "
       "refuses a window with fewer than half of the frames it promises)", "Hz", 1.0, 1000.0),
     P("tracker_position_noise_m", "double", 2e-5, "the tracker's RMS position noise per axis and frame (its data "

@@ -61,6 +61,8 @@ def node_arguments(options: RunOptions) -> dict[str, list[str]]:
     for every node that reads one; the emulator waits to be configured and activated)."""
     params = options.params_file or default_config_dir() / SUITE_PARAMS_FILE
     common = ["--ros-args", "-r", f"__ns:={options.namespace}", "--params-file", str(params)]
+    if options.hardware_params_file is not None:  # after the suite's: its values win
+        common += ["--params-file", str(Path(options.hardware_params_file).resolve())]
     extra = {
         "hardware_emulator": ["-p", f"real_time_factor:={options.real_time_factor}", "-p", "autostart:=false",
                               "-p", f"lockstep:={str(options.lockstep).lower()}"],
@@ -94,8 +96,9 @@ class SuiteProcesses:
     def start(self) -> None:
         """Start every node of the run on its ROS domain, logs in <out>/logs."""
         opts = self.options
-        if opts.params_file is not None:  # refused here, with its reason, rather than by every node's rcl
-            load_yaml(opts.params_file, "node parameter file")
+        for path in (opts.params_file, opts.hardware_params_file):  # refused here, with its reason, rather than
+            if path is not None:  # by every node's rcl
+                load_yaml(path, "node parameter file")
         env = ros_environment(opts.domain_id)
         Path(opts.out_dir).mkdir(parents=True, exist_ok=True)
         self.record.log_dir = Path(opts.out_dir) / "logs"

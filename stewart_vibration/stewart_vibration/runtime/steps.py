@@ -42,6 +42,7 @@ class RunOptions:
     lockstep: bool = False  # the emulator waits for late estimates: sim time slows instead of moves pausing
     out_dir: Path = Path("runs")
     params_file: Path | None = None
+    hardware_params_file: Path | None = None  # node parameters applied after the suite's (--params-file)
     extra_nodes: tuple = ()  # runtime.suite.OPTIONAL_NODES keys to start as well ("foxglove", "ui")
     tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
     robot_config: str | None = None  # robot YAML for every node that reads one (None: config/robot.yaml)
