@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 import pytest
+from geometry_msgs.msg import PoseStamped
 from ros_client import RosTestClient
 
 from stewart_vibration import load_robot
@@ -50,6 +51,9 @@ def logs(procs) -> str:
 def test_calibrate_writes_a_robot_file_that_matches_the_plant(suite, tmp_path):
     client, env, procs = suite
     samples = client.subscribe("kinematics/calibration_samples", CalibrationSample)
+    estimates = client.subscribe("platform/pose_estimate", PoseStamped)
+    # as a user runs it: on a suite that is up (a run prints "Nodes are running" once kinematics has states)
+    assert client.spin_until(lambda: len(estimates) > 10, 120.0), logs(procs)
     output = tmp_path / "robot_calibrated.yaml"
     started = time.monotonic()
     done = subprocess.run(["stewart-vibration", "calibrate", "--namespace", "/", "--poses", "14", "--settle", "0.3",
@@ -79,6 +83,8 @@ def test_calibrate_writes_a_robot_file_that_matches_the_plant(suite, tmp_path):
 
 def test_plan_only_moves_nothing_and_bad_goals_and_a_cancel_write_nothing(suite, tmp_path):
     client, _, procs = suite
+    estimates = client.subscribe("platform/pose_estimate", PoseStamped)
+    assert client.spin_until(lambda: len(estimates) > 10, 120.0), logs(procs)
     assert client.action_server_ready(Calibrate, "kinematics/calibrate", 60.0), logs(procs)
     output = tmp_path / "never.yaml"
     precious = tmp_path / "precious.yaml"  # an existing file that is not a calibrated robot file

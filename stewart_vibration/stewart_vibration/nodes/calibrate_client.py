@@ -18,8 +18,9 @@ CANCEL_WAIT_S = 60.0  # wall s for a cancelled calibration to stop its move and 
 def calibrate(namespace: str, goal: Calibrate.Goal, server_wait_s: float, timeout_s: float,
               progress: Callable[[str], None]) -> tuple[str, Calibrate.Result | None]:
     """(outcome name, result) of one calibration; ("NOT_READY", None) when the action is not served within
-    ``server_wait_s``, ("TIMEOUT", None) without a result within ``timeout_s`` (both wall s; the goal is then
-    cancelled), ("CANCELED", result or None) after Ctrl-C. Runs rclpy in this process (init and shutdown)."""
+    ``server_wait_s`` (a NOT_READY answer is asked again until then: a suite still starting), ("TIMEOUT",
+    None) without a result within ``timeout_s`` (both wall s; the goal is then cancelled), ("CANCELED", result
+    or None) after Ctrl-C. Runs rclpy in this process (init and shutdown)."""
     import rclpy
     from rclpy.action import ActionClient
     from rclpy.signals import SignalHandlerOptions
@@ -45,22 +46,30 @@ def calibrate(namespace: str, goal: Calibrate.Goal, server_wait_s: float, timeou
     try:
         client = ActionClient(node, Calibrate, name)
         acceptances = GoalAcceptances(node, name)
+        ready_by = time.monotonic() + server_wait_s
         if not spin_until(client.server_is_ready, server_wait_s):
             return "NOT_READY", None
-        sent = send_goal_recovering_async(client, goal, acceptances, on_feedback)
-        if not spin_until(sent.done, 30.0) or not sent.result().accepted:
-            return "NOT_READY", None
-        handle = sent.result()
-        answer = handle.get_result_async()
-        try:
-            if spin_until(answer.done, timeout_s):
+        while True:
+            sent = send_goal_recovering_async(client, goal, acceptances, on_feedback)
+            if not spin_until(sent.done, 30.0) or not sent.result().accepted:
+                return "NOT_READY", None
+            handle = sent.result()
+            answer = handle.get_result_async()
+            try:
+                if not spin_until(answer.done, timeout_s):
+                    progress(f"no result within {timeout_s:g} s: cancelling")
+                    timed_out = True
+                    break
                 result = answer.result().result
-                return outcome_name(result.outcome.code), result
-            progress(f"no result within {timeout_s:g} s: cancelling")
-            timed_out = True
-        except KeyboardInterrupt:
-            progress("interrupted: cancelling the calibration (the running move stops, nothing is written)")
-            timed_out = False
+                name = outcome_name(result.outcome.code)
+                if name != "NOT_READY" or time.monotonic() >= ready_by:
+                    return name, result
+                # the suite is still starting (kinematics has no joint state yet): asked again within --wait
+                spin_until(lambda: False, 0.5)
+            except KeyboardInterrupt:
+                progress("interrupted: cancelling the calibration (the running move stops, nothing is written)")
+                timed_out = False
+                break
         handle.cancel_goal_async()
         spin_until(answer.done, CANCEL_WAIT_S)
         result = answer.result().result if answer.done() else None
