@@ -94,18 +94,22 @@ def check_data(data: CalibrationData) -> None:
                                                 "(7 parameters per leg, and room to see an outlier)")
 
 
+def _scaled_jacobian(theta: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> tuple[np.ndarray, np.ndarray]:
+    """(whitened Jacobian (K*6, 42), the same with unit columns) at ``theta`` for ``data``'s poses."""
+    weights = whitening(theta, data.positions, data.rotations, data.frames, noise)
+    flat = whitened(theta, data.positions, data.rotations, data.readings, weights)[1].reshape(-1, PARAMETER_COUNT)
+    scale = np.linalg.norm(flat, axis=0)
+    return flat, flat / np.where(scale > 0, scale, 1.0)
+
+
 def identifiability(theta: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> tuple[float, np.ndarray]:
     """(condition number of the column-scaled whitened Jacobian, predicted standard deviations (42,) m) of
     the parameters from poses like ``data``'s (only their poses and frame counts matter)."""
-    weights = whitening(theta, data.positions, data.rotations, data.frames, noise)
-    _, jac = whitened(theta, data.positions, data.rotations, data.readings, weights)
-    flat = jac.reshape(-1, PARAMETER_COUNT)
-    scale = np.linalg.norm(flat, axis=0)
-    singular = np.linalg.svd(flat / np.where(scale > 0, scale, 1.0), compute_uv=False)
+    flat, scaled = _scaled_jacobian(theta, data, noise)
+    singular = np.linalg.svd(scaled, compute_uv=False)
     condition = float(singular[0] / singular[-1]) if singular[-1] > 0 else float("inf")
-    information = flat.T @ flat
     try:
-        std = np.sqrt(np.clip(np.diag(np.linalg.inv(information)), 0.0, None))
+        std = np.sqrt(np.clip(np.diag(np.linalg.inv(flat.T @ flat)), 0.0, None))
     except np.linalg.LinAlgError:
         std = np.full(PARAMETER_COUNT, np.inf)
     return condition, std
@@ -113,13 +117,9 @@ def identifiability(theta: np.ndarray, data: CalibrationData, noise: TrackerNois
 
 def _weakest(theta: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> str:
     """The parameters that dominate the least determined direction, for a refusal's message."""
-    weights = whitening(theta, data.positions, data.rotations, data.frames, noise)
-    flat = whitened(theta, data.positions, data.rotations, data.readings, weights)[1].reshape(-1, PARAMETER_COUNT)
-    scale = np.linalg.norm(flat, axis=0)
-    direction = np.linalg.svd(flat / np.where(scale > 0, scale, 1.0))[2][-1]
+    direction = np.linalg.svd(_scaled_jacobian(theta, data, noise)[1])[2][-1]
     names = parameter_names()
-    top = np.argsort(-np.abs(direction))[:4]
-    return ", ".join(names[i] for i in top)
+    return ", ".join(names[i] for i in np.argsort(-np.abs(direction))[:4])
 
 
 def _fit(theta0: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> tuple[np.ndarray, np.ndarray]:
