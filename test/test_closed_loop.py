@@ -16,7 +16,7 @@ from stewart_vibration.vibration.compensation import target_motion
 from stewart_vibration.vibration.decompose import decompose_vibration
 from stewart_vibration.vibration.demand_schedule import DemandSchedule
 from stewart_vibration.vibration.leg_demands import decomposition_demands
-from stewart_vibration.vibration.sine_control import SineController, delivered_figures
+from stewart_vibration.vibration.sine_control import SineController, SineControlLimits, delivered_figures
 from stewart_vibration.vibration.streaming import StreamSettings, VibrationStream
 
 F, DT, RAMP = 35.0, 0.002, 0.2
@@ -98,19 +98,34 @@ def test_nothing_is_corrected_after_the_steady_part(robot, steady_until):
             assert step.action == "wait"
 
 
-def test_after_the_last_window_the_limits_are_still_judged_but_nothing_is_corrected(robot):
-    plan, plant, schedule, stream, loop, rotation = setup(robot)
-    finite = VibrationStream(robot, plan, StreamSettings(duration=1.0), demands=schedule)
-    loop.stream = finite
-    assert finite.next_window(-0.3).final  # a short vibration is sent whole: nothing left to correct
-    loud = 1.5 * np.linalg.solve(plant, target_motion(plan))  # what makes the platform move 1.5x the target
-    schedule.changes[0] = (-np.inf, loud)
+@pytest.mark.parametrize("change, why", [(1.5 * np.eye(6), "+3.5 dB"),
+                                         (np.diag([0.3, 1, 1, 1, 1, 1]), "vibration direction")])
+def test_a_vibration_sent_whole_is_corrected_until_its_ramp_out_then_only_judged(robot, change, why):
+    """A 2.35 s vibration sent whole in its first window, planned with its identified plant's feed-forward:
+    the loop still corrects it (each correction goes out in a window that replaces the rest) while a
+    correction can splice before the ramp-out (until 1.85 s, with lead_s 0.3 s and the ramp-out from 2.15 s);
+    after that every abort limit is judged -- the direction and off-axis ones too, however few corrections
+    were made, since none can follow -- on samples taken once the last correction settled, but nothing is
+    corrected. The platform's response changes at 1.9 s: 1.5x louder, or unit 1 at 30 % of its gain."""
+    plan, plant, schedule, _, _, rotation = setup(robot)
+    feedforward = np.linalg.solve(plant, target_motion(plan))
+    schedule = DemandSchedule(feedforward, F)
+    finite = VibrationStream(robot, plan, StreamSettings(duration=2.35), demands=schedule)
+    controller = SineController(plant, target_motion(plan), initial_demand=feedforward)
+    loop = ClosedLoop(controller, schedule, finite, rotation, robot.gravity, RAMP, accel_average_s=0.0)
+    assert finite.next_window(-0.3).final  # sent whole
     steps = []
-    for k in range(int(0.7 / DT)):
+    for k in range(int(2.15 / DT)):
         t = k * DT
-        loop.add_imu(t, *imu_of(plant, schedule, rotation, robot.gravity, t))
-        steps.append(loop.step(t, 0.8))
-        if steps[-1].action == "abort":
+        plant_now = plant @ change if t >= 1.9 else plant
+        loop.add_imu(t, *imu_of(plant_now, schedule, rotation, robot.gravity, t))
+        steps.append((t, loop.step(t, 2.15)))
+        if steps[-1][1].action == "correct":
+            assert finite.correction_window(t) is not None
+        if steps[-1][1].action == "abort":
             break
-    assert steps[-1].action == "abort" and "+3.5 dB" in steps[-1].reason
-    assert all(s.action in ("wait", "abort") for s in steps) and len(schedule.changes) == 1
+    corrections = [t for t, step in steps if step.action == "correct"]
+    assert 3 <= len(corrections) < SineControlLimits().converge_updates and max(corrections) < 1.85
+    assert finite.correction_window(1.9) is None
+    t_abort, abort = steps[-1]
+    assert abort.action == "abort" and why in abort.reason and abort.control is None and 1.9 < t_abort <= 2.15

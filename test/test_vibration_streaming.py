@@ -150,6 +150,42 @@ def test_stop_during_a_whole_finite_vibration_and_after_its_ramp_out_began(robot
     assert late.stop_window(2.6) is None and late.planned_end == pytest.approx(3.0)  # already ramping out
 
 
+def test_a_correction_after_the_final_window_replaces_its_rest_until_the_ramp_out(robot, plan):
+    """A finite vibration sent whole, then its demands changed (a closed loop's correction): the correction
+    window runs from the splice to the end, the units' buffer takes it as a continuous splice, and the units
+    then play the corrected demands (blended in over blend_s); once the splice would fall in the ramp-out,
+    or after a stop, nothing more can be sent."""
+    from stewart_vibration.vibration.demand_schedule import DemandSchedule
+    from stewart_vibration.vibration.leg_demands import decomposition_demands
+
+    initial = decomposition_demands(plan)
+    schedule = DemandSchedule(initial, F, blend_s=0.05)
+    settings = StreamSettings(duration=3.0, ramp_s=RAMP, lead_s=0.3)
+    stream = VibrationStream(robot, plan, settings, demands=schedule)
+    buffer = VibrationBuffer(robot.vibration_unit)
+    assert not stream.can_correct(-1.0)  # nothing sent yet: the first window is the plan itself
+    first = stream.next_window(-1.0)
+    assert first.final and stream.finished and stream.can_correct(1.0)
+    to_buffer(buffer, first, T0 - 1.0)
+    corrected = initial * 1.1 * np.exp(0.2j)
+    schedule.correct(corrected, stream.splice_time(1.0))
+    window = stream.correction_window(1.0)
+    assert window.final and window.times[0] == pytest.approx(1.3) and window.times[-1] == pytest.approx(3.0)
+    to_buffer(buffer, window, T0 + 1.0)  # the units' own splice check: continuous in position and velocity
+    t = np.arange(1.4, 2.7, 0.0005)
+    carrier = np.imag(corrected[None, :] * np.exp(2j * np.pi * F * t)[:, None])
+    np.testing.assert_allclose(buffer.sample(T0 + t)[0], carrier, atol=1e-9 * AMP)
+    # the splice of a change at 2.6 s would be at 2.9 s, in the ramp-out (from 2.8 s): too late to correct
+    assert stream.can_correct(2.49) and not stream.can_correct(2.51) and stream.correction_window(2.6) is None
+    stopped = VibrationStream(robot, plan, settings, demands=DemandSchedule(initial, F))
+    stopped.next_window(-1.0)
+    stopped.stop_window(1.0)
+    assert not stopped.can_correct(1.1) and stopped.correction_window(1.1) is None
+    uncorrectable = VibrationStream(robot, plan, settings)  # the plan's exact signals: no demands to change
+    uncorrectable.next_window(-1.0)
+    assert not uncorrectable.can_correct(1.0)
+
+
 def test_an_infeasible_plan_fails_the_shared_limit_check(robot):
     strong = decompose_vibration(robot, paper_pose(robot), [0.0, 0.0, 1.0], acceleration_g=1.2, frequency=60.0,
                                  method="exact", check_limits=False)  # not checked here: the window check must catch it

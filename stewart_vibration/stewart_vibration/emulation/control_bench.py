@@ -155,9 +155,10 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
     run = BenchRun(mode)
     t0 = emu.time + 0.1
 
-    def send(now) -> bool:
-        """Send the next window; False (with the outcome set) when the robot refuses it."""
-        window = stream.next_window(now)
+    def send(now, correction: bool = False) -> bool:
+        """Send the next window (``correction``: the one carrying a change of the demands, at once); False (with
+        the outcome set) when the robot refuses it."""
+        window = stream.correction_window(now) if correction else stream.next_window(now)
         if window is None:
             return True
         try:
@@ -198,7 +199,7 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
                 run.times.append(now)
                 run.truth.append(delivered_figures(true_motion(t[recent], np.asarray(poses)[recent], frequency,
                                                                rotation), target, rotation_scale_m))
-            if controller is not None and now >= max(schedule.settled_at, ramp_s) + span:
+            if controller is not None and now >= max(schedule.settled_at, ramp_s) + span and stream.can_correct(now):
                 measured = platform_motion(t[recent], np.asarray(accel)[recent], np.asarray(gyro)[recent],
                                            frequency, imu_axes, robot.gravity, IMU_AVERAGE_S)
                 step = controller.update(measured)
@@ -211,7 +212,7 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
                                               window.acceleration)
                     break
                 schedule.correct(step.demand, stream.splice_time(now))
-                if not send(now):
+                if not send(now, correction=True):
                     break
                 next_send = now + 0.25
         if now >= next_send:

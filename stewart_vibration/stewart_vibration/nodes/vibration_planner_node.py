@@ -435,6 +435,7 @@ class VibrationPlannerNode(Node):
         result = Vibrate.Result(plan=run["plan"])
         result.outcome = outcome(name, message)
         result.active_s, result.cycles_delivered = self._delivered_dose(run)
+        result.loop_corrections = loop_corrections(run)
         end_goal(goal_handle, name)
         return result
 
@@ -474,14 +475,16 @@ class VibrationPlannerNode(Node):
             self.loop = closed_loop_for(
                 self.robot, plan, started.schedule, stream, self.identification,
                 rotation_from_rpy(np.asarray(pose)[3:]), settings["ramp_s"],
-                float(self.get_parameter("loop_gain").value), float(self.get_parameter("imu_average_s").value))
+                float(self.get_parameter("loop_gain").value), float(self.get_parameter("imu_average_s").value),
+                float(self.get_parameter("imu_silence_s").value))
             loop_note = "; closed loop on the platform IMU"
         elif closed:
             loop_note = "; no closed loop: it needs the units' identification at this pose"
         plan_msg = plan_message(plan, settings, t0)
         # seen: the last sim time (s from t0) a tick saw, from which a stall is judged
         self.run = {"settings": settings, "t0": t0, "next_send": now + settings["window_period_s"], "seen": now - t0,
-                    "goal": goal_handle, "done": Future(), "plan": plan_msg, "next_feedback": 0.0, "stream": stream}
+                    "goal": goal_handle, "done": Future(), "plan": plan_msg, "next_feedback": 0.0, "stream": stream,
+                    "loop": self.loop}
         self.state, self.last_error = "running", ""
         self.seen_event = self.emulator.event_seq if self.emulator is not None else 0
         self.publish(first)
@@ -539,6 +542,7 @@ class VibrationPlannerNode(Node):
             feedback.delivered_amplitude_m = delivered.amplitude_m
             feedback.direction_error_rad = delivered.direction_error_rad
             feedback.phase_spread_rad = delivered.phase_spread_rad
+        feedback.loop_corrections = loop_corrections(run)
         run["goal"].publish_feedback(feedback)
 
     def _delivered_dose(self, run: dict) -> tuple[float, float]:
@@ -598,19 +602,20 @@ class VibrationPlannerNode(Node):
         if wall >= run["next_feedback"]:
             run["next_feedback"] = wall + FEEDBACK_PERIOD_S
             self._feedback(run)
+        correct = False
         if self.loop is not None and self.state == "running":
             duration = run["settings"]["duration_s"]
             step = self.loop.step(rel, duration - run["settings"]["ramp_s"] if duration > 0 else None)
             if step.action == "abort":
                 self._abort_delivery(step.reason)
                 return
-            if step.action == "correct":
-                run["next_send"] = now  # the corrected window goes at once
-        if cast(VibrationStream, self.stream).finished or now < run["next_send"]:
+            correct = step.action == "correct"
+        stream = cast(VibrationStream, self.stream)
+        if not correct and (stream.finished or now < run["next_send"]):
             return
         run["next_send"] = now + run["settings"]["window_period_s"]
-        try:
-            window = cast(VibrationStream, self.stream).next_window(rel)
+        try:  # a correction goes at once, after the final window too (it replaces that from its splice)
+            window = stream.correction_window(rel) if correct else stream.next_window(rel)
         except StreamInterrupted as exc:
             self.abort(str(exc), WARN, "HELD_UP")
             return
@@ -631,6 +636,12 @@ class VibrationPlannerNode(Node):
         if self.run is not None and self.state == "running":
             self._stop_streaming()
         self._finish("SHUTDOWN", "the vibration planner is shutting down: the vibration ramps out")
+
+
+def loop_corrections(run: dict) -> int:
+    """The corrections the closed loop of ``run`` sent (0 without a loop)."""
+    loop = run.get("loop")
+    return 0 if loop is None else int(loop.controller.updates)
 
 
 def main(args=None) -> int:

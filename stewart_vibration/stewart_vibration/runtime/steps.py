@@ -90,13 +90,14 @@ class VibrationStart:
 
 @dataclass(frozen=True)
 class VibrationEnd:
-    """How a vibrate goal ended: its outcome name, the planner's message, the active time (s) and the cycles
-    delivered (the commanded envelope's)."""
+    """How a vibrate goal ended: its outcome name, the planner's message, the active time (s), the cycles
+    delivered (the commanded envelope's) and the closed loop's corrections."""
 
     outcome: str
     message: str
     active_s: float
     cycles_delivered: float
+    loop_corrections: int = 0
 
 
 @dataclass(frozen=True)
@@ -361,11 +362,13 @@ class ScenarioSteps:
         result = cast(VibrationEnd, client.vibration_result())
         record["outcome"] = result.outcome
         record["planner_active_s"], record["cycles_delivered"] = result.active_s, result.cycles_delivered
+        record["loop_corrections"] = result.loop_corrections
         record["stop_time"] = client.clock
         ended = client.vibration_status.since
         record["status_active_s"] = ended - t0
+        loop = f"; the closed loop sent {result.loop_corrections} corrections" if result.loop_corrections else ""
         opts.progress(f"{label}: vibration done: the emulator reports the units active from t0 = {t0:.3f} s to "
-                      f"{ended:.3f} s ({ended - t0:.3f} s of the planned {duration:.3f} s)")
+                      f"{ended:.3f} s ({ended - t0:.3f} s of the planned {duration:.3f} s){loop}")
         client.wait_sim(SETTLE_AFTER_VIBRATION_S, "the platform to settle after the vibration")
         if ended < t0 + duration - 0.05:
             fail(f"the vibration ended {t0 + duration - ended:.3f} s early: {client.vibration_status.message}")

@@ -5,8 +5,9 @@ Each update takes the IMU samples of the last ``measure_periods`` whole periods 
 correction has blended in and after the ramp-in, demodulates them against the demands' carrier
 (vibration.frequency_response.platform_motion), and lets the SineController correct the demands; the
 correction is blended in from the next window's start (``VibrationStream.splice_time``), so the caller sends
-that window at once. An IMU that goes silent, or reports what no vibration of this size can be (non-finite
-values, an acceleration beyond ``plausible_g``), aborts the vibration: the loop cannot see what it delivers.
+that window at once (``VibrationStream.correction_window``: after the final window too, until the ramp-out).
+An IMU that goes silent, or reports what no vibration of this size can be (non-finite values, an acceleration
+beyond ``plausible_g``), aborts the vibration: the loop cannot see what it delivers.
 
 Times are s from the vibration's t0 (the stream's clock); the IMU's samples are platform-frame specific force
 (m/s^2) and rate (rad/s).
@@ -80,9 +81,9 @@ class ClosedLoop:
 
     def step(self, now: float, steady_until: float | None) -> LoopStep:
         """At ``now``: correct when a full measurement is in, wait otherwise; ``steady_until``: the end of the
-        full-amplitude part (None: until a stop), after which nothing is judged. Once the stream has sent its
-        last window nothing can be corrected, but the abort limits and the IMU's silence are still judged (a
-        stop window can still ramp the vibration out)."""
+        full-amplitude part (None: until a stop), after which nothing is judged. Once the stream can take no
+        correction (``VibrationStream.can_correct``: its ramp-out is near) nothing is corrected, but the abort
+        limits and the IMU's silence are still judged (a stop window can still ramp the vibration out)."""
         if now < self.ramp_s or (steady_until is not None and now > steady_until):
             return LoopStep("wait")
         if now - self.last_sample > self.silence_s and now > self.ramp_s + self.silence_s:
@@ -99,11 +100,11 @@ class ClosedLoop:
         gyro = np.array([s[2] for s in window])
         measured = platform_motion(t, accel, gyro, self.schedule.frequency, self.rotation, self.gravity,
                                    self.accel_average_s)
-        if self.stream.finished:  # judged, not corrected: the next judgement on fresh samples
+        if not self.stream.can_correct(now):  # judged, not corrected: the next judgement on fresh samples
             self.judged_at = now
             verdict, reason = judge(delivered_figures(measured, self.controller.target,
                                                       self.controller.rotation_scale_m),
-                                    self.controller.limits, self.controller.updates)
+                                    self.controller.limits)  # every limit: no correction can follow
             return LoopStep("abort", reason) if verdict == "abort" else LoopStep("wait")
         control = self.controller.update(measured)
         if control.verdict == "abort":
@@ -113,16 +114,16 @@ class ClosedLoop:
 
 def closed_loop_for(robot: Robot, plan: VibrationDecomposition, schedule: DemandSchedule, stream: VibrationStream,
                     identification: VibrationIdentification, rotation, ramp_s: float, gain: float,
-                    accel_average_s: float, travel_margin: float = 0.9) -> ClosedLoop:
+                    accel_average_s: float, silence_s: float = 0.1, travel_margin: float = 0.9) -> ClosedLoop:
     """The loop of a started vibration planned with ``identification``'s feed-forward: its platform response
     is the plant estimate, and no unit is asked for a demand its identified response would carry beyond
     ``travel_margin`` of its travel (a resonant unit moves more than its demand). Without an identification
     there is no loop: corrections through the drawing's kinematic map drive the resonant units of a real robot
-    past their travel before they converge."""
+    past their travel before they converge. ``silence_s``: an IMU sample older than this aborts (ClosedLoop)."""
     estimate = identification.platform_response_at(plan.frequency)
     units = np.abs(identification.unit_response_at(plan.frequency))
     controller = SineController(estimate, target_motion(plan), gain=gain,
                                 max_demand_m=travel_margin * robot.vibration_unit.amplitude_max / units,
                                 initial_demand=schedule.current)
     return ClosedLoop(controller, schedule, stream, rotation, robot.gravity, ramp_s,
-                      accel_average_s=accel_average_s)
+                      accel_average_s=accel_average_s, silence_s=silence_s)

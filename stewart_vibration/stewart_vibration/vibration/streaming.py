@@ -17,12 +17,17 @@ grid k * sample_period_s.
   the stream reports that it was interrupted (``StreamInterrupted``) instead of sending it.
 - ``stop`` sends a last window that ramps the vibration out from the first sample at or after
   now + lead_s (where the previous window is still at full amplitude).
+- A correction of the demands (a closed loop's) goes out at once in ``correction_window``: the next window,
+  or, once the final window was sent, the rest of the vibration again from the splice on, as long as that
+  lies before the vibration's ramp-out (``can_correct``). The demands blend in from the splice, so it joins
+  the window it replaces exactly there.
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -147,6 +152,33 @@ class VibrationStream:
             else:
                 window = self._sample(self._grid(start, tail + s.ramp_s), tail, final=False)
             self.tail_start = tail
+        self._sent(window)
+        return window
+
+    def can_correct(self, now: float) -> bool:
+        """Whether a change of the demands made at ``now`` (s from t0) can still be sent: the window it goes in
+        (from ``splice_time(now)``) starts before the vibration ramps out -- no stop was sent, the last window's
+        tail has not begun there, and a finite vibration's own ramp-out is still ahead."""
+        if self.demands is None or self.stop_at is not None or not self.windows_sent:
+            return False
+        start = self.splice_time(now)
+        if self.tail_start is not None and start > self.tail_start + 1e-9:
+            return False
+        end = self.settings.duration
+        return end is None or start < end - self.settings.ramp_s - 1e-9
+
+    def correction_window(self, now: float) -> VibrationWindow | None:
+        """The window that carries a change of the demands made at ``now`` (s from t0), to send at once: the
+        next window; after the final window, the rest of the vibration from ``splice_time(now)`` again (it
+        replaces the final window from there). None when the change can no longer be sent (``can_correct``).
+
+        Raises StreamInterrupted as ``next_window``."""
+        if not self.can_correct(now):
+            return None
+        if not self.finished:
+            return self.next_window(now)
+        end = cast(float, self.settings.duration)  # a finished stream without a stop ends at its duration
+        window = self._sample(self._grid(self._start_after(now), end), None, final=True)
         self._sent(window)
         return window
 
