@@ -395,6 +395,20 @@ def test_run_refuses_a_bad_scenario_or_tissue_file_in_one_line(hostile_files, no
     refused_in_one_line(["run", option, path, "--out", tmp_path / "run"], capsys, str(path.name), words)
 
 
+@pytest.mark.parametrize("kind", sorted(FILE_CLASSES) + ["robot_file", "no_pose"])
+def test_run_refuses_a_bad_identification_file_in_one_line(hostile_files, nothing_starts, capsys, tmp_path, kind):
+    """--identification: a file that is not an identification of the vibration units is refused before
+    anything starts, naming the file and what is wrong with it."""
+    if kind == "robot_file":
+        path, words = CONFIG / "robot.yaml", "not a vibration identification file"
+    elif kind == "no_pose":
+        path, words = tmp_path / "no_pose.yaml", "identification file without 'pose'"
+        path.write_text("kind: stewart_vibration/vibration_identification\n")
+    else:
+        path, words = hostile_files[kind], FILE_CLASSES[kind][1]
+    refused_in_one_line(["run", "--identification", path, "--out", tmp_path / "run"], capsys, str(path.name), words)
+
+
 @pytest.mark.parametrize("kind", ["fifo", "dev_zero"])
 def test_mcap_inputs_that_would_block_are_refused(hostile_files, bad_files, capsys, tmp_path, kind):
     path = hostile_files[kind]

@@ -123,12 +123,67 @@ def test_main_job_on_the_realistic_plant_runs_end_to_end_with_the_truth_and_the_
     (vib,) = summary["vibrations"]
     assert vib["failure"] is None
     assert vib["direction_error_deg"] <= 0.5 and abs(vib["amplitude_error"]) <= 0.02 and vib["off_axis_ratio"] <= 0.01
+    # corrected all along (not only until its last window went out), and by little: the identification is fresh
+    loop = vib["closed_loop"]
+    assert loop["loop_corrections"] >= 2 and loop["demand_correction"] < 0.05 and "stale_identification" not in loop
     assert any("pose error" in line for line in summary["bound_failures"])
     platform_misses = [line for line in summary["bound_failures"] if line.startswith(
         ("vibration 1: direction error ", "vibration 1: amplitude error ", "vibration 1: off-axis ratio "))
         and "controller's view" not in line]  # the controller's own view is off by its geometry (calibration)
     assert not platform_misses, summary["bound_failures"]
     assert not processes_on_domain(ros_domain)
+
+
+def identification_of_another_robot(path: Path, seed: int) -> Path:
+    """An identification of the vibration units at the paper's pose made in process on the realistic plant of
+    ``seed`` (another robot than the run's): the identification run the planner makes, on the same emulator."""
+    from stewart_vibration import load_robot
+    from stewart_vibration.emulation import control_bench as bench
+    from stewart_vibration.emulation.emulator import HardwareEmulator
+    from stewart_vibration.emulation.plant import load_plant
+    from stewart_vibration.install import default_config_dir
+    from stewart_vibration.paper import paper_pose
+    from stewart_vibration.sim.mjcf import load_simulation_settings
+    from stewart_vibration.vibration.unit_identification import save_identification
+
+    robot = load_robot()
+    pose = paper_pose(robot)
+    plant = load_plant(default_config_dir() / "plant_realistic.yaml", robot, seed=seed)
+    emulator = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant)
+    bench.move_to(emulator, robot, pose)
+    ident = bench.identify(emulator, robot, pose, (35.0,), rotation=bench.tracked_rotation(emulator))
+    return save_identification(path, ident)
+
+
+def test_a_reused_identification_of_another_robot_is_found_stale_and_identified_again(tmp_path, ros_domain):
+    """--identification FILE made at the paper's pose on another robot (realistic seed 2), the run on seed 1:
+    the run reuses it where it holds (no identification before the vibration); the closed loop has to move the
+    demands far from its feed-forward (where a fresh one moves them ~1 %), so the run reports the file stale
+    and identifies the units again: after the vibration, or -- when the loop could not hold the vibration on
+    the stale file (DELIVERY_LIMIT) -- at once, and then vibrates again on the fresh file. Either way the run
+    ends without a failure, with a fresh file in its folder."""
+    given = identification_of_another_robot(tmp_path / "seed2_units.yaml", seed=2)
+    out = tmp_path / "run"
+    code, stdout = finished_job(out, ros_domain, "--plant", "realistic", "--plant-seed", "1",
+                                "--identification", str(given))
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["failure"] is None and not summary["problems"], stdout[-4000:]
+    assert summary["identification_file"] == str(given.resolve())
+    reused, fresh = summary["identifications"]
+    assert reused["outcome"] == "REUSED" and reused["path"] == str(given.resolve())
+    assert fresh["outcome"] == "SUCCEEDED" and Path(fresh["path"]).is_file() and Path(fresh["path"]).parent == out
+    assert f"reusing the identification {given.resolve()}" in stdout
+    first, *again = summary["vibrations"]
+    loop = first["closed_loop"]
+    assert loop["demand_correction"] > 0.2 and "no longer describes the robot" in loop["stale_identification"], loop
+    if first["failure"] is None:  # held on the stale file: identified again after it
+        assert not again and "; identifying the vibration units again" in stdout
+    else:  # ramped out by the loop: identified at once and vibrated again, on the fresh file
+        assert "DELIVERY_LIMIT" in first["failure"] and "identifying the vibration units here and vibrating again" \
+            in stdout
+        (second,) = again
+        assert second["failure"] is None and second["closed_loop"]["demand_correction"] < 0.05
+    assert code in (0, 1) and not processes_on_domain(ros_domain)
 
 
 def test_a_unit_driven_past_its_travel_stops_the_vibration_and_the_run_fails_with_the_robot_at_rest(tmp_path,

@@ -27,7 +27,7 @@ class ScriptedSuite:
     the guard trips), a vibration runs from t0 for ``active_s`` and the units then go idle."""
 
     def __init__(self, active_s=None, refuse=None, guard_trips=False, report_period_s=0.0, truth_offset=None,
-                 outcome="SUCCEEDED", move_outcome="SUCCEEDED", identification="SUCCEEDED"):
+                 outcome="SUCCEEDED", move_outcome="SUCCEEDED", identification="SUCCEEDED", demand_correction=0.0):
         self.clock, self.target, self.pose = 0.0, None, np.zeros(6)
         # the robot as built: the truth is off the controller's estimate by this much (6,)
         self.truth_offset = np.zeros(6) if truth_offset is None else np.asarray(truth_offset, float)
@@ -40,6 +40,8 @@ class ScriptedSuite:
         self.following = []
         self.sent_parameters = {}
         self.identification, self.identified = identification, []  # the outcome to give; (time, frequencies, path)
+        self.demand_correction = demand_correction  # how far the closed loop moved the demands
+        self.vibrations = 0  # vibrate goals started; ``outcome`` and ``demand_correction`` may list one per goal
 
     def spin_until(self, predicate, timeout, what):
         for _ in range(100_000):
@@ -68,9 +70,14 @@ class ScriptedSuite:
             self.vibration_status = SimpleNamespace(state=state, since=since, time=self.clock, message=state,
                                                     event="accepted", event_stamp=self.t0, reason="")
             if state == "idle" and self.result is None:  # the planner's result once the units are at rest
-                self.result = VibrationEnd(self.outcome, "the vibration ran as planned" if self.outcome ==
-                                           "SUCCEEDED" else "the vibration units stopped", self.active_s,
-                                           35.0 * (self.active_s - 0.2))
+                outcome, correction = self._this_vibration(self.outcome), self._this_vibration(self.demand_correction)
+                self.result = VibrationEnd(outcome, "the vibration ran as planned" if outcome == "SUCCEEDED" else
+                                           "the vibration units stopped", self.active_s,
+                                           35.0 * (self.active_s - 0.2), 4, correction)
+
+    def _this_vibration(self, value):
+        """``value``, or its item for the vibration under way when it is a list (one per vibrate goal)."""
+        return value[min(self.vibrations - 1, len(value) - 1)] if isinstance(value, list) else value
 
     def send_move(self, pose):
         self.target, self.sent_at = np.asarray(pose, float), self.clock
@@ -109,6 +116,7 @@ class ScriptedSuite:
         self.sent_parameters = dict(vibration)
         if self.refuse:
             return VibrationStart(*self.refuse, None)
+        self.vibrations, self.result = self.vibrations + 1, None
         self.t0, self.duration = self.clock + 1.0, float(vibration["duration_s"])
         self.active_s = self.duration if self.active_s is None else self.active_s
         plan = {"t0_s": self.t0, "pose": [0.0] * 6, "ramp_s": 0.2, "duration_s": self.duration, "frequency_hz": 35.0,
@@ -140,6 +148,73 @@ def test_each_vibration_is_identified_first_at_its_frequency_unless_control_is_o
     off = ScriptedSuite()
     record = run(off, [vibration], vibration_control="off")
     assert off.identified == [] and record.identifications == [] and len(record.vibrations) == 1
+
+
+@pytest.mark.parametrize("correction, outcomes", [(0.05, ["REUSED", "REUSED"]),
+                                                  (0.35, ["REUSED"] + ["SUCCEEDED"] * 3)])
+def test_a_given_identification_is_reused_where_it_holds_until_the_loop_finds_it_stale(tmp_path, correction,
+                                                                                         outcomes):
+    """identification_file: a vibration at its pose and within its frequencies reuses it (no identification
+    run); a closed loop that moved the demands more than 20 % from its feed-forward marks it stale, and the
+    units are identified again at once (and before each vibration from then on, as without a file; this
+    script's loop reports the same correction every time, so each vibration's file is found stale too)."""
+    from test_compensation import linear_identification
+
+    from stewart_vibration import load_robot
+    from stewart_vibration.paper import paper_pose
+    from stewart_vibration.vibration.unit_identification import save_identification
+
+    pose = paper_pose(load_robot())
+    path = save_identification(tmp_path / "given.yaml", linear_identification(load_robot(), pose))
+    client = ScriptedSuite(demand_correction=correction)
+    vibration = VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})
+    record = run(client, [MoveStep("paper", pose), vibration, vibration], out_dir=tmp_path, identification_file=path)
+    assert [i["outcome"] for i in record.identifications] == outcomes
+    first = record.vibrations[0]
+    assert first["demand_correction"] == correction
+    if correction > 0.2:
+        assert "35%" in first["stale_identification"] and "no longer describes the robot" in \
+            first["stale_identification"]
+        assert client.identified[0][0] > first["t0"] + 2.0  # after the stale file's vibration
+    else:
+        assert client.identified == [] and "stale_identification" not in first
+    # elsewhere (5 mm off its pose) or at a frequency it does not cover, the run identifies
+    for target, frequency in ((pose + np.r_[0.005, 0, 0, 0, 0, 0], 35.0), (pose, 50.0)):
+        elsewhere = ScriptedSuite()
+        record = run(elsewhere, [MoveStep("pose", target), VibrateStep({"duration_s": 2.0, "frequency_hz": frequency})],
+                     out_dir=tmp_path, identification_file=path)
+        assert [i["outcome"] for i in record.identifications] == ["SUCCEEDED"] and len(elsewhere.identified) == 1
+
+
+def test_a_vibration_the_loop_could_not_hold_fails_saying_the_identification_was_stale(tmp_path):
+    client = ScriptedSuite(outcome="DELIVERY_LIMIT", demand_correction=0.4)
+    with pytest.raises(StepFailed, match=r"DELIVERY_LIMIT.*moved the legs' demands by 40% .*no longer describes"):
+        run(client, [VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})], out_dir=tmp_path)
+
+
+def test_a_vibration_failed_by_a_stale_reused_identification_runs_again_on_a_fresh_one(tmp_path):
+    """The given file holds at the pose but proves stale: its vibration ends DELIVERY_LIMIT (the loop could not
+    hold it); the units are identified here and the vibration runs again, and succeeds; both attempts are in
+    the record. A vibration that fails on a fresh identification is not run again."""
+    from test_compensation import linear_identification
+
+    from stewart_vibration import load_robot
+    from stewart_vibration.paper import paper_pose
+    from stewart_vibration.vibration.unit_identification import save_identification
+
+    pose = paper_pose(load_robot())
+    path = save_identification(tmp_path / "given.yaml", linear_identification(load_robot(), pose))
+    steps = [MoveStep("paper", pose), VibrateStep({"duration_s": 2.0, "frequency_hz": 35.0})]
+    client = ScriptedSuite(outcome=["DELIVERY_LIMIT", "SUCCEEDED"], demand_correction=[0.4, 0.01])
+    record = run(client, steps, out_dir=tmp_path, identification_file=path)
+    assert [i["outcome"] for i in record.identifications] == ["REUSED", "SUCCEEDED"]
+    failed, again = record.vibrations
+    assert "DELIVERY_LIMIT" in failed["failure"] and "no longer describes" in failed["stale_identification"]
+    assert "failure" not in again and again["outcome"] == "SUCCEEDED" and again["t0"] > client.identified[0][0]
+    fresh = ScriptedSuite(outcome="DELIVERY_LIMIT", demand_correction=0.4)
+    with pytest.raises(StepFailed, match="DELIVERY_LIMIT"):
+        run(fresh, steps, out_dir=tmp_path)
+    assert fresh.vibrations == 1
 
 
 def test_a_rejected_identification_fails_the_step_before_anything_vibrates(tmp_path):

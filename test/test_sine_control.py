@@ -16,6 +16,7 @@ from stewart_vibration.vibration.sine_control import (
     delivered_figures,
     iteration_spectral_radius,
     judge,
+    stale_identification,
 )
 
 AMPLITUDE = 60e-6  # m: 0.3 g at 35 Hz
@@ -149,3 +150,16 @@ def test_the_documented_worst_rates_over_the_unit_error_box(gain, delay, worst):
     rates = [iteration_spectral_radius(np.array([[g * np.exp(1j * np.radians(p))]]), np.eye(1), gain, delay)
              for g in np.linspace(0.7, 1.3, 13) for p in np.linspace(-20, 20, 9)]
     assert abs(max(rates) - worst) < 0.001
+
+
+def test_the_correction_is_how_far_the_loop_moved_the_demands_and_a_large_one_is_stale(kinematic_map):
+    """One update on a plant whose unit 1 has half the estimate's gain: u1 = u0 + mu H^-1 (y* - H D u0)
+    = u0 + mu (1 - 0.5) u0[0] e1, so the correction ||u1 - u0|| / ||u0|| is 0.25 |u0[0]| / ||u0|| (mu 0.5)."""
+    loop = SineController(kinematic_map, target_along([0, 0, 1]), gain=0.5)
+    u0 = loop.demand.copy()
+    assert loop.correction == 0.0
+    loop.update(kinematic_map @ np.diag([0.5, 1, 1, 1, 1, 1]) @ u0)
+    assert abs(loop.correction - 0.25 * abs(u0[0]) / np.linalg.norm(u0)) < 1e-12
+    limits = SineControlLimits()
+    assert stale_identification(0.2, limits) == ""
+    assert stale_identification(0.21, limits).startswith("the closed loop moved the legs' demands by 21% ")

@@ -30,6 +30,7 @@ from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
 from ..runtime.steps import VIBRATION_CONTROL
 from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
 from ..safe_yaml import load_yaml
+from ..vibration.unit_identification import load_identification
 from .arguments import nonnegative_float, positive_float, ros_namespace
 from .output import to_jsonable
 
@@ -63,6 +64,12 @@ def register(subparsers) -> None:
                           "at its pose and frequency (~6 s), plans the leg demands with that identification's "
                           "feed-forward and corrects them from the platform IMU; feedforward: the same without the "
                           "correction; off: the drawing's decomposition, uncompensated")
+    cmd.add_argument("--identification", default=None, metavar="FILE",
+                     help="a vibration-unit identification (a file the identify_vibration_units action or an earlier "
+                          "run wrote) reused for a vibration where it holds (its pose within 2 mm / 1 deg, its "
+                          "frequencies); elsewhere the run identifies. A closed loop that has to move the demands "
+                          "more than 20 %% from its feed-forward marks it stale: the run identifies again (and runs "
+                          "the vibration again on the fresh file when the loop could not hold it on the stale one)")
     cmd.add_argument("--params-file", default=None,
                      help="a ROS 2 parameter file applied to the nodes after the suite's own "
                           "(config/suite_params.yaml): your hardware's data-sheet figures, e.g. kinematics' and the "
@@ -179,6 +186,8 @@ def run(args) -> int:
             load_tissue(tissue, robot)
     if args.params_file:  # a parameter file that cannot be read safely is refused before anything starts
         load_yaml(Path(args.params_file), "node parameter file")
+    if args.identification:  # so is an identification that does not load
+        load_identification(Path(args.identification))
     # refused here, before anything starts; the emulated robot is built from the drawing of the robot file
     plant = load_plant_option(args.plant, load_drawing(args.robot), args.plant_seed)
     # the ideal plant is the drawing: the emulator runs today's model without a plant file
@@ -202,7 +211,8 @@ def run(args) -> int:
                          robot_config=robot_config, plant_config=plant_config,
                          plant_seed=built.seed if built is not None else None,
                          vibration_control=args.vibration_control,
-                         hardware_params_file=Path(args.params_file) if args.params_file else None)
+                         hardware_params_file=Path(args.params_file) if args.params_file else None,
+                         identification_file=Path(args.identification).resolve() if args.identification else None)
     INTERRUPTS.install()  # SIGINT and SIGTERM: KeyboardInterrupt, never inside rclpy's C++
     runner = SuiteRunner(options)
     status, failure = 0, None
@@ -243,6 +253,7 @@ def run(args) -> int:
                "problems": list(record.failures), "recorder": record.recorder_stats,
                "restarts": record.restarts, "ros_domain_id": domain, "tissue_config": tissue,
                "plant": plant_summary, "vibration_control": args.vibration_control,
+               "identification_file": str(Path(args.identification).resolve()) if args.identification else None,
                "identifications": record.identifications, "guard_stops": record.guard_stops}
     if not list(out.glob("*.mcap")):
         _log("no MCAP was written")
@@ -305,6 +316,8 @@ def _summarize(robot, record, summary: dict, scenario, out: Path, robot_config: 
                                        f"{type(exc).__name__}: {exc}")
             continue
         result["failure"] = vib.get("failure")
+        result["closed_loop"] = {key: vib[key] for key in ("loop_corrections", "demand_correction",
+                                                           "stale_identification") if key in vib}
         summary["vibrations"].append(result)
     summary["tissue"] = summarize_tissue(signals, [(v["t0"], float(v["parameters"]["duration_s"]))
                                                    for v in record.vibrations if "t0" in v])
@@ -407,6 +420,11 @@ def _print_summary(summary: dict, bounds: dict) -> None:
                   f"worst leg {f['worst_leg_relative'] * 100:.3f} % of the force amplitude")
         print(f"  active (>= half amplitude) {vib['active_duration_s']:.3f} s of the planned "
               f"{vib['planned_active_duration_s']:.3f} s")
+        loop = vib.get("closed_loop") or {}
+        if loop.get("loop_corrections"):
+            stale = f"; stale: {loop['stale_identification']}" if loop.get("stale_identification") else ""
+            print(f"  closed loop: {loop['loop_corrections']} corrections, the demands moved "
+                  f"{loop['demand_correction']:.1%} from the identification's feed-forward{stale}")
         if vib.get("failure"):
             print(f"  this vibration failed: {vib['failure']}")
     from ..analysis.run_summary import recording_lines, tissue_lines

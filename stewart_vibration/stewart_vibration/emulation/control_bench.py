@@ -116,6 +116,7 @@ class BenchRun:
     outcome: str = "completed"
     frequency_error: float = 0.0
     leg_phase_spread_deg: float = float("nan")  # the true legs' phases against the plan's, max - min (deg)
+    demand_correction: float = 0.0  # how far the closed loop moved the demands (SineController.correction)
 
 
 def true_motion(times, poses, frequency: float, nominal_rotation) -> np.ndarray:
@@ -219,6 +220,8 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
             if not send(now):
                 break
             next_send = now + 0.25
+    if controller is not None:
+        run.demand_correction = controller.correction
     steady = (np.asarray(times) > ramp_s) & (np.asarray(times) < duration_s - ramp_s)
     if steady.sum() > 100:
         z = np.asarray(poses)[steady, :3] @ plan.direction

@@ -361,7 +361,7 @@ class SuiteClient:
             return
         r = answer.result
         self._vibration["result"] = VibrationEnd(outcome_name(r.outcome.code), r.outcome.message, r.active_s,
-                                                 r.cycles_delivered, int(r.loop_corrections))
+                                                 r.cycles_delivered, int(r.loop_corrections), r.demand_correction)
         if self._vibration.get("plan") is None and r.plan.frequency_hz > 0:
             self._vibration["plan"] = plan_record(r.plan)
 

@@ -435,7 +435,7 @@ class VibrationPlannerNode(Node):
         result = Vibrate.Result(plan=run["plan"])
         result.outcome = outcome(name, message)
         result.active_s, result.cycles_delivered = self._delivered_dose(run)
-        result.loop_corrections = loop_corrections(run)
+        result.loop_corrections, result.demand_correction = loop_figures(run)
         end_goal(goal_handle, name)
         return result
 
@@ -542,7 +542,7 @@ class VibrationPlannerNode(Node):
             feedback.delivered_amplitude_m = delivered.amplitude_m
             feedback.direction_error_rad = delivered.direction_error_rad
             feedback.phase_spread_rad = delivered.phase_spread_rad
-        feedback.loop_corrections = loop_corrections(run)
+        feedback.loop_corrections, feedback.demand_correction = loop_figures(run)
         run["goal"].publish_feedback(feedback)
 
     def _delivered_dose(self, run: dict) -> tuple[float, float]:
@@ -638,10 +638,11 @@ class VibrationPlannerNode(Node):
         self._finish("SHUTDOWN", "the vibration planner is shutting down: the vibration ramps out")
 
 
-def loop_corrections(run: dict) -> int:
-    """The corrections the closed loop of ``run`` sent (0 without a loop)."""
+def loop_figures(run: dict) -> tuple[int, float]:
+    """The corrections the closed loop of ``run`` sent and how far they moved the demands (0, 0.0 without a
+    loop; SineController.correction)."""
     loop = run.get("loop")
-    return 0 if loop is None else int(loop.controller.updates)
+    return (0, 0.0) if loop is None else (int(loop.controller.updates), loop.controller.correction)
 
 
 def main(args=None) -> int:

@@ -69,6 +69,8 @@ def node_arguments(options: RunOptions) -> dict[str, list[str]]:
         "mcap_recorder": ["-p", f"output_dir:={Path(options.out_dir).resolve()}"],
         "vibration_planner": ["-p", f"closed_loop:={str(options.vibration_control == 'closed_loop').lower()}"],
     }
+    if options.identification_file is not None and options.vibration_control != "off":  # reused where it holds
+        extra["vibration_planner"] += ["-p", f"identification_file:={Path(options.identification_file).resolve()}"]
     if options.plant_config:  # the robot as built: the emulator alone reads it
         extra["hardware_emulator"] += ["-p", f"plant_config:={options.plant_config}"]
         if options.plant_seed is not None:

@@ -15,6 +15,9 @@ import numpy as np
 
 from ..analysis.reduction_accuracy import fracture_residual
 from ..motion.guard_status import GuardStatus
+from ..vibration.compensation import identification_misses
+from ..vibration.sine_control import SineControlLimits, stale_identification
+from ..vibration.unit_identification import load_identification
 from .scenario import DEFAULT_FRACTURE_SITE_M, MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
 from .suite import DEFAULT_NAMESPACE
@@ -49,6 +52,7 @@ class RunOptions:
     plant_config: str | None = None  # the emulator's robot as built (None: the drawing)
     plant_seed: int | None = None  # its seed (None: the plant file's)
     vibration_control: str = "closed_loop"  # VIBRATION_CONTROL: identify the units before each vibration, and how
+    identification_file: Path | None = None  # an identification to reuse where it holds (else the run identifies)
     settle_tolerance_m: float = 1e-5
     settle_tolerance_rad: float = np.radians(0.01)
     step_timeout_s: float = 120.0  # wall clock, per step
@@ -91,13 +95,15 @@ class VibrationStart:
 @dataclass(frozen=True)
 class VibrationEnd:
     """How a vibrate goal ended: its outcome name, the planner's message, the active time (s), the cycles
-    delivered (the commanded envelope's) and the closed loop's corrections."""
+    delivered (the commanded envelope's), the closed loop's corrections and how far they moved the demands
+    (SineController.correction)."""
 
     outcome: str
     message: str
     active_s: float
     cycles_delivered: float
     loop_corrections: int = 0
+    demand_correction: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -177,6 +183,7 @@ class ScenarioSteps:
     def __init__(self, client: SuiteClient, options: RunOptions, record: RunRecord):
         self.client, self.options, self.record = client, options, record
         self.fracture_site = np.array(DEFAULT_FRACTURE_SITE_M)  # the scenario's, once run
+        self.identified = False  # this run identified: the planner plans with the run's own file from then on
 
     def run(self, scenario: Scenario) -> RunRecord:
         """Run the scenario's steps in order; returns the record. Raises StepFailed at a step that fails."""
@@ -289,15 +296,54 @@ class ScenarioSteps:
                                             "message": end.message, "path": end.path, "problems": end.problems})
         if end.outcome != "SUCCEEDED":
             raise StepFailed(f"identification of the vibration units ({end.outcome}): {end.message}")
+        self.identified = True
         self.options.progress(f"{label}: identified: {end.message}")
 
+    def reuse_identification(self, step: VibrateStep, label: str) -> bool:
+        """Whether the identification the run was given (``identification_file``, the planner's from its start)
+        holds for this vibration: the pose of the last move (within the feed-forward's tolerances) and the
+        frequency. Once this run identified, the planner plans with the run's own file instead."""
+        path = self.options.identification_file
+        if path is None or self.identified or not self.record.moves:
+            return False
+        frequency = float(step.parameters["frequency_hz"])
+        why_not = identification_misses(load_identification(path), np.asarray(self.record.moves[-1]["target"]),
+                                        frequency)
+        if why_not:
+            self.options.progress(f"{label}: {path} does not hold here ({why_not}); identifying the units")
+            return False
+        self.record.identifications.append({"label": label, "frequency_hz": frequency, "outcome": "REUSED",
+                                            "message": f"reused {path}", "path": str(path), "problems": []})
+        self.options.progress(f"{label}: reusing the identification {path} (it holds at this pose and frequency)")
+        return True
+
     def vibrate(self, step: VibrateStep, label: str) -> None:
+        """Identify the vibration units here (or reuse the run's identification where it holds), then run the
+        vibration (``_vibrate``). A vibration on a reused identification that failed because the file proved
+        stale (its closed loop could not hold the vibration) runs once more on a fresh identification: the
+        failed attempt stays in the record."""
+        opts, client = self.options, self.client
+        reused = opts.vibration_control != "off" and self.reuse_identification(step, label)
+        if opts.vibration_control != "off" and not reused:
+            self.identify(step, label)
+        try:
+            self._vibrate(step, label)
+        except StepFailed as exc:
+            if not (reused and self.record.vibrations and self.record.vibrations[-1].get("stale_identification")):
+                raise
+            opts.progress(f"{label}: {exc}; identifying the vibration units here and vibrating again")
+            client.spin_until(lambda: client.vibration_status is not None and client.vibration_status.state in (
+                "idle", "stopped"), 30 / max(opts.real_time_factor, 0.05), "the units to come to rest")
+            self.identify(step, label)
+            self._vibrate(step, label)
+
+    def _vibrate(self, step: VibrateStep, label: str) -> None:
         """Send the planner's vibrate goal and follow the emulator's vibration/status until the vibration is
         over; a refusal, an outcome other than SUCCEEDED or a vibration shorter than planned fails the step. The
-        record keeps the settings and the plan the planner ran, which the summary judges against."""
+        record keeps the settings and the plan the planner ran, which the summary judges against; a closed loop
+        that found its identification stale (``stale_identification``) is said with it, and after a vibration
+        that ran the units are identified again (the next vibration's file)."""
         opts, client = self.options, self.client
-        if opts.vibration_control != "off":
-            self.identify(step, label)
         start = client.clock  # before the goal: a lower bound of its t0 (the summary finds the windows from it)
         started = client.start_vibration(step.parameters)
         if started.plan is None:
@@ -327,6 +373,12 @@ class ScenarioSteps:
             return None
 
         def fail(reason: str):
+            ended = client.vibration_result()
+            correction = 0.0 if ended is None else ended.demand_correction
+            stale = stale_identification(correction, SineControlLimits())
+            if stale:  # why the loop could not hold the vibration: say so with the failure
+                record["demand_correction"], record["stale_identification"] = correction, stale
+                reason = f"{reason} ({stale})"
             record["failure"] = reason
             raise StepFailed(reason)
 
@@ -372,3 +424,9 @@ class ScenarioSteps:
         client.wait_sim(SETTLE_AFTER_VIBRATION_S, "the platform to settle after the vibration")
         if ended < t0 + duration - 0.05:
             fail(f"the vibration ended {t0 + duration - ended:.3f} s early: {client.vibration_status.message}")
+        record["demand_correction"] = result.demand_correction
+        stale = stale_identification(result.demand_correction, SineControlLimits())
+        if stale and opts.vibration_control == "closed_loop":  # the dose was corrected; what follows needs a new one
+            record["stale_identification"] = stale
+            opts.progress(f"{label}: {stale}; identifying the vibration units again")
+            self.identify(step, label)

@@ -26,6 +26,23 @@ def target_motion(plan: VibrationDecomposition) -> np.ndarray:
     return np.asarray(plan.twist, dtype=float) * plan.amplitude * np.exp(1j * plan.phase)
 
 
+def identification_misses(ident: VibrationIdentification, pose, frequency: float,
+                          pose_tolerance_m: float = POSE_TOLERANCE_M,
+                          angle_tolerance_deg: float = ANGLE_TOLERANCE_DEG) -> str:
+    """Why ``ident`` does not hold for a vibration at ``pose`` [6] (m, rad) and ``frequency`` (Hz): made at
+    another pose (beyond the tolerances) or not covering the frequency; "" when it holds."""
+    offset = np.asarray(pose, float) - np.asarray(ident.pose, float)
+    distance, angle = float(np.linalg.norm(offset[:3])), float(np.degrees(np.abs(offset[3:]).max()))
+    if distance > pose_tolerance_m or angle > angle_tolerance_deg:
+        return (f"the identification was made {distance * 1e3:.2f} mm / {angle:.2f} deg from this pose "
+                f"(tolerance {pose_tolerance_m * 1e3:g} mm / {angle_tolerance_deg:g} deg): identify the units here")
+    try:
+        ident.platform_response_at(frequency)
+    except InvalidInputError as exc:
+        return str(exc)
+    return ""
+
+
 def compensated_demands(ident: VibrationIdentification | None, plan: VibrationDecomposition,
                         pose_tolerance_m: float = POSE_TOLERANCE_M,
                         angle_tolerance_deg: float = ANGLE_TOLERANCE_DEG) -> tuple[np.ndarray | None, str]:
@@ -33,16 +50,10 @@ def compensated_demands(ident: VibrationIdentification | None, plan: VibrationDe
     identification, it was made at another pose (beyond the tolerances) or does not cover the frequency."""
     if ident is None:
         return None, "uncompensated: no identification of the vibration units (identification_file)"
-    offset = np.asarray(plan.pose, float) - np.asarray(ident.pose, float)
-    distance, angle = float(np.linalg.norm(offset[:3])), float(np.degrees(np.abs(offset[3:]).max()))
-    if distance > pose_tolerance_m or angle > angle_tolerance_deg:
-        return None, (f"uncompensated: the identification was made {distance * 1e3:.2f} mm / {angle:.2f} deg from "
-                      f"this pose (tolerance {pose_tolerance_m * 1e3:g} mm / {angle_tolerance_deg:g} deg): "
-                      "identify the units here")
-    try:
-        response = ident.platform_response_at(plan.frequency)
-    except InvalidInputError as exc:
-        return None, f"uncompensated: {exc}"
+    why_not = identification_misses(ident, plan.pose, plan.frequency, pose_tolerance_m, angle_tolerance_deg)
+    if why_not:
+        return None, f"uncompensated: {why_not}"
+    response = ident.platform_response_at(plan.frequency)
     if np.linalg.cond(response) > 1e6:
         return None, "uncompensated: the identified platform response is singular at this frequency"
     demands = np.linalg.solve(response, target_motion(plan))

@@ -44,6 +44,9 @@ class SineControlLimits:
     # the direction and off-axis limits hold from this many corrections on: uncorrected units (+-30 % gain,
     # +-20 deg phase) tilt a translation along the force line by up to ~30 deg, which the loop removes
     converge_updates: int = 10
+    # a loop that had to move the demands this far from where it started (the identification's feed-forward),
+    # ||u - u0|| / ||u0||, says the identification no longer describes the robot: identify again
+    stale_correction: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -150,7 +153,15 @@ class SineController:
         self.limits = limits or SineControlLimits()
         self.demand = (np.linalg.solve(self.estimate, self.target) if initial_demand is None
                        else np.asarray(initial_demand, dtype=complex).reshape(6))
+        self.initial = self.demand.copy()
         self.updates = 0
+
+    @property
+    def correction(self) -> float:
+        """How far the loop moved the demands from where it started, ||u - u0|| / ||u0|| (0 before any
+        correction): a large one says the plant is not the one its estimate was identified on."""
+        scale = float(np.linalg.norm(self.initial))
+        return float(np.linalg.norm(self.demand - self.initial)) / scale if scale > 0 else 0.0
 
     def update(self, measured, envelope: float = 1.0) -> ControlStep:
         """Judge the response ``measured`` (6,) complex, taken while the vibration's envelope (its ramp) was
@@ -172,6 +183,16 @@ class SineController:
         self.demand = demand
         self.updates += 1
         return ControlStep(demand.copy(), figures, verdict, reason)
+
+
+def stale_identification(correction: float, limits: SineControlLimits) -> str:
+    """Why the identification a vibration was planned with is stale, from its closed loop's ``correction``
+    (``SineController.correction``); "" while it is not."""
+    if correction > limits.stale_correction:
+        return (f"the closed loop moved the legs' demands by {correction:.0%} of the identification's "
+                f"feed-forward (more than {limits.stale_correction:.0%}): the identification no longer "
+                "describes the robot")
+    return ""
 
 
 def iteration_spectral_radius(plant, estimate, gain: float, delay_updates: int = 0) -> float:
