@@ -1,4 +1,4 @@
-"""The messaging floor of the suite's topology (issue 12): the CPU that rclpy + Fast DDS alone cost for the
+"""The messaging floor of the suite's topology: the CPU that rclpy + Fast DDS alone cost for the
 suite's 500 Hz streams, with no computation at all.
 
 Starts five processes shaped like the suite (same executor, raw CDR publish/take, same QoS, the suite's

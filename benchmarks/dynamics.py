@@ -1,7 +1,7 @@
 """Benchmark: leg_forces samples/s (batched) and MuJoCo steps/s at the validation settings.
 
 Run: .venv/bin/python benchmarks/dynamics.py [--samples N]
-Target (issue 4): leg_forces >= 1 M samples/s batched.
+Target: leg_forces >= 1 M samples/s batched.
 """
 
 from __future__ import annotations

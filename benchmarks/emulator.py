@@ -1,4 +1,4 @@
-"""Hardware emulator speed (issue 5): real-time factor, achieved state rate, command-to-state latency.
+"""Hardware emulator speed: real-time factor, achieved state rate, command-to-state latency.
 
 Starts the hardware_emulator node as its own process (real DDS, own ROS domain)
 and measures from a client process:

@@ -1,4 +1,4 @@
-"""Kinematics speed (issue 2): IK throughput, loop ratio, batched FK, warm single-solve latency.
+"""Kinematics speed: IK throughput, loop ratio, batched FK, warm single-solve latency.
 
 Run: tools/bench kinematics   (or: .venv/bin/python benchmarks/kinematics.py)
 Prints measured numbers, the issue's targets and the ratio to each target.

@@ -1,4 +1,4 @@
-"""The main job under CPU load (issue 11): N runs of `stewart-vibration run` with K busy CPU hogs beside it.
+"""The main job under CPU load: N runs of `stewart-vibration run` with K busy CPU hogs beside it.
 
 Each hog is a plain `python -c "while True: pass"` process, started before a run and ended after it. Per
 run the table gives: pass/fail (the exit code: every bound of the scenario), the vibration's active time

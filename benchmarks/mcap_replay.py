@@ -1,4 +1,4 @@
-"""Replay timing (issue 6): the replayer's lateness, the received intervals and the rate-10 speed-up.
+"""Replay timing: the replayer's lateness, the received intervals and the rate-10 speed-up.
 
     python benchmarks/mcap_replay.py [--messages 300] [--json]
 

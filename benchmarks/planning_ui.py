@@ -1,4 +1,4 @@
-"""The main job with the planning UI open in a browser (issue 16): do the suite's figures still pass, and
+"""The main job with the planning UI open in a browser: do the suite's figures still pass, and
 what does the UI cost?
 
 Runs `stewart-vibration run --ui` (the main scenario: move to the paper's pose, 35 Hz / 0.3 g along the

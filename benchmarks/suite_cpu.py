@@ -33,7 +33,7 @@ import numpy as np
 
 REQUIRED_CORES, GOAL_CORES = 0.5, 0.25
 LAG_GOAL_MS = 20.0
-SAMPLE_RATIO_MIN = 0.999  # on a quiet machine every state gives its estimates (issue 12)
+SAMPLE_RATIO_MIN = 0.999  # on a quiet machine every state gives its estimates
 CLOCK_TICKS = os.sysconf("SC_CLK_TCK")
 
 

@@ -1,4 +1,4 @@
-"""The whole test suite N times in a row with K busy CPU hogs beside it (issue 14's flakiness check).
+"""The whole test suite N times in a row with K busy CPU hogs beside it (a flakiness check).
 
 Each run is the README's test command (``./tools/test``: ruff, mypy, pytest) with a JUnit report; the
 hogs (see load_runs.py) spin for the whole run. Per run it prints the exit code, the counts of passed,

@@ -23,7 +23,7 @@ setup(
     name=PACKAGE,
     version="0.1.0",
     packages=find_packages(exclude=["test", "test.*"]),
-    package_data={"stewart_vibration.ui": ["static/*"]},  # the planning UI's page (issue 16)
+    package_data={"stewart_vibration.ui": ["static/*"]},  # the planning UI's page
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),

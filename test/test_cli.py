@@ -1,4 +1,4 @@
-"""The stewart-vibration CLI (issue 2), run as a user would, in a subprocess.
+"""The stewart-vibration CLI, run as a user would, in a subprocess.
 
 Every number is checked against the independent references (hinges rebuilt
 from robot.yaml, textbook rotations, per-leg loops), not the library.

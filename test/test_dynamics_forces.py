@@ -1,4 +1,4 @@
-"""Newton-Euler leg forces: power balance, statics limit, symmetry, options (issue 4).
+"""Newton-Euler leg forces: power balance, statics limit, symmetry, options.
 
 References are computed here independently of stewart_vibration.dynamics.newton_euler.
 """

@@ -1,4 +1,4 @@
-"""Leg kinematics and analytic trajectories against finite differences (issue 4)."""
+"""Leg kinematics and analytic trajectories against finite differences."""
 
 from __future__ import annotations
 

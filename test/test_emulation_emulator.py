@@ -1,4 +1,4 @@
-"""The emulated robot without ROS (issues 11, 12): the strut servos track a 35 Hz, 0.3 g vibration at the
+"""The emulated robot without ROS: the strut servos track a 35 Hz, 0.3 g vibration at the
 paper's pose within the main scenario's bounds, the reported axial forces equal the Newton-Euler model of
 the simulated motion, and the e-stop / reset rules hold."""
 
@@ -118,7 +118,7 @@ def dense_commanded(emu, t0, t1):
 @pytest.mark.parametrize("stamp_offset,outcome", [(-5.0, "stale_trajectory"), (-3.0, "strut_velocity_max"),
                                                   (-0.05, "accepted"), (0.0, "accepted"), (2.0, "accepted")])
 def test_past_stamped_trajectory_departs_from_now_or_is_refused(robot, stamp_offset, outcome):
-    """A legal 5 mm move over 4 s whose stamp lies in the past (issue 13: it used to jump 5 mm at 0.88 m/s):
+    """A legal 5 mm move over 4 s whose stamp lies in the past (it used to jump 5 mm at 0.88 m/s):
     the part already past is dropped and the motion departs from the commanded state now -- refused when
     that would break a limit, otherwise within every limit."""
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
@@ -158,7 +158,7 @@ def test_position_only_and_far_future_trajectories(robot):
 
 
 def test_estop_during_a_move_brings_the_struts_to_rest_within_the_acceleration_limit(robot):
-    """Issue 13: no joint beyond its limits, an e-stop included. Struts moving near full speed are brought to
+    """No joint beyond its limits, an e-stop included. Struts moving near full speed are brought to
     rest by a controlled stop (holding the position at once, the old e-stop, stepped the velocity by ~18 mm/s
     in one physics step); the simulated struts follow it without a step, and the force estimator's mirror
     of the strut command makes the same stop."""

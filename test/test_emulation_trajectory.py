@@ -1,4 +1,4 @@
-"""joint_trajectory_controller semantics of the emulator's trajectory follower (issue 5)."""
+"""joint_trajectory_controller semantics of the emulator's trajectory follower."""
 
 from __future__ import annotations
 

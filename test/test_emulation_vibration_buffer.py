@@ -1,4 +1,4 @@
-"""The vibration units' command buffer (issues 11 and 13): interpolation, continuous splices, refusals
+"""The vibration units' command buffer: interpolation, continuous splices, refusals
 with reasons, safety ramps without latching, limits of any window, and the status classification.
 
 References are written here: an analytic ramped sine (not the library's waveform) sampled into windows.

@@ -1,4 +1,4 @@
-"""hardware_emulator as a managed (lifecycle) node over real DDS (issue 15): the lifecycle services drive
+"""hardware_emulator as a managed (lifecycle) node over real DDS: the lifecycle services drive
 configure / activate / deactivate / cleanup; commands are refused when it is not active and the robot holds
 its pose; a bad configuration fails the configure transition."""
 

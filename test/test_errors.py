@@ -1,4 +1,4 @@
-"""Typed errors for bad input (issue 2): every error class, with leg and sample."""
+"""Typed errors for bad input: every error class, with leg and sample."""
 
 from __future__ import annotations
 

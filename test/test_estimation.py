@@ -1,4 +1,4 @@
-"""Leg space -> platform motion, the vib command buffer and the wrench map (pure core, issue 5)."""
+"""Leg space -> platform motion, the vib command buffer and the wrench map (pure core)."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""The estimator's per-run state without ROS (issue 12): a batch gives the per-message forces sample for
+"""The estimator's per-run state without ROS: a batch gives the per-message forces sample for
 sample, the commanded accelerations come from the emulator's own buffer (including its e-stop ramp),
 and the modelled forces match what the emulator applied."""
 

@@ -1,4 +1,4 @@
-"""foxglove_bridge over a real WebSocket (issue 15 acceptance 1): the hardware emulator and the bridge run as
+"""foxglove_bridge over a real WebSocket: the hardware emulator and the bridge run as
 processes in the suite's namespace; a `websockets` client speaks the Foxglove WebSocket protocol (v1, as
 foxglove.sdk.v1) to it as the Foxglove app does, while a raw rclpy subscriber in the test records the same
 topics from DDS. The bridge's joint_states must be the very CDR bytes DDS carried, and its scene's platform

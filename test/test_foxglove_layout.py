@@ -1,4 +1,4 @@
-"""config/foxglove_layout.json (issue 15): Foxglove's layout file format (configById + a mosaic tree), every
+"""config/foxglove_layout.json: Foxglove's layout file format (configById + a mosaic tree), every
 panel placed and configured, every topic one the suite or the bridge publishes, and the joint indices of the
 plots the joints the emulator and the estimator really publish there."""
 

@@ -1,4 +1,4 @@
-"""hardware_emulator + kinematics nodes, each in its own process, on sim time over real DDS (issues 5, 11, 13):
+"""hardware_emulator + kinematics nodes, each in its own process, on sim time over real DDS:
 move goals (kinematics/move_to_pose) reach their target, unsafe strut commands are refused with a typed
 answer (legs/trajectory_status), vibration windows splice or are refused, the watchdog ramps a command that
 ends away from rest, nothing latches, and the e-stop holds until reset -- all observed as a user would (joint

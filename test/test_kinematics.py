@@ -1,4 +1,4 @@
-"""Kinematics (issue 2): IK, Jacobian, FK against independent references."""
+"""Kinematics: IK, Jacobian, FK against independent references."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""kinematics node in its own process over real DDS (issue 5)."""
+"""kinematics node in its own process over real DDS."""
 
 from __future__ import annotations
 

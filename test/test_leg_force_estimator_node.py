@@ -1,4 +1,4 @@
-"""leg-force estimator node in its own process over real DDS (issue 5).
+"""leg-force estimator node in its own process over real DDS.
 
 The test plays the emulator: a 35 Hz, 0.3 g platform vibration at the
 paper's pose, commanded as vib_* windows (exact IK leg signals), measured as

@@ -1,5 +1,5 @@
-"""The main job as a user runs it (issue 7): bring-up, scenario, MCAP, report, summary within
-issue 5's bounds; interrupted runs leave no orphan processes and a readable MCAP."""
+"""The main job as a user runs it: bring-up, scenario, MCAP, report, summary within
+the scenario's bounds; interrupted runs leave no orphan processes and a readable MCAP."""
 
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def processes_on_domain(domain: int) -> list[int]:
 def test_main_job_summary_within_bounds(tmp_path, ros_domain):
     out = tmp_path / "run"
     summary, stdout = passing_summary(out, ros_domain, "--duration", "1.6", "--json")
-    # issue 5's acceptance figures, from the emulator's ground truth and measured efforts
+    # the scenario's figures, from the emulator's ground truth and measured efforts
     for move in summary["moves"]:
         assert move["pose_error_m"] <= 10e-6 and move["pose_error_deg"] <= 0.01
     (vib,) = summary["vibrations"]
@@ -266,7 +266,7 @@ def node_pids(domain: int, module: str) -> list[int]:
 
 def test_keep_running_survives_a_killed_node_and_reports_what_ran(tmp_path, ros_domain):
     """--keep-running: a killed node is reported and restarted (the others keep running); Ctrl-C then
-    stops everything and still writes the summary and report of what ran (issues 11, 13)."""
+    stops everything and still writes the summary and report of what ran."""
     out = tmp_path / "run"
     proc = main_job(out, ros_domain, "--duration", "1.2", "--keep-running")
     lines = []

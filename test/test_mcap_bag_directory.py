@@ -1,4 +1,4 @@
-"""Runs are rosbag2 bag directories (issue 15): the recorder writes metadata.yaml beside its .mcap
+"""Runs are rosbag2 bag directories: the recorder writes metadata.yaml beside its .mcap
 as rosbag2 writes it (version 9), so rosbags opens the folder; extra files in the folder (logs,
 report, summary, an earlier recording) do not disturb it; a crash leaves no metadata.yaml."""
 
@@ -217,7 +217,7 @@ def test_second_recording_in_the_same_process_joins_the_bag(ros_domain, tmp_path
 @pytest.mark.integration
 @pytest.mark.slow
 def test_main_job_folder_is_a_bag_directory(ros_domain, tmp_path):
-    """The acceptance of issue 15: ``stewart-vibration run --out DIR`` leaves DIR a bag directory (beside
+    """``stewart-vibration run --out DIR`` leaves DIR a bag directory (beside
     logs/, report/, summary.json) that rosbags opens, and its replay's /clock runs at 100 Hz."""
     import subprocess
     import sys

@@ -1,4 +1,4 @@
-"""``stewart-vibration mcap-recover`` (issue 13): a file cut by a crash is rebuilt complete and indexed.
+"""``stewart-vibration mcap-recover``: a file cut by a crash is rebuilt complete and indexed.
 
 What was flushed is counted independently of the code under test: the mcap
 library's StreamReader walks the raw file and every Chunk record it reads whole

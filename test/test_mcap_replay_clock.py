@@ -1,4 +1,4 @@
-"""mcap_replay's /clock (issue 15): 100 Hz whatever the message rate, the recorded rate when the run
+"""mcap_replay's /clock: 100 Hz whatever the message rate, the recorded rate when the run
 has a /clock, and a clean exit on stop or at the end (no ERROR, no traceback, exit code 0)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Replaying a recorded run's inputs into fresh nodes reproduces their outputs (issue 6).
+"""Replaying a recorded run's inputs into fresh nodes reproduces their outputs.
 
 One main-job run (`stewart-vibration run --duration 1.6`) is recorded on its
 own ROS domain. On a second, fresh domain a new kinematics node and a new

@@ -1,4 +1,4 @@
-"""The numpy CDR codec of the high-rate topics against rclpy's own serializer (issue 12): rclpy reads what
+"""The numpy CDR codec of the high-rate topics against rclpy's own serializer: rclpy reads what
 we write, we read what rclpy writes (uniform and mixed trajectories, batches), malformed bytes give a typed
 error."""
 

@@ -1,4 +1,4 @@
-"""Minimum-jerk profiles and checked SE(3) paths (issue 5 core)."""
+"""Minimum-jerk profiles and checked SE(3) paths."""
 
 from __future__ import annotations
 

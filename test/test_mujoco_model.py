@@ -1,4 +1,4 @@
-"""Generated MuJoCo model and the exact static check against MuJoCo's own equations (issue 4)."""
+"""Generated MuJoCo model and the exact static check against MuJoCo's own equations."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""MuJoCo forward simulation vs Newton-Euler, and the simulator API the emulator uses (issue 4)."""
+"""MuJoCo forward simulation vs Newton-Euler, and the simulator API the emulator uses."""
 
 from __future__ import annotations
 

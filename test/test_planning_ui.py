@@ -1,4 +1,4 @@
-"""The planning UI without ROS (issue 16): the page model's checks and the web server's token, routes,
+"""The planning UI without ROS: the page model's checks and the web server's token, routes,
 rate limit and frames; plus the node's start-up refusal of a taken port (one line, exit code 2)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The planning UI end to end in a real headless browser (issue 16 acceptance).
+"""The planning UI end to end in a real headless browser.
 
 The suite's nodes run as the bring-up starts them (SuiteRunner with the "ui" extra node); Chromium
 (Debian package) opens the URL the planning_ui node logged. The test checks, on its own DDS client

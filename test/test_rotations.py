@@ -1,4 +1,4 @@
-"""Rotation helpers (issue 2): conventions checked against independent forms."""
+"""Rotation helpers: conventions checked against independent forms."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Values in the suite's params file reach the nodes as the bring-up starts them (issue 13: the old
+"""Values in the suite's params file reach the nodes as the bring-up starts them (the old
 `hardware_emulator:` keys never matched /stewart/hardware_emulator, so only use_sim_time applied)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Soft tissue (issue 17) without DDS: the tissue wrench against closed forms, Newton-Euler with the tissue
+"""Soft tissue without DDS: the tissue wrench against closed forms, Newton-Euler with the tissue
 wrench against MuJoCo with the tissue applied, the tissue-aware path check, the emulator against the tissue
 (struts as stiff position actuators, the estimate against the applied wrench) and the force guard in a
 closed loop with the emulator and the estimator."""

@@ -1,4 +1,4 @@
-"""Soft tissue in the loop (issue 17) with the real nodes over DDS on sim time: hardware_emulator applying
+"""Soft tissue in the loop with the real nodes over DDS on sim time: hardware_emulator applying
 config/tissue.yaml, kinematics (tissue-aware checks, force guard), leg_force_estimator, vibration_planner.
 
 - the estimator's external wrench matches the wrench the emulator applies (ground_truth/tissue_wrench) during

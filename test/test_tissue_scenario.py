@@ -1,4 +1,4 @@
-"""The tissue scenario as a user runs it (issue 17): ``./tools/main --scenario config/scenario_tissue.yaml``.
+"""The tissue scenario as a user runs it: ``./tools/main --scenario config/scenario_tissue.yaml``.
 
 A module of its own: test_tissue_dds.py keeps a second suite of nodes up for its whole module (a module
 fixture), and this run beside it measured the guard on a machine with two suites sharing two cores

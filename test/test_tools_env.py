@@ -1,4 +1,4 @@
-"""`source tools/env.sh` sets up a user's interactive shell without changing its options (issue 15): a
+"""`source tools/env.sh` sets up a user's interactive shell without changing its options: a
 failing command afterwards must not close the terminal, and the suite's executables are on PATH."""
 
 from __future__ import annotations

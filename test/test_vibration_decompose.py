@@ -1,4 +1,4 @@
-"""Decomposition: gains, phases, exact vs linear, FFT, rotation, amplitude units (issue 3)."""
+"""Decomposition: gains, phases, exact vs linear, FFT, rotation, amplitude units."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""Infeasible vibration requests raise typed errors naming the leg and the limit (issue 3)."""
+"""Infeasible vibration requests raise typed errors naming the leg and the limit."""
 
 from __future__ import annotations
 

@@ -1,4 +1,4 @@
-"""``stewart-vibration paper --out DIR`` writes the figures, JSON and markdown (issue 3).
+"""``stewart-vibration paper --out DIR`` writes the figures, JSON and markdown.
 
 The JSON numbers are checked against the independent references of
 ``vibration_reference`` (hinges rebuilt from robot.yaml, per-leg loops) and

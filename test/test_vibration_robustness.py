@@ -1,4 +1,4 @@
-"""Vibration that survives a stalled, stopped or killed planner (issue 11), over real DDS with the real
+"""Vibration that survives a stalled, stopped or killed planner, over real DDS with the real
 emulator, kinematics and planner processes on sim time: what the units do is read from legs/joint_states
 and vibration/status, what the planner says from /diagnostics."""
 
@@ -226,7 +226,7 @@ def test_killed_planner_ramps_out_at_the_end_of_its_buffer(suite):
 
 def test_a_dead_emulator_is_reported_stale_by_its_peers(suite):
     """Kill the emulator: /clock stops, yet the kinematics and planner go on reporting, STALE, naming the
-    input they miss (wall-clock watches; issue 13)."""
+    input they miss (wall-clock watches)."""
     diagnostics = suite.client.subscribe("/diagnostics", DiagnosticArray)
     suite.procs["emulator"].popen.send_signal(signal.SIGKILL)
     killed = time.monotonic()

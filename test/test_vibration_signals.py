@@ -1,4 +1,4 @@
-"""Planner helpers: ramped leg commands and the planned platform motion (issue 3)."""
+"""Planner helpers: ramped leg commands and the planned platform motion."""
 
 from __future__ import annotations
 

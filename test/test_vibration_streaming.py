@@ -1,4 +1,4 @@
-"""Streaming a planned vibration as self-contained windows (issue 11), checked against an independent
+"""Streaming a planned vibration as self-contained windows, checked against an independent
 reference (IK of the displaced pose along the force line, the ramped sine written here) and against the
 emulator's command buffer, which must accept every window and play a seamless vibration."""
 

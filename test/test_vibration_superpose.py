@@ -1,4 +1,4 @@
-"""Superposition: round trips, exact FK vs linear, classification, the paper's naive sum (issue 3)."""
+"""Superposition: round trips, exact FK vs linear, classification, the paper's naive sum."""
 
 from __future__ import annotations
 

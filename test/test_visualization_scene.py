@@ -1,4 +1,4 @@
-"""The 3D scene as plain data (stewart_vibration.visualization.scene; issue 15): frames, legs, hinges, rings
+"""The 3D scene as plain data (stewart_vibration.visualization.scene): frames, legs, hinges, rings
 and the vibration arrow checked against geometry computed here from config/robot.yaml, not the package."""
 
 from __future__ import annotations

@@ -81,7 +81,7 @@ __all__ = [
     "rotation_from_rpy",
     "rpy_from_quaternion",
     "rpy_from_rotation",
-    # vibration (issue 3)
+    # vibration
     "MotionClassification",
     "SuperpositionResult",
     "VibrationDecomposition",

@@ -7,7 +7,7 @@ measured vibration (actual hinge length leg_i + vib_i: amplitude against
 (legs/force_estimate against the emulator's measured efforts). For each move:
 the ground-truth pose error after settling. Checked against the scenario bounds.
 
-With a soft-tissue model (issue 17): the external-wrench estimate against the wrench the emulator
+With a soft-tissue model: the external-wrench estimate against the wrench the emulator
 applied (ground_truth/tissue_wrench), in moves and holds and during vibrations, and every force-guard
 trip (kinematics/guard_status) with the peak load it let through.
 """

@@ -1,4 +1,4 @@
-"""foxglove_bridge: the suite live in Foxglove (issue 15), over foxglove-sdk's WebSocket server.
+"""foxglove_bridge: the suite live in Foxglove, over foxglove-sdk's WebSocket server.
 
 Forwards the suite's ROS topics as they are on the wire (raw CDR, never deserialized) on channels
 with message encoding ``cdr`` and the full ``ros2msg`` schema text that rosbag2 (and the recorder,

@@ -1,4 +1,4 @@
-"""planning_ui node: the surgical planning UI (issue 16), a browser page over the suite's own interfaces.
+"""planning_ui node: the surgical planning UI, a browser page over the suite's own interfaces.
 
 Serves the page (stewart_vibration/ui/static) and a WebSocket on ``host``:``port`` (127.0.0.1:8080 by
 default; port 0 = any free port) behind a random access token, and logs its URL with the token

@@ -49,7 +49,7 @@ DEFAULT_BOUNDS = {
     "active_duration_error_s": 0.06,  # measured vs planned time at >= half amplitude (two 35 Hz periods)
     "sample_ratio_min": 0.99,  # pose / force / wrench estimates per joint state over the run
     "stream_lag_p99_ms": 500.0,  # per node: p99 of its processing lag (the 500-deep queues hold 1 s at 500 Hz)
-    # with a tissue model (issue 17): external-wrench estimate vs the wrench the emulator applied
+    # with a tissue model: external-wrench estimate vs the wrench the emulator applied
     "wrench_error_relative": 0.02,  # RMS error in moves and holds / peak applied (force and moment)
     "wrench_error_vibration_n": 1.0,  # RMS force error during a vibration, N
     "guard_overshoot": 0.10,  # after a guard stop: peak estimated force / guard_force_n - 1

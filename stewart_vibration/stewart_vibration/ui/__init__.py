@@ -1,4 +1,4 @@
-"""The surgical planning UI (issue 16): a browser page served by the ``planning_ui`` node.
+"""The surgical planning UI: a browser page served by the ``planning_ui`` node.
 
 - ``model``: the page's model and its server-side checks (pure: numpy and the core, no rclpy, no web
   server): pose entry in mm/deg -> reachability, path margins, vibration preview,
