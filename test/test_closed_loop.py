@@ -86,6 +86,31 @@ def test_a_silent_or_implausible_imu_aborts_with_the_reason(robot):
     assert "beyond what this vibration can make" in loop.add_imu(1.0, [0, 0, 200.0], [0, 0, 0])
 
 
+@pytest.mark.parametrize("rate_hz, aborts", [(50.0, True), (40.0, True), (120.0, False)])
+def test_an_imu_too_sparse_to_measure_aborts_like_a_silent_one(robot, rate_hz, aborts):
+    """Samples keep coming, but 4 periods at 35 Hz (0.114 s) hold fewer than the 8 a measurement needs below
+    ~70 Hz: the loop cannot see the vibration, and says so once the measurement is silence_s (0.1 s) late;
+    at 120 Hz (13 per measurement) it measures and corrects."""
+    plan, plant, schedule, stream, loop, rotation = setup(robot)
+    stream.next_window(-0.3)
+    period = round(1.0 / rate_hz / DT)
+    actions = []
+    for k in range(int(1.0 / DT)):
+        t = k * DT
+        if k % period == 0:
+            loop.add_imu(t, *imu_of(plant, schedule, rotation, robot.gravity, t))
+        step = loop.step(t, None)
+        actions.append(step.action)
+        if step.action == "abort":
+            break
+    if aborts:
+        assert "too sparse to measure" in step.reason and "8 needed" in step.reason, step.reason
+        # due at the ramp's end plus one measurement (0.314 s), aborted silence_s later
+        assert RAMP + 4 / F + 0.1 < t <= RAMP + 4 / F + 0.1 + 2 * DT
+    else:
+        assert "abort" not in actions and "correct" in actions
+
+
 @pytest.mark.parametrize("steady_until", [0.5])
 def test_nothing_is_corrected_after_the_steady_part(robot, steady_until):
     plan, plant, schedule, stream, loop, rotation = setup(robot)

@@ -17,6 +17,8 @@ from stewart_vibration.vibration.sine_control import (
     iteration_spectral_radius,
     judge,
     stale_identification,
+    unit_delivery,
+    unit_fault,
 )
 
 AMPLITUDE = 60e-6  # m: 0.3 g at 35 Hz
@@ -126,6 +128,7 @@ def test_each_abort_limit_and_the_demand_limit_end_the_loop_with_the_reason(kine
     verdicts = [loop.update(plant @ loop.demand) for _ in range(20)]
     aborts = [v for v in verdicts if v.verdict == "abort"]
     assert aborts and "unit 1" in aborts[0].reason and "above its" in aborts[0].reason
+    assert "; unit 1 delivers 0.50 x its demand at +0 deg" in aborts[0].reason
     # the demand stays what it was when the loop refused to go on
     assert np.all(np.abs(aborts[0].demand) <= loop.max_demand_m * (1 + 1e-9))
 
@@ -163,3 +166,31 @@ def test_the_correction_is_how_far_the_loop_moved_the_demands_and_a_large_one_is
     limits = SineControlLimits()
     assert stale_identification(0.2, limits) == ""
     assert stale_identification(0.21, limits).startswith("the closed loop moved the legs' demands by 21% ")
+
+
+def test_the_unit_that_delivers_off_its_demand_is_named_whichever_limit_trips(kinematic_map):
+    """A plant whose unit 3 moves 0.6 x at +20 deg and unit 5 1.4 x its demand: H^-1 (H D u) / u is D's
+    diagonal, so the diagnosis reads those gains back; a healthy plant names no unit."""
+    target = target_along([0, 0, 1])
+    faults = np.ones(6, complex)
+    faults[2], faults[4] = 0.6 * np.exp(1j * np.radians(20)), 1.4
+    loop = SineController(kinematic_map, target)
+    measured = kinematic_map @ (faults * loop.demand)
+    assert np.allclose(unit_delivery(kinematic_map, measured, loop.demand), faults, atol=1e-9)
+    band = SineControlLimits().unit_delivery_band
+    fault = unit_fault(unit_delivery(kinematic_map, measured, loop.demand), band)
+    # the worst first: |0.6 e^(20j deg) - 1| = 0.48 > |1.4 - 1|
+    assert fault == ("unit 3 delivers 0.60 x its demand at +20 deg, unit 5 delivers 1.40 x its demand at +0 deg "
+                     "(as identified: 1.00 x at +0 deg)"), fault
+    assert unit_fault(unit_delivery(kinematic_map, kinematic_map @ loop.demand, loop.demand), band) == ""
+    # just inside the band: not named
+    assert unit_fault(np.array([1.24, 1, 1, 1, 1, 1]), 0.25) == ""
+    # the direction limit trips (judged on every limit) and the abort names the units behind it
+    ten_corrections = SineController(kinematic_map, target, limits=SineControlLimits(converge_updates=0))
+    step = ten_corrections.update(kinematic_map @ (faults * ten_corrections.demand))
+    assert step.verdict == "abort" and step.reason.startswith(("vibration direction", "off-axis motion"))
+    assert "unit 5 delivers 1.40 x" in step.reason and "unit 3 delivers 0.60 x" in step.reason
+    # a ramp's response is read at full amplitude: half the envelope, half the response, the same diagnosis
+    ramping = SineController(kinematic_map, target, limits=SineControlLimits(converge_updates=0))
+    step = ramping.update(0.5 * kinematic_map @ (faults * ramping.demand), envelope=0.5)
+    assert step.verdict == "abort" and "unit 3 delivers 0.60 x its demand at +20 deg" in step.reason

@@ -3,6 +3,7 @@ its outcome code, cancel = ramp-out), its windows, and its refusals."""
 
 from __future__ import annotations
 
+import re
 import time
 from contextlib import contextmanager
 
@@ -407,6 +408,47 @@ def planner_vibrating(robot, ros_domain, tmp_path, name: str, args, **vibration)
         yield proc, client, windows, poses, goal
 
 
+@pytest.mark.parametrize("closed_loop", [False, True])
+def test_a_goal_cancelled_before_its_t0_never_moves_a_unit(robot, ros_domain, tmp_path, closed_loop):
+    """A 60 s vibration cancelled while it waits for its t0 (start_lead_s 2 s; the first window, ramp-in and
+    all, already sent): the goal ends CANCELED, and the windows the units received, replayed into the
+    emulator's own buffer in their order, command rest from before t0 to long after it -- with the feed-forward
+    of an identification and its closed loop too."""
+    from test_compensation import linear_identification
+
+    from stewart_vibration.emulation.strut_trajectory import build_trajectory
+    from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
+    from stewart_vibration.vibration.unit_identification import save_identification
+
+    args = ["-p", "start_lead_s:=2.0"]
+    if closed_loop:
+        path = save_identification(tmp_path / "units.yaml", linear_identification(robot, paper_pose(robot)))
+        args += ["-p", "closed_loop:=true", "-p", f"identification_file:={path}"]
+    with planner_vibrating(robot, ros_domain, tmp_path, f"planner_early_{closed_loop}", args,
+                           duration_s=60.0) as (proc, client, windows, _, goal):
+        t0 = plan_t0(goal.plan())
+        assert client.spin_until(lambda: len(windows) >= 1, 5), proc.log_text()
+        cancelled_at = time.time()
+        assert cancelled_at < t0 - 0.5, (cancelled_at, t0)  # well before it begins
+        goal.cancel()
+        name, message = goal.outcome(10)
+        assert name == "CANCELED", (name, message, proc.log_text()[-2000:])
+        client.spin_for(0.5)
+        assert "stopping before the vibration began" in proc.log_text()
+    def received(window):  # as the emulator takes it: validated and ordered by the joint names
+        return build_trajectory(list(window.joint_names), VIB, stamp_seconds(window.header.stamp),
+                                *samples_of(window))
+
+    buffer = VibrationBuffer(robot.vibration_unit)
+    first, *rest = windows
+    buffer.add(received(first), t0 - 1.5)
+    for window in rest:
+        buffer.add(received(window), cancelled_at)
+    assert np.abs(samples_of(first)[1]).max() > 10e-6  # the first window did hold the vibration
+    t = t0 + np.arange(-0.5, 3.0, 0.001)
+    assert np.abs(buffer.sample(t)[0]).max() == 0.0
+
+
 def test_a_goal_with_an_identification_streams_its_feedforward(robot, ros_domain, tmp_path):
     """identification_file: the windows carry the identification's feed-forward demands (a linear robot's, so
     the reference is closed form); a file that does not load is refused with the reason; '' goes back to the
@@ -544,16 +586,22 @@ def streamed_demand(windows, t0: float, t: float):
     if not started:
         return None
     window = started[-1]
-    times, pos, *_ = samples_of(window)
-    times = times + stamp_seconds(window.header.stamp) - t0
-    half = times >= times[len(times) // 2]
-    return fit_sinusoid(times[half], pos[half], F).complex_amplitude
+    if id(window) not in _FITTED:  # once per window: the IMU calls this per sample, and must keep its rate
+        times, pos, *_ = samples_of(window)
+        times = times + stamp_seconds(window.header.stamp) - t0
+        half = times >= times[len(times) // 2]
+        _FITTED[id(window)] = (window, fit_sinusoid(times[half], pos[half], F).complex_amplitude)
+    return _FITTED[id(window)][1]
 
 
-def test_a_unit_that_fails_to_half_its_gain_mid_vibration_ends_the_goal_with_the_reason(robot, ros_domain, tmp_path):
-    """closed_loop:=true over DDS, the platform IMU that of a linear robot whose unit 1 loses half its gain 1 s
+_FITTED: dict = {}  # id(window) -> (window, its demands); the window is kept so its id is not reused
+
+
+def test_a_unit_that_loses_most_of_its_gain_mid_vibration_ends_the_goal_with_the_reason(robot, ros_domain, tmp_path):
+    """closed_loop:=true over DDS, the platform IMU that of a linear robot whose unit 1 loses 70 % of its gain 1 s
     into the vibration (it moves as the identification says until then): the loop asks unit 1 for more than
-    its travel allows, and the goal ends DELIVERY_LIMIT naming unit 1, after a ramp-out window -- never a demand
+    its travel allows (or, judged before that, the direction leaves its limit), and the goal ends DELIVERY_LIMIT
+    naming unit 1 and the shortfall it delivers, after a ramp-out window -- never a demand
     beyond the unit's limit."""
     from test_compensation import linear_identification
 
@@ -565,7 +613,9 @@ def test_a_unit_that_fails_to_half_its_gain_mid_vibration_ends_the_goal_with_the
     args = ["-p", "closed_loop:=true", "-p", "imu_average_s:=0.0", "-p", f"identification_file:={path}",
             "-p", "imu_silence_s:=0.5"]  # this test's IMU is Python on a shared machine
     healthy = ident.platform_response_at(F)
-    failed = healthy @ np.diag([0.5, 1, 1, 1, 1, 1])
+    # 0.3: the loop's fixed point, 1 / 0.3 of unit 1's demand, is far beyond its travel (at half the gain, just
+    # beyond it: a loop short of corrections could end the vibration before reaching it)
+    failed = healthy @ np.diag([0.3, 1, 1, 1, 1, 1])
     with planner_vibrating(robot, ros_domain, tmp_path, "planner_unit", args, duration_s=6.0,
                            ramp_s=0.2) as (proc, client, windows, poses, goal):
         t0 = plan_t0(goal.plan())
@@ -577,8 +627,13 @@ def test_a_unit_that_fails_to_half_its_gain_mid_vibration_ends_the_goal_with_the
 
         imu.run(motion, 6.0, until=goal.result_future.done)
         name, message = goal.outcome(5)
-        assert name == "DELIVERY_LIMIT" and "unit 1 " in message and "above its" in message, \
-            (name, message, proc.log_text()[-3000:])
+        # whichever limit trips first (the demand limit, or the direction once judged), the reason names unit 1
+        # first among the units that deliver off their demand, and short of it (this IMU's plant: 0.3; read
+        # through a Python IMU on a shared machine, whose samples lag the windows, so not to the digit)
+        worst = re.search(r"; unit (\d) delivers (\d+\.\d\d) x", message)
+        result = goal.result()
+        assert name == "DELIVERY_LIMIT" and worst and worst.group(1) == "1" and float(worst.group(2)) < 0.75, \
+            (name, message, result.loop_corrections, result.active_s, imu.sent, proc.log_text()[-3000:])
         t, pos, *_ = samples_of(windows[-1])
         assert np.abs(pos[-1]).max() < 1e-15 and t[-1] - t[0] <= 0.2 + 2 * DT  # a ramp-out ended it
         limit = 0.9 * robot.vibration_unit.amplitude_max / np.abs(ident.unit_response_at(F))

@@ -141,6 +141,21 @@ def test_stop_ramps_out_from_a_sent_sample(robot, plan):
     np.testing.assert_allclose(buffer.sample(T0 + t)[0], reference_legs(robot, t, fade_at=1.2), atol=1e-9)
 
 
+@pytest.mark.parametrize("duration", [None, 60.0])
+def test_a_stop_before_t0_replaces_what_the_units_hold_with_rest(robot, plan, duration):
+    """A vibration stopped before it begins (its first window, ramp-in and all, already in the units' buffer)
+    never moves a unit: the stop window holds rest from t0, and the buffer plays nothing past it."""
+    stream = VibrationStream(robot, plan, StreamSettings(duration=duration, ramp_s=RAMP))
+    buffer = VibrationBuffer(robot.vibration_unit)
+    to_buffer(buffer, stream.next_window(-1.0), T0 - 1.0)
+    stop = stream.stop_window(-0.9)
+    assert stop.final and stream.finished and stream.next_window(0.0) is None
+    assert stop.times[0] == 0.0 and stop.rest_at == pytest.approx(RAMP) and stream.planned_end == pytest.approx(RAMP)
+    to_buffer(buffer, stop, T0 - 0.9)
+    t = np.arange(-0.5, 3.0, 0.0005)
+    assert np.abs(buffer.sample(T0 + t)[0]).max() == 0.0
+
+
 def test_stop_during_a_whole_finite_vibration_and_after_its_ramp_out_began(robot, plan):
     stream = VibrationStream(robot, plan, StreamSettings(duration=3.0, ramp_s=RAMP))
     stream.next_window(-1.0)

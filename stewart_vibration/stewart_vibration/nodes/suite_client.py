@@ -391,14 +391,29 @@ class SuiteClient:
         """The latest vibrate goal's result, None while it runs (or before any)."""
         return self._vibration.get("result")
 
+    def vibration_goal_open(self) -> bool:
+        """Whether the latest vibrate goal was accepted and its result has not come (pending or running)."""
+        return self._vibration.get("handle") is not None and self._vibration.get("result") is None
+
     def stop_vibration(self) -> bool:
-        """Cancel the latest vibrate goal if it still runs (the units ramp out); whether a cancel was sent."""
-        handle = self._vibration.get("handle")
-        if handle is None or self._vibration.get("result") is not None:
+        """Cancel the latest vibrate goal if it is open, waiting for its t0 or running (the units ramp out, or
+        never move); whether a cancel was sent. StepFailed when the planner does not take it (a cancel lost on
+        the way is sent again; a goal that ended meanwhile needs none)."""
+        if not self.vibration_goal_open():
             return False
-        future = handle.cancel_goal_async()
-        self.spin_until(future.done, 10.0, "the planner to take the cancel")
-        return True
+        for _ in range(3):
+            future = self._vibration["handle"].cancel_goal_async()
+            try:
+                self.spin_until(lambda f=future: f.done() or not self.vibration_goal_open(), 5.0,
+                                "the planner to take the cancel")
+            except StepFailed:
+                if self.dead():
+                    raise
+                continue
+            answer = future.result() if future.done() else None
+            if not self.vibration_goal_open() or (answer is not None and len(answer.goals_canceling) > 0):
+                return True
+        raise StepFailed("the planner did not take the cancel of the vibration (3 tries)")
 
     # -- the end --------------------------------------------------------------------------------------------
     def stop_recorder(self, progress):

@@ -14,8 +14,8 @@ from pathlib import Path
 from typing import cast
 
 from ..runtime.bringup import SuiteProcesses
+from ..runtime.rest_check import RestCheck
 from ..runtime.scenario import Scenario
-from ..runtime.sim_clock import StillFor
 from ..runtime.steps import SETTLE_HOLD_S, RunOptions, RunRecord, ScenarioSteps, StepFailed
 from .suite_client import SuiteClient
 
@@ -74,9 +74,9 @@ class SuiteRunner:
         self.processes.supervise(respawn, idle=idle, now=lambda: client.clock)
 
     def bring_to_rest(self, timeout_s: float = 60.0) -> None:
-        """After a failed step: start nothing more, stop the vibration (the planner's ramp-out) and wait until the
-        units are idle and the platform's ground truth holds still (a move under way ends at its target), so the
-        nodes are stopped with the robot at rest. Says so, or why it could not confirm it."""
+        """After a failed step: start nothing more, stop the vibration (the planner's ramp-out) and wait until its
+        goal has ended, the units are idle and the platform's ground truth holds still (a move under way ends at
+        its target), so the nodes are stopped with the robot at rest. Says so, or why it could not confirm it."""
         client, progress = self.client, self.options.progress
         if client is None:
             return
@@ -84,18 +84,16 @@ class SuiteRunner:
                  "to come to rest")
         client.stopping = True
         try:
-            report = client.vibration_status
-            if report is not None and report.state not in ("idle", "stopped", "estopped") and client.stop_vibration():
+            # the goal, not the units' status: a vibration still waiting for its t0 has idle units
+            if client.stop_vibration():
                 progress("the vibration is cancelled: the units ramp out")
             client.follow_poses(True)
-            still = StillFor(SETTLE_HOLD_S)
+            rest = RestCheck(SETTLE_HOLD_S)
 
             def at_rest() -> bool:
-                status, pose = client.vibration_status, client.ground_truth()
-                if pose is None or client.clock is None or \
-                        (status is not None and status.state not in ("idle", "stopped", "estopped")):
-                    return False
-                return still.update(pose, client.clock)
+                status = client.vibration_status
+                return rest.update(client.vibration_goal_open(), None if status is None else status.state,
+                                   client.ground_truth(), client.clock)
 
             client.spin_until(at_rest, timeout_s, "the robot to come to rest")
             progress("the robot is at rest (vibration units idle, platform still)")

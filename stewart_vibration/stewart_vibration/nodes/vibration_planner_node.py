@@ -515,6 +515,9 @@ class VibrationPlannerNode(Node):
         self.state = "stopping"
         if window is None:
             message = f"the vibration already ends at {t0 + stream.rest_at:.4f} s; letting it ramp out"
+        elif cast(float, stream.stop_at) <= 0.0:
+            self.publish(window)
+            message = f"stopping before the vibration began at {t0:.4f} s: the units stay at rest"
         else:
             self.publish(window)
             message = (f"stopping: ramp-out from {t0 + stream.stop_at:.4f} s over {run['settings']['ramp_s']} s, at "

@@ -6,8 +6,10 @@ correction has blended in and after the ramp-in, demodulates them against the de
 (vibration.frequency_response.platform_motion), and lets the SineController correct the demands; the
 correction is blended in from the next window's start (``VibrationStream.splice_time``), so the caller sends
 that window at once (``VibrationStream.correction_window``: after the final window too, until the ramp-out).
-An IMU that goes silent, or reports what no vibration of this size can be (non-finite values, an acceleration
-beyond ``plausible_g``), aborts the vibration: the loop cannot see what it delivers.
+An IMU that goes silent or too sparse to measure (fewer than MIN_SAMPLES over the measured periods, for
+longer than ``silence_s`` past when a measurement was due), or reports what no vibration of this size can be
+(non-finite values, an acceleration beyond ``plausible_g``), aborts the vibration: the loop cannot see what it
+delivers. An abort names the units that deliver off their demand (SineController.with_unit_fault).
 
 Times are s from the vibration's t0 (the stream's clock); the IMU's samples are platform-frame specific force
 (m/s^2) and rate (rad/s).
@@ -28,6 +30,8 @@ from .frequency_response import platform_motion
 from .sine_control import ControlStep, SineController, delivered_figures, judge
 from .streaming import VibrationStream
 from .unit_identification import VibrationIdentification
+
+MIN_SAMPLES = 8  # IMU samples a measurement needs over its measure_periods
 
 
 @dataclass(frozen=True)
@@ -93,7 +97,11 @@ class ClosedLoop:
         if now < first + self.span or self.last_sample < now - self.silence_s:
             return LoopStep("wait")
         window = [s for s in self.samples if now - self.span < s[0] <= now]
-        if len(window) < 8:
+        if len(window) < MIN_SAMPLES:
+            if now > first + self.span + self.silence_s:  # samples arrive, too few to measure: as blind as silence
+                return LoopStep("abort", f"the platform IMU's samples are too sparse to measure the vibration "
+                                         f"({len(window)} in its last {self.span:.3f} s, {MIN_SAMPLES} needed): the "
+                                         "delivered vibration cannot be seen")
             return LoopStep("wait")
         t = np.array([s[0] for s in window])
         accel = np.array([s[1] for s in window])
@@ -105,7 +113,9 @@ class ClosedLoop:
             verdict, reason = judge(delivered_figures(measured, self.controller.target,
                                                       self.controller.rotation_scale_m),
                                     self.controller.limits)  # every limit: no correction can follow
-            return LoopStep("abort", reason) if verdict == "abort" else LoopStep("wait")
+            if verdict == "abort":
+                return LoopStep("abort", self.controller.with_unit_fault(reason, measured))
+            return LoopStep("wait")
         control = self.controller.update(measured)
         if control.verdict == "abort":
             return LoopStep("abort", control.reason, control)

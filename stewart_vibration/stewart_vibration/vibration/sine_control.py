@@ -47,6 +47,9 @@ class SineControlLimits:
     # a loop that had to move the demands this far from where it started (the identification's feed-forward),
     # ||u - u0|| / ||u0||, says the identification no longer describes the robot: identify again
     stale_correction: float = 0.2
+    # a unit whose delivered motion per demand (see unit_delivery) is further than this from 1 (complex: gain
+    # and phase) is named in an abort's reason, whichever limit tripped first: it is the likely cause
+    unit_delivery_band: float = 0.25
 
 
 @dataclass(frozen=True)
@@ -124,6 +127,29 @@ def judge(figures: DeliveredSine, limits: SineControlLimits, updates: int | None
     return ("in_tolerance" if inside else "converging"), ""
 
 
+def unit_delivery(plant_estimate, measured, demand) -> np.ndarray:
+    """Each unit's delivered motion per its demand, (6,) complex: the measured platform response (6,) complex
+    mapped back to the legs through the plant estimate H (6, 6), H^-1 y / u; 1 for a unit that moves as it was
+    identified to (a unit with no demand: 1)."""
+    legs = np.linalg.solve(np.asarray(plant_estimate, dtype=complex), np.asarray(measured, dtype=complex))
+    u = np.asarray(demand, dtype=complex)
+    safe = np.abs(u) > 0
+    return np.where(safe, legs / np.where(safe, u, 1.0), 1.0)
+
+
+def unit_fault(delivery, band: float) -> str:
+    """Which units deliver further than ``band`` from their demand (|r - 1| > band for a delivery r of
+    unit_delivery), the worst first, with the gain and phase each delivers; "" when none does."""
+    r = np.asarray(delivery, dtype=complex)
+    off = np.abs(r - 1.0)
+    faulty = [int(i) for i in np.argsort(-off) if off[i] > band]
+    if not faulty:
+        return ""
+    named = ", ".join(f"unit {i + 1} delivers {abs(r[i]):.2f} x its demand at {np.degrees(np.angle(r[i])):+.0f} deg"
+                      for i in faulty)
+    return f"{named} (as identified: 1.00 x at +0 deg)"
+
+
 class SineController:
     """The correction loop of one vibration (see the module docstring).
 
@@ -163,6 +189,12 @@ class SineController:
         scale = float(np.linalg.norm(self.initial))
         return float(np.linalg.norm(self.demand - self.initial)) / scale if scale > 0 else 0.0
 
+    def with_unit_fault(self, reason: str, measured) -> str:
+        """An abort's ``reason``, followed by the units that deliver off their demand in the response
+        ``measured`` (6,) complex to the current demand at full amplitude (unit_fault), if any."""
+        fault = unit_fault(unit_delivery(self.estimate, measured, self.demand), self.limits.unit_delivery_band)
+        return f"{reason}; {fault}" if fault else reason
+
     def update(self, measured, envelope: float = 1.0) -> ControlStep:
         """Judge the response ``measured`` (6,) complex, taken while the vibration's envelope (its ramp) was
         ``envelope`` in (0, 1], and correct the demand at full amplitude only (a ramp's response is the
@@ -171,15 +203,18 @@ class SineController:
             raise InvalidInputError(f"envelope must be in (0, 1], got {envelope!r}")
         figures = delivered_figures(measured, self.target * envelope, self.rotation_scale_m)
         verdict, reason = judge(figures, self.limits, self.updates)
-        if verdict == "abort" or envelope < 1.0:
+        if verdict == "abort":
+            reason = self.with_unit_fault(reason, np.asarray(measured) / envelope)  # as at full amplitude
+            return ControlStep(self.demand.copy(), figures, verdict, reason)
+        if envelope < 1.0:
             return ControlStep(self.demand.copy(), figures, verdict, reason)
         demand = self.demand + self.gain * np.linalg.solve(self.estimate, self.target - np.asarray(measured))
         over = np.abs(demand) > self.max_demand_m * (1 + 1e-9)
         if over.any():
             i = int(np.argmax(np.abs(demand) / self.max_demand_m))
-            return ControlStep(self.demand.copy(), figures, "abort",
-                               f"the correction asks unit {i + 1} for {abs(demand[i]) * 1e6:.1f} um, above its "
-                               f"{self.max_demand_m[i] * 1e6:.1f} um (the plant is far from its identification)")
+            reason = (f"the correction asks unit {i + 1} for {abs(demand[i]) * 1e6:.1f} um, above its "
+                      f"{self.max_demand_m[i] * 1e6:.1f} um (the plant is far from its identification)")
+            return ControlStep(self.demand.copy(), figures, "abort", self.with_unit_fault(reason, measured))
         self.demand = demand
         self.updates += 1
         return ControlStep(demand.copy(), figures, verdict, reason)

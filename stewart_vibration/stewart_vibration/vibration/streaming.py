@@ -209,7 +209,8 @@ class VibrationStream:
     def stop_window(self, now: float) -> VibrationWindow | None:
         """A last window ramping out from the first sample at or after now + lead_s (s from t0), or None
         when the vibration already ends by then (its own ramp-out or the last window's tail). Either
-        way no further window is sent."""
+        way no further window is sent. A stop that lands before t0 sends a window of rest from t0 on: it
+        replaces what the units hold, and they never move."""
         s = self.settings
         start = self._start_after(now)
         ends_by = self.tail_start if self.tail_start is not None else self.rest_at - (
@@ -220,7 +221,12 @@ class VibrationStream:
             self.finished = True
             return None
         self.stop_at = start
-        window = self._sample(self._grid(start, start + s.ramp_s), start, final=True)
+        times = self._grid(start, start + s.ramp_s)
+        if start <= 0.0:  # stopped before it began: the units stay at rest (no ramp-in to ramp out)
+            still = np.zeros((times.size, 6))
+            window = VibrationWindow(times, still, still.copy(), still.copy(), float(times[-1]), True)
+        else:
+            window = self._sample(times, start, final=True)
         self.tail_start = None
         self._sent(window)
         return window
