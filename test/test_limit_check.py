@@ -138,7 +138,8 @@ def test_from_an_mcap_written_by_the_recorders_writer(robot, tmp_path):
     check; a violation put into the file is found there."""
     from rosbags.typesys import Stores, get_typestore
 
-    from stewart_vibration.analysis.run_summary import limit_summary, load_signals
+    from stewart_vibration.analysis.run_signals import load_signals
+    from stewart_vibration.analysis.run_verdict import limit_summary
     from stewart_vibration.kinematics.rotations import quaternion_from_rpy
     from stewart_vibration.mcap_log import McapRunWriter
     from stewart_vibration.robot import LEG_NAMES, VIB_NAMES

@@ -16,7 +16,7 @@ import pytest
 from geometry_msgs.msg import PoseStamped
 from ros_client import RosTestClient
 
-from stewart_vibration.analysis.run_summary import load_signals
+from stewart_vibration.analysis.run_signals import load_signals
 from stewart_vibration.mcap_log import RunReader
 
 pytestmark = [pytest.mark.integration, pytest.mark.slow]

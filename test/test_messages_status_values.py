@@ -472,7 +472,7 @@ def test_the_run_summary_reads_recorded_statuses_through_the_same_readers():
     """A spoofed status recorded in the MCAP (a vibration status with a state outside its table, a /diagnostics status
     named like kinematics' with non-numeric values) is left out of the run summary's stream figures instead of
     raising."""
-    from stewart_vibration.analysis.run_summary import stream_summary
+    from stewart_vibration.analysis.run_coverage import stream_summary
 
     good = serialize_message(vibration_status_msg(REPORTS[1]))
     spoofed = good_vibration_status()

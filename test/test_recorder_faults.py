@@ -260,7 +260,8 @@ def test_a_stopped_recorder_counts_what_it_lost(ros_domain, tmp_path, executor):
         if pub is not None:
             pub.stop()
         rec.stop()
-    from stewart_vibration.analysis.run_summary import load_signals, recording_coverage
+    from stewart_vibration.analysis.run_coverage import recording_coverage
+    from stewart_vibration.analysis.run_signals import load_signals
 
     stats = _stats(rec)
     counts = Counter(m.topic for m in RunReader(path).messages())
@@ -280,7 +281,8 @@ def test_a_stopped_recorder_counts_what_it_lost(ros_domain, tmp_path, executor):
 def test_a_bag_of_two_recordings_is_summarised_whole_with_its_gap(ros_domain, tmp_path):
     from ros_client import RosTestClient
 
-    from stewart_vibration.analysis.run_summary import load_signals, recording_coverage, recording_problems
+    from stewart_vibration.analysis.run_coverage import recording_coverage, recording_problems
+    from stewart_vibration.analysis.run_signals import load_signals
     from stewart_vibration_interfaces.msg import Outcome
 
     env = _env(ros_domain)

@@ -1,4 +1,4 @@
-"""What a run's recording covers (analysis.run_summary: stream_gaps, recording_coverage, restart_gaps,
+"""What a run's recording covers (analysis.run_coverage: stream_gaps, recording_coverage, restart_gaps,
 recording_problems) and reading a run folder of several files as one recording (mcap_log RunFiles): a
 recorder that restarted leaves two files and a gap, and the summary says so instead of "100 %"."""
 
@@ -7,13 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from stewart_vibration.analysis.run_summary import (
-    load_signals,
-    recording_coverage,
-    recording_problems,
-    restart_gaps,
-    stream_gaps,
-)
+from stewart_vibration.analysis.run_coverage import recording_coverage, recording_problems, restart_gaps, stream_gaps
+from stewart_vibration.analysis.run_signals import load_signals
 from stewart_vibration.mcap_log import McapRunWriter
 from stewart_vibration.mcap_log.reader import RunFiles, open_run
 from stewart_vibration.messages.stream_health import SequenceGaps
@@ -121,7 +116,7 @@ def test_guard_trips_leave_out_statuses_that_cannot_be_read_and_keep_the_rest_in
     from malformed_messages import good_guard_status
     from rclpy.serialization import serialize_message
 
-    from stewart_vibration.analysis.run_summary import guard_trips
+    from stewart_vibration.analysis.tissue_figures import guard_trips
     from stewart_vibration_interfaces.msg import ForceGuardStatus
 
     def status(time_s=2.0, peak=1.0, **fields):
@@ -146,7 +141,7 @@ def test_statuses_of_a_log_from_before_the_typed_statuses_are_left_out_and_count
     from malformed_messages import good_vibration_status
     from rclpy.serialization import serialize_message
 
-    from stewart_vibration.analysis.run_summary import stream_summary
+    from stewart_vibration.analysis.run_coverage import stream_summary
 
     write_part(tmp_path / "run_a.mcap", 1.0, 1.2)
     old = McapRunWriter(tmp_path / "run_b.mcap")

@@ -1,12 +1,13 @@
-"""The run summary (analysis/run_summary.py) on synthetic signals: figures of a perfect vibration, and a
-verdict that fails for every kind of figure it prints when that figure is off."""
+"""The run summary (analysis/vibration_figures.py, analysis/run_verdict.py) on synthetic signals: figures of
+a perfect vibration, and a verdict that fails for every kind of figure it prints when that figure is off."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from stewart_vibration.analysis.run_summary import check_bounds, summarize_vibration
+from stewart_vibration.analysis.run_verdict import check_bounds
+from stewart_vibration.analysis.vibration_figures import summarize_vibration
 from stewart_vibration.errors import ConfigError
 from stewart_vibration.kinematics import inverse_kinematics
 from stewart_vibration.paper import paper_pose

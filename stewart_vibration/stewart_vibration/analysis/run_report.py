@@ -20,7 +20,9 @@ from ..kinematics.robot_config import load_robot
 from ..mcap_log.reader import RunFiles, RunReader, open_run
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from .fits import dominant_sinusoid
-from .run_summary import guard_trips, leg_force_error, load_signals, platform_vibration
+from .run_signals import load_signals
+from .tissue_figures import guard_trips
+from .vibration_figures import leg_force_error, platform_vibration
 
 EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
 
@@ -154,7 +156,7 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
     Args:
         reader: the open run.
         data: the run's arrays (``extract``).
-        signals: ``run_summary.load_signals`` of the same run.
+        signals: ``run_signals.load_signals`` of the same run.
         robot: removes an applied tissue's leg forces from the measured efforts, as the run summary does.
 
     Returns:
@@ -163,7 +165,7 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
         tissue_wrench, guard_trips and events, each only where the data exist.
 
     Raises:
-        ValueError: fewer than 4 ground-truth poses in the steady window (``run_summary.platform_vibration``).
+        ValueError: fewer than 4 ground-truth poses in the steady window (``vibration_figures.platform_vibration``).
         InvalidInputError: fewer than 4 measured efforts lie within the force estimates' time span, or a
             fitted signal is not finite (``fits``).
     """
@@ -189,7 +191,7 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
         if out.get("vibration") else None
     origin = data.get("time_origin_s", 0.0)  # the plots' time 0, as header-stamp time (s)
     if "pose_xyz" in data and window and frequency:
-        # the run summary's computation (analysis.run_summary.platform_vibration) over this window
+        # the run summary's computation (analysis.vibration_figures.platform_vibration) over this window
         line = platform_vibration(signals, window[0] + origin, window[1] + origin, frequency)
         direction = line["direction"] * (1 if line["direction"][np.argmax(np.abs(line["direction"]))] > 0 else -1)
         sel = _within(data["pose_t"], window)
@@ -201,7 +203,7 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
             "off_axis_ratio": line["off_axis_ratio"],
         }
     if "est" in data and "force" in data:
-        # the run summary's computation (analysis.run_summary.leg_force_error): over the whole run, and over
+        # the run summary's computation (analysis.vibration_figures.leg_force_error): over the whole run, and over
         # the steady vibration relative to the fitted force amplitude
         whole = leg_force_error(robot, signals, -np.inf, np.inf, None)
         if whole is not None:

@@ -281,17 +281,11 @@ def _summarize(robot, record, summary: dict, scenario, out: Path, robot_config: 
     """Analyse what ran (also after a failure or an interruption) from every file of the run folder: every
     vibration that started, the streams, what the recording covers (gaps, cut files, restarts), the limits
     over the recorded states, the bounds; write the report. Problems change the verdict."""
-    from ..analysis.run_summary import (
-        check_bounds,
-        limit_summary,
-        load_signals,
-        recording_coverage,
-        recording_problems,
-        restart_gaps,
-        stream_summary,
-        summarize_tissue,
-        summarize_vibration,
-    )
+    from ..analysis.run_coverage import recording_coverage, recording_problems, restart_gaps, stream_summary
+    from ..analysis.run_signals import load_signals
+    from ..analysis.run_verdict import check_bounds, limit_summary
+    from ..analysis.tissue_figures import summarize_tissue
+    from ..analysis.vibration_figures import summarize_vibration
 
     try:
         signals = load_signals(out)
@@ -427,7 +421,8 @@ def _print_summary(summary: dict, bounds: dict) -> None:
                   f"{loop['demand_correction']:.1%} from the identification's feed-forward{stale}")
         if vib.get("failure"):
             print(f"  this vibration failed: {vib['failure']}")
-    from ..analysis.run_summary import recording_lines, tissue_lines
+    from ..analysis.run_coverage import recording_lines
+    from ..analysis.tissue_figures import tissue_lines
 
     for line in tissue_lines(summary) + recording_lines(summary):
         print(line)

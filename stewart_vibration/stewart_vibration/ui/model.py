@@ -11,7 +11,7 @@ computed with the core's own checks:
   acceleration against the unit's limit and the reason it is infeasible from the planner's own start check
   (``vibration.settings.start_check``);
 - a decimator for the browser streams and a buffer of the full-rate streams
-  that feeds the run summary (``run_summary.summarize_vibration``) after a vibration.
+  that feeds the run summary (``vibration_figures.summarize_vibration``) after a vibration.
 
 Every result is JSON-ready (``jsonable``: lists and floats, non-finite numbers as None).
 """
@@ -292,7 +292,7 @@ def run_summary(robot: Robot, joints: StreamBuffer, pose: StreamBuffer, forces: 
     controller's pose estimate), leg amplitudes, phases and frequency, the
     leg-force model error. ``parameters``: the settings that ran (from the vibrate goal's plan); ``ended``: the
     sim time the units came to rest (a vibration until stop is summarised over what ran)."""
-    from ..analysis.run_summary import summarize_vibration
+    from ..analysis.vibration_figures import summarize_vibration
 
     jt, jrows = joints.arrays(24)
     pt, prows = pose.arrays(6)

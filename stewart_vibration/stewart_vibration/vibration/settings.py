@@ -2,7 +2,7 @@
 
 The planner node declares its streaming parameters (``STREAM_KEYS``) from ``parameters``; a vibration goal
 (the scenario files' vibrate steps, ``runtime.scenario``, and the planning UI) carries the ``VIBRATION_KEYS``;
-and the run summary (``analysis.run_summary``) judges a vibration against the settings the planner reports
+and the run summary (``analysis.vibration_figures``) judges a vibration against the settings the planner reports
 it ran (the goal's and its parameters, with the plan), never against defaults filled in again.
 
 ``start_check`` is what the planner does before it starts (and the UI's preview repeats): the settings
