@@ -43,7 +43,7 @@ def run_role(role: str, seconds: float) -> None:
     from sensor_msgs.msg import JointState
 
     from stewart_vibration.messages import cdr
-    from stewart_vibration.nodes.common import STREAM_DEPTH, make_executor, spin_until_stopped
+    from stewart_vibration.nodes.run_loop import STREAM_DEPTH, make_executor, spin_until_stopped
     from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
     rclpy.init()

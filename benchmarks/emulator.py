@@ -31,7 +31,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint  # noqa: E
 
 from stewart_vibration import inverse_kinematics, load_robot  # noqa: E402
 from stewart_vibration.install import default_config_dir  # noqa: E402
-from stewart_vibration.nodes.common import duration_msg  # noqa: E402
+from stewart_vibration.nodes.message_conversions import duration_msg  # noqa: E402
 from stewart_vibration.runtime.processes import claim_ros_domain, ros_environment, start_python_module  # noqa: E402
 
 LEGS = [f"leg_{i}" for i in range(1, 7)]

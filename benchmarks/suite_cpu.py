@@ -86,8 +86,8 @@ def measure_lag(domain: int, seconds: float, namespace: str = "/stewart") -> dic
     from rclpy.node import Node
 
     from stewart_vibration.messages.cdr import header_stamp_ns
-    from stewart_vibration.nodes.common import STREAM_DEPTH, make_executor
     from stewart_vibration.nodes.ros_graph import message_class
+    from stewart_vibration.nodes.run_loop import STREAM_DEPTH, make_executor
     from stewart_vibration.runtime.processes import ros_environment
 
     os.environ.update(ros_environment(domain))  # the suite's DDS profile (loopback), before the first participant

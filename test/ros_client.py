@@ -17,7 +17,7 @@ from rclpy.context import Context
 from rclpy.node import Node
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
-from stewart_vibration.nodes.common import make_executor
+from stewart_vibration.nodes.run_loop import make_executor
 from stewart_vibration.nodes.service_calls import (
     GoalAcceptances,
     ServiceClients,
@@ -203,7 +203,7 @@ class RosTestClient:
         estimate): outcome, failing_waypoint, failing_time_s, path, duration_s."""
         from rclpy.time import Time
 
-        from stewart_vibration.nodes.common import pose_stamped
+        from stewart_vibration.nodes.message_conversions import pose_stamped
         from stewart_vibration_interfaces.srv import PlanPath
 
         request = PlanPath.Request(waypoints=[pose_stamped(p, Time().to_msg()) for p in waypoints],

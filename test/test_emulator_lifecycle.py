@@ -14,7 +14,7 @@ from rosgraph_msgs.msg import Clock
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration import inverse_kinematics
-from stewart_vibration.nodes.common import duration_msg, pose_from_msg
+from stewart_vibration.nodes.message_conversions import duration_msg, pose_from_msg
 
 pytestmark = pytest.mark.integration
 ARGS = ["--ros-args", "-p", "autostart:=false"]

@@ -38,7 +38,7 @@ from stewart_vibration.kinematics import condition_number, joint_angles
 from stewart_vibration.messages import cdr
 from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
-from stewart_vibration.nodes.common import pose_from_msg
+from stewart_vibration.nodes.message_conversions import pose_from_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration_interfaces.msg import LegTrajectoryStatus, Outcome, VibrationUnitsStatus
 

@@ -22,7 +22,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration.messages import cdr
 from stewart_vibration.messages.status_values import vibration_report_from_cdr
-from stewart_vibration.nodes.common import duration_msg, pose_from_msg
+from stewart_vibration.nodes.message_conversions import duration_msg, pose_from_msg
 from stewart_vibration.nodes.outcomes import outcome_name
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import VIB_NAMES

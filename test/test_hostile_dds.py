@@ -39,7 +39,7 @@ from stewart_vibration.kinematics import check_pose
 from stewart_vibration.kinematics.rotations import quaternion_from_rpy
 from stewart_vibration.messages import cdr
 from stewart_vibration.motion.move_goal import move_request
-from stewart_vibration.nodes.common import pose_from_msg, pose_stamped
+from stewart_vibration.nodes.message_conversions import pose_from_msg, pose_stamped
 from stewart_vibration.nodes.move_messages import MOVE_ACTION, base_pose
 from stewart_vibration.nodes.outcomes import outcome_name
 from stewart_vibration.paper import paper_pose

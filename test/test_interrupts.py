@@ -60,7 +60,7 @@ def test_outside_a_block_a_signal_interrupts_at_once(interrupts):
 
 STORM_CHILD = """
 import sys, time
-from stewart_vibration.nodes.common import StopFlag
+from stewart_vibration.nodes.run_loop import StopFlag
 stop = StopFlag().install()
 print("ready", flush=True)
 while not stop.is_set():

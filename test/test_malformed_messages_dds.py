@@ -50,7 +50,8 @@ from stewart_vibration import load_robot
 from stewart_vibration.errors import InvalidInputError, MalformedMessageError, StewartError
 from stewart_vibration.kinematics import check_pose
 from stewart_vibration.messages import cdr
-from stewart_vibration.nodes.common import check_frame, pose_from_msg, pose_stamped
+from stewart_vibration.messages.fields import check_frame
+from stewart_vibration.nodes.message_conversions import pose_from_msg, pose_stamped
 from stewart_vibration.nodes.move_messages import MOVE_ACTION
 from stewart_vibration.nodes.suite_client import SuiteClient
 from stewart_vibration.paper import paper_pose

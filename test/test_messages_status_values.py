@@ -140,7 +140,8 @@ def test_a_clock_that_is_no_time_is_dropped_not_raised(ros_domain):
     from rclpy.parameter import Parameter
     from rosgraph_msgs.msg import Clock
 
-    from stewart_vibration.nodes.common import MalformedInputs, guard_sim_clock
+    from stewart_vibration.nodes.diagnostics import MalformedInputs
+    from stewart_vibration.nodes.run_loop import guard_sim_clock
 
     guard_sim_clock()
     context = Context()
@@ -442,7 +443,7 @@ def test_a_stamp_with_nanosec_past_a_second_is_malformed_and_dropped_alone():
 
 
 def test_repeated_joint_names_have_no_columns():
-    from stewart_vibration.nodes.common import JointColumns
+    from stewart_vibration.nodes.message_conversions import JointColumns
 
     columns = JointColumns()
     legs, vib = columns(LEG_NAMES + VIB_NAMES)

@@ -30,7 +30,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import load_robot
 from stewart_vibration.install import default_config_dir
-from stewart_vibration.nodes.common import pose_from_msg
+from stewart_vibration.nodes.message_conversions import pose_from_msg
 from stewart_vibration.nodes.suite_runner import RunOptions, SuiteRunner
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.suite import DEFAULT_NAMESPACE, SUITE_PARAMS_FILE

@@ -28,7 +28,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
 from stewart_vibration.messages.status_values import guard_status_from_cdr
-from stewart_vibration.nodes.common import pose_from_msg
+from stewart_vibration.nodes.message_conversions import pose_from_msg
 from stewart_vibration.nodes.move_messages import MOVE_ACTION
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.runtime.processes import ros_environment, start_python_module

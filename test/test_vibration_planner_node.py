@@ -18,7 +18,7 @@ from ros_client import PLANNER_NOT_READY, node_under_test
 from trajectory_msgs.msg import JointTrajectory
 
 from stewart_vibration import pose_to_position_quaternion, rotation_from_rpy
-from stewart_vibration.nodes.common import stamp_seconds
+from stewart_vibration.nodes.message_conversions import stamp_seconds
 from stewart_vibration.paper import paper_pose
 
 pytestmark = pytest.mark.integration

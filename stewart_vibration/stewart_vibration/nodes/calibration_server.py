@@ -47,10 +47,11 @@ from ..kinematics.rotations import (
     rotation_from_rpy,
     rpy_from_rotation,
 )
+from ..messages.fields import BASE_FRAME
 from ..messages.stamped import poses_from_cdr
 from ..output_files import writable_output
 from ..safe_yaml import load_yaml
-from .common import BASE_FRAME, time_message
+from .message_conversions import time_message
 from .move_messages import move_goal
 from .outcomes import end_goal, outcome, outcome_name
 from .service_calls import GoalAcceptances, send_goal_recovering_async

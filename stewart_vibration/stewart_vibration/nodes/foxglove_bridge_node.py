@@ -59,18 +59,14 @@ from ..messages.cdr import header_stamp_ns
 from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import FOXGLOVE_BRIDGE
+from ..robot import VIB_NAMES
 from ..visualization import scene as scene_model
 from ..visualization.foxglove_schemas import foxglove_entities, foxglove_timestamp, foxglove_transforms
-from .common import (
-    OK,
-    VIB_NAMES,
-    Diagnostics,
-    MalformedInputs,
-    declare_table,
-    run_node,
-)
+from .diagnostics import OK, Diagnostics, MalformedInputs
 from .mcap_recorder_node import SUITE_TOPICS
+from .node_parameters import declare_table
 from .ros_graph import message_class, offered_profile, rclpy_profile
+from .run_loop import run_node
 
 if TYPE_CHECKING:
     from rclpy.qos import QoSProfile

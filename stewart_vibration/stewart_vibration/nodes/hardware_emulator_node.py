@@ -60,23 +60,15 @@ from ..errors import RefusedError, StewartError
 from ..kinematics.robot_config import load_drawing
 from ..kinematics.rotations import rotation_from_quaternion
 from ..messages import cdr
-from ..messages.fields import PLATFORM_FRAME
+from ..messages.fields import BASE_FRAME, PLATFORM_FRAME
 from ..parameters.tables import HARDWARE_EMULATOR
 from ..robot import LEG_NAMES, VIB_NAMES
 from ..sim.mjcf import load_simulation_settings
-from .common import (
-    BASE_FRAME,
-    ERROR,
-    OK,
-    STREAM_DEPTH,
-    WARN,
-    Diagnostics,
-    MalformedInputs,
-    declare_table,
-    run_node,
-    time_message,
-)
+from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs
+from .message_conversions import time_message
+from .node_parameters import declare_table
 from .outcomes import outcome, outcome_of
+from .run_loop import STREAM_DEPTH, run_node
 from .status_messages import vibration_status_msg
 
 CLOCK_DEPTH = 100

@@ -25,7 +25,7 @@ processed, lag); ERROR while the force guard is tripped. States arrive raw and a
 batches of ``batch_size`` (the emulator's bursts) or every ``batch_period_s`` (wall clock; FK
 warm-started from the previous pose); wrench estimates likewise.
 Malformed messages on the raw inputs (states, wrench estimates, vibration/status) are ignored, counted on
-/diagnostics (``malformed <input>``) and logged rate-limited (nodes.common.MalformedInputs).
+/diagnostics (``malformed <input>``) and logged rate-limited (nodes.diagnostics.MalformedInputs).
 
 Soft tissue: with ``tissue_config`` every target and plan_path request is also checked for the strut
 forces it needs under that tissue model (motion.paths.check_path_forces: quasi-static Newton-Euler +
@@ -74,6 +74,7 @@ from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import pose_to_position_quaternion
 from ..kinematics.workspace import check_strut_path
 from ..messages import cdr
+from ..messages.fields import BASE_FRAME
 from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
@@ -85,28 +86,14 @@ from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..motion.strut_rest import StrutRest
 from ..motion.target_gate import TargetGate
 from ..parameters.tables import KINEMATICS
+from ..robot import LEG_NAMES
 from .calibration_server import CalibrationServer
-from .common import (
-    BASE_FRAME,
-    ERROR,
-    LEG_NAMES,
-    OK,
-    STREAM_DEPTH,
-    WARN,
-    Diagnostics,
-    JointColumns,
-    MalformedInputs,
-    RawBatcher,
-    declare_table,
-    duration_msg,
-    duration_seconds,
-    emulator_now,
-    pose_stamped,
-    reject,
-    run_node,
-)
+from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs, reject
+from .message_conversions import JointColumns, RawBatcher, duration_msg, duration_seconds, emulator_now, pose_stamped
 from .move_messages import base_pose
+from .node_parameters import declare_table
 from .outcomes import outcome, outcome_name, outcome_of
+from .run_loop import STREAM_DEPTH, run_node
 from .status_messages import guard_status_msg
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -326,7 +313,7 @@ class KinematicsNode(Node):
                 self.on_trip(self.guard.trip, send_stop=False)
 
     def emulator_now(self, fallback: float = 0.0) -> float:
-        """The emulator's time as best known here (s): see nodes.common.emulator_now."""
+        """The emulator's time as best known here (s): see nodes.message_conversions.emulator_now."""
         return emulator_now(self, self.state_time, fallback)
 
     def on_trip(self, trip, send_stop: bool = True) -> None:

@@ -37,26 +37,16 @@ from ..errors import MalformedMessageError, StewartError
 from ..estimation import ForceEstimator
 from ..kinematics.robot_config import load_robot
 from ..messages import cdr
+from ..messages.fields import BASE_FRAME
 from ..messages.stamped import MAX_JOINT_POSITION_M, MAX_JOINT_SPEED_M_S, rows_within
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..parameters.tables import LEG_FORCE_ESTIMATOR
-from .common import (
-    BASE_FRAME,
-    LEG_NAMES,
-    OK,
-    STREAM_DEPTH,
-    VIB_NAMES,
-    WARN,
-    Diagnostics,
-    JointColumns,
-    MalformedInputs,
-    RawBatcher,
-    declare_table,
-    emulator_now,
-    reject,
-    run_node,
-)
+from ..robot import LEG_NAMES, VIB_NAMES
+from .diagnostics import OK, WARN, Diagnostics, MalformedInputs, reject
+from .message_conversions import JointColumns, RawBatcher, emulator_now
+from .node_parameters import declare_table
+from .run_loop import STREAM_DEPTH, run_node
 
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 

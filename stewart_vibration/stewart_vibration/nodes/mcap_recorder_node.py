@@ -81,16 +81,11 @@ from ..messages.status_values import MAX_PATH
 from ..messages.stream_health import SequenceGaps
 from ..parameters.tables import MCAP_RECORDER
 from ..runtime.run_folders import new_run_folder
-from .common import (
-    ERROR,
-    OK,
-    WARN,
-    Diagnostics,
-    declare_table,
-    run_node,
-)
+from .diagnostics import ERROR, OK, WARN, Diagnostics
+from .node_parameters import declare_table
 from .outcomes import outcome
 from .ros_graph import message_class, offered_profile, rclpy_profile
+from .run_loop import run_node
 
 SUITE_TOPICS = [
     "legs/trajectory_status",

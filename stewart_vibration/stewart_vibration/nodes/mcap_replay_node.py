@@ -42,14 +42,9 @@ from ..mcap_log.qos_yaml import offer_for_replay, parse_qos_profiles
 from ..mcap_log.reader import open_run
 from ..mcap_log.replay_schedule import ClockTick, Pacer, ReplayOptions, recorded_rate_hz, schedule, with_clock
 from ..parameters.tables import MCAP_REPLAY, REPLAY_CLOCK_RATE_HZ
-from .common import (
-    StopFlag,
-    declare_table,
-    guard_sim_clock,
-    init_rclpy,
-    make_executor,
-)
+from .node_parameters import declare_table
 from .ros_graph import message_class, rclpy_profile
+from .run_loop import StopFlag, guard_sim_clock, init_rclpy, make_executor
 
 SUBSCRIBERS_SETTLE_S = 1.0  # wall s the subscriber counts must stay unchanged before a waiting replay starts
 

@@ -9,7 +9,8 @@ from builtin_interfaces.msg import Time as TimeMsg
 from stewart_vibration_interfaces.action import MoveToPose
 
 from ..errors import InvalidInputError, MalformedMessageError, RefusedError
-from .common import BASE_FRAME, check_frame, pose_from_msg, pose_stamped
+from ..messages.fields import BASE_FRAME, check_frame
+from .message_conversions import pose_from_msg, pose_stamped
 from .outcomes import outcome_name
 
 MOVE_ACTION = "kinematics/move_to_pose"

@@ -71,18 +71,12 @@ from ..robot import STANDARD_GRAVITY
 from ..ui import model
 from ..ui.server import UiServer, bind
 from ..vibration.settings import STREAM_KEYS, VIBRATION_KEYS, default_settings
-from .common import (
-    OK,
-    Diagnostics,
-    JointColumns,
-    MalformedInputs,
-    declare_table,
-    pose_from_msg,
-    pose_stamped,
-    run_node,
-)
+from .diagnostics import OK, Diagnostics, MalformedInputs
+from .message_conversions import JointColumns, pose_from_msg, pose_stamped
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
+from .node_parameters import declare_table
 from .outcomes import outcome_name
+from .run_loop import run_node
 from .service_calls import GoalAcceptances, send_goal_recovering_async
 from .vibration_goal import goal_message, plan_record, settings_of_plan
 

@@ -11,8 +11,9 @@ import numpy as np
 from stewart_vibration_interfaces.msg import ForceGuardStatus, VibrationUnitsStatus
 
 from ..emulation.vibration_status import EVENTS, LEVELS, RAMP_CAUSES, STATES, VibrationReport
+from ..messages.fields import BASE_FRAME
 from ..motion.guard_status import GUARD_STATES, TRIP_LIMITS, GuardStatus
-from .common import BASE_FRAME, pose_stamped, time_message
+from .message_conversions import pose_stamped, time_message
 from .outcomes import outcome
 
 

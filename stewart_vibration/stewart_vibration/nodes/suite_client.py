@@ -35,9 +35,11 @@ from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environm
 from ..runtime.sim_clock import HeldFor
 from ..runtime.steps import IdentificationEnd, MoveResult, StepFailed, VibrationEnd, VibrationStart
 from . import ensure_ament_prefix_path
-from .common import MalformedInputs, make_executor, stamp_seconds
+from .diagnostics import MalformedInputs
+from .message_conversions import stamp_seconds
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
+from .run_loop import make_executor
 from .service_calls import (
     GoalAcceptances,
     ServiceClients,

@@ -12,7 +12,7 @@ from stewart_vibration_interfaces.msg import VibrationPlan, VibrationUnitsStatus
 from ..vibration.decompose import VibrationDecomposition
 from ..vibration.settings import VIBRATION_KEYS
 from ..vibration.waveform import acceleration_from_displacement
-from .common import pose_from_msg, pose_stamped, stamp_seconds, time_message
+from .message_conversions import pose_from_msg, pose_stamped, stamp_seconds, time_message
 
 UNIT_STATES = {"idle": VibrationUnitsStatus.IDLE, "pending": VibrationUnitsStatus.PENDING,
                "ramping_in": VibrationUnitsStatus.RAMPING_IN, "running": VibrationUnitsStatus.RUNNING,

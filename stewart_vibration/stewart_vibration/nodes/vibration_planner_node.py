@@ -68,6 +68,7 @@ from ..messages.stamped import pose_from_cdr, poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..output_files import writable_output
 from ..parameters.tables import VIBRATION_PLANNER
+from ..robot import VIB_NAMES
 from ..runtime.sim_clock import ClockRate
 from ..vibration.closed_loop import ClosedLoop, closed_loop_for
 from ..vibration.identification_session import IdentificationSession, identification_steps
@@ -76,18 +77,10 @@ from ..vibration.start_gate import BUSY_STATES, UNITS_MOVING, check_can_start, r
 from ..vibration.streaming import StreamInterrupted, VibrationStream
 from ..vibration.unit_identification import FILE_KIND, load_identification_option, quality_problems, save_identification
 from ..vibration.waveform import envelope, fade_out
-from .common import (
-    ERROR,
-    OK,
-    VIB_NAMES,
-    WARN,
-    Diagnostics,
-    MalformedInputs,
-    declare_table,
-    reject,
-    run_node,
-)
+from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs, reject
+from .node_parameters import declare_table
 from .outcomes import end_goal, outcome
+from .run_loop import run_node
 from .vibration_goal import UNIT_STATES, goal_settings, plan_message
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming

@@ -1,5 +1,5 @@
 """Every node's parameters, declared once (pure): one table per node, from which the node declares and validates
-them (nodes.common.declare_table), docs/parameters.md is generated (parameters.docs) and
+them (nodes.node_parameters.declare_table), docs/parameters.md is generated (parameters.docs) and
 config/suite_params.yaml is checked (its tests).
 
 Units are SI; "read at start" parameters are read only, the emulator's "read at configure" ones settable while
