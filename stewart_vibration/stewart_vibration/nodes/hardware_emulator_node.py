@@ -40,7 +40,6 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock as RosClock
 from rclpy.clock import ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
 from std_srvs.srv import Trigger
@@ -68,12 +67,11 @@ from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs
 from .message_conversions import time_message
 from .node_parameters import declare_table
 from .outcomes import outcome, outcome_of
-from .run_loop import STREAM_DEPTH, run_node
+from .run_loop import STATUS_QOS, STREAM_DEPTH, run_node
 from .status_messages import vibration_status_msg
 
 CLOCK_DEPTH = 100
 AT_CONFIGURE = frozenset(spec.name for spec in HARDWARE_EMULATOR if spec.at_configure)
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 STATUS_PERIOD_S = 0.1  # sim time between vibration status evaluations (events are published at once)
 STATUS_REPEAT_S = 1.0  # wall time between repeats of an unchanged status
 # what the emulator waits for above real time: the force guard's input and kinematics' own output (one per state)

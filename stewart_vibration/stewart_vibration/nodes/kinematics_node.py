@@ -54,7 +54,6 @@ from nav_msgs.msg import Path
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -93,10 +92,9 @@ from .message_conversions import JointColumns, RawBatcher, duration_msg, duratio
 from .move_messages import base_pose
 from .node_parameters import declare_table
 from .outcomes import outcome, outcome_name, outcome_of
-from .run_loop import STREAM_DEPTH, run_node
+from .run_loop import STATUS_QOS, STREAM_DEPTH, run_node
 from .status_messages import guard_status_msg
 
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 FEEDBACK_PERIOD_S = 0.05  # wall time between a move goal's feedback messages (20 Hz)
 REST_WAIT_S = 60.0  # a goal waits this long (robot's clock) for struts moving on their own to stop
 REST_WAIT_WALL_S = 120.0  # ... and at most this long on the wall clock (no states: the robot is gone)

@@ -26,7 +26,6 @@ import numpy as np
 from geometry_msgs.msg import WrenchStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory
 
@@ -46,9 +45,7 @@ from ..robot import LEG_NAMES, VIB_NAMES
 from .diagnostics import OK, WARN, Diagnostics, MalformedInputs, reject
 from .message_conversions import JointColumns, RawBatcher, emulator_now
 from .node_parameters import declare_table
-from .run_loop import STREAM_DEPTH, run_node
-
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+from .run_loop import STATUS_QOS, STREAM_DEPTH, run_node
 
 
 class LegForceEstimatorNode(Node):

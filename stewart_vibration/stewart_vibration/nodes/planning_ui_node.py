@@ -47,7 +47,7 @@ from rclpy.action import ActionClient
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import parameter_value_to_python
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 
@@ -76,12 +76,11 @@ from .message_conversions import JointColumns, pose_from_msg, pose_stamped
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .node_parameters import declare_table
 from .outcomes import outcome_name
-from .run_loop import run_node
+from .run_loop import STATUS_QOS, run_node
 from .service_calls import GoalAcceptances, send_goal_recovering_async
 from .vibration_goal import goal_message, plan_record, settings_of_plan
 
 STREAM_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.BEST_EFFORT)
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 SETTLE_POSITION_M = 1e-5  # a move is settled when the pose estimate holds within 10 um / 0.01 deg for 0.5 s
 SETTLE_ANGLE_RAD = math.radians(0.01)
 SETTLE_HOLD_S = 0.5

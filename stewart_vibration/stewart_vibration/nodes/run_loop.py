@@ -11,6 +11,7 @@ import sys
 import rclpy
 from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 from ..errors import ConfigError, MalformedMessageError
 from ..messages.fields import check_time
@@ -23,6 +24,8 @@ from .diagnostics import MalformedInputs
 # ~1.4 s and lost 196 states with 1 s of depth; beside a CPU hog at twice real time the estimator lost 109
 # states with 1.5 s (of wall time). The memory is ~1 MB per endpoint.
 STREAM_DEPTH = 3000
+# the status topics (the robot's vibration status, the force guard's): a late joiner gets the current state
+STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def make_executor(context=None):
@@ -169,6 +172,7 @@ def init_rclpy(args=None, prefix: str = "[FATAL] cannot start:") -> bool:
 
 
 __all__ = [
+    "STATUS_QOS",
     "STREAM_DEPTH",
     "make_executor",
     "StopFlag",

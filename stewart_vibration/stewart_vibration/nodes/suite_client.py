@@ -18,7 +18,6 @@ from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
@@ -39,7 +38,7 @@ from .diagnostics import MalformedInputs
 from .message_conversions import stamp_seconds
 from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
-from .run_loop import make_executor
+from .run_loop import STATUS_QOS, make_executor
 from .service_calls import (
     GoalAcceptances,
     ServiceClients,
@@ -63,7 +62,6 @@ NOT_READY_YET = ("NOT_READY", "CLOCK_NOT_RUNNING")
 # allows 10 mm/s); at most ESTIMATES_CURRENT_WAIT_S of wall time, then the run goes on and says so
 ESTIMATES_CURRENT_S = 0.15
 ESTIMATES_CURRENT_WAIT_S = 60.0
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 class SuiteClient:

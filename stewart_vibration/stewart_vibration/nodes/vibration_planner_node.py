@@ -50,7 +50,7 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.task import Future
 from sensor_msgs.msg import Imu, JointState
 from trajectory_msgs.msg import JointTrajectory
@@ -80,13 +80,12 @@ from ..vibration.waveform import envelope, fade_out
 from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs, reject
 from .node_parameters import declare_table
 from .outcomes import end_goal, outcome
-from .run_loop import run_node
+from .run_loop import STATUS_QOS, run_node
 from .vibration_goal import UNIT_STATES, goal_settings, plan_message
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
 STALL_S = 0.1  # a tick this late means the process was held up: skip it (the sim clock is stale)
 STATUS_STALE_S = 2.5  # wall s: the emulator repeats its status every second, so an older one is stale
-STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 IMU_QOS = QoSProfile(depth=500, reliability=ReliabilityPolicy.RELIABLE)  # 1 s of samples: bursts of 10 every 20 ms
 # an identification step's window is sent this long (sim s) before it starts: a planner held up for less
 # delays nothing (the robot queues it behind the step it runs)
