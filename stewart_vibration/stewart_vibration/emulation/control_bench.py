@@ -3,31 +3,32 @@
 the platform IMU); the bench reads the plant's truth (the platform's true pose) to judge what was delivered.
 For benchmarks and tests of the loop's mathematics on the real physics; the nodes run the same cores over DDS.
 
-Modes: "open_loop" (the decomposition's legs, today's planner), "feedforward" (the demands H^-1 y* of an
-identification), "closed_loop" (from the feed-forward, or the nominal map J^-1 without an identification,
-corrected by ``SineController`` from the IMU).
+Modes: "open_loop" (the decomposition's legs: the planner without an identification), "feedforward" (the
+demands H^-1 y* of an identification), "closed_loop" (the feed-forward corrected from the IMU by the planner's
+own loop, ``vibration.closed_loop``). A vibration is started, streamed and corrected as the planner does it
+(``vibration.settings.start_check`` with the planner's default settings), so the bench measures the controller
+that runs.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import cast
 
 import numpy as np
 
-from ..errors import StewartError
+from ..errors import InvalidInputError, StewartError
 from ..kinematics import inverse_kinematics
-from ..kinematics.jacobian import jacobian
 from ..kinematics.rotations import rotation_from_quaternion, rotation_from_rpy, so3_exp, so3_log
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
-from ..vibration.decompose import decompose_vibration
+from ..vibration.closed_loop import DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN, LoopStep, closed_loop_for
+from ..vibration.compensation import target_motion
 from ..vibration.demand_schedule import DemandSchedule
-from ..vibration.frequency_response import platform_motion
 from ..vibration.identification_run import excitation_plan, identify_units, step_samples
-from ..vibration.leg_demands import decomposition_demands
-from ..vibration.sine_control import DeliveredSine, SineController, SineControlLimits, delivered_figures
+from ..vibration.settings import default_settings, start_check
+from ..vibration.sine_control import DeliveredSine, delivered_figures
 from ..vibration.sine_fit import fit_sinusoid
-from ..vibration.streaming import StreamSettings, VibrationStream
 from ..vibration.unit_identification import VibrationIdentification
 from .emulator import HardwareEmulator
 
@@ -129,37 +130,37 @@ def true_motion(times, poses, frequency: float, nominal_rotation) -> np.ndarray:
 
 def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acceleration_g: float = 0.3,
             frequency: float = 35.0, duration_s: float = 4.0, ramp_s: float = 0.2,
-            identification: VibrationIdentification | None = None, gain: float = 0.7, measure_periods: int = 4,
-            rotation_scale_m: float = 0.1, limits: SineControlLimits | None = None, disturb=None,
+            identification: VibrationIdentification | None = None, gain: float = DEFAULT_LOOP_GAIN, disturb=None,
             measured_rotation=None) -> BenchRun:
-    """One vibration along ``direction`` (base frame) at ``pose`` in ``mode`` (module docstring); ``disturb``:
-    called as disturb(emu, t) every state period (t s from t0), to change the plant mid-vibration;
+    """One vibration along ``direction`` (base frame) at ``pose`` in ``mode`` (module docstring), started,
+    streamed and corrected as the planner does it: ``settings.start_check`` with the planner's default
+    streaming, and in "closed_loop" the planner's own loop (``closed_loop.closed_loop_for``: its measurement,
+    its travel margin through the identified unit responses, its aborts), stepped every state period.
+    ``disturb``: called as disturb(emu, t) every state period (t s from t0), to change the plant mid-vibration;
     ``measured_rotation``: the platform's orientation the loop takes the IMU's axes at (``tracked_rotation``;
     default the pose's). The truth is judged about the platform's true orientation."""
-    plan = decompose_vibration(robot, pose, direction, acceleration_g=acceleration_g, frequency=frequency,
-                               frame="base")
-    target = plan.twist * plan.amplitude * np.exp(1j * plan.phase)
+    if mode not in ("open_loop", "feedforward", "closed_loop"):
+        raise InvalidInputError(f"mode must be open_loop, feedforward or closed_loop, got {mode!r}")
+    if mode != "open_loop" and identification is None:
+        raise InvalidInputError(f"{mode} needs the units' identification (the planner's feed-forward)")
+    s = {**default_settings(robot), "direction": [float(v) for v in direction], "frame": "base",
+         "acceleration_g": acceleration_g, "frequency_hz": frequency, "duration_s": duration_s, "ramp_s": ramp_s}
+    started = start_check(robot, pose, s, identification=None if mode == "open_loop" else identification,
+                          closed_loop=mode == "closed_loop")
+    plan, stream = started.plan, started.stream
+    target = target_motion(plan)
     rotation = rotation_from_rpy(np.asarray(pose)[3:])  # the nominal orientation: the truth's reference
     imu_axes = rotation if measured_rotation is None else np.asarray(measured_rotation, float)
-    estimate = (identification.platform_response_at(frequency) if identification is not None
-                else np.linalg.inv(jacobian(robot, pose)))
-    if mode == "open_loop":
-        demand = decomposition_demands(plan)
-    else:
-        demand = np.linalg.solve(estimate, target)
-    controller = SineController(estimate, target, gain=gain, rotation_scale_m=rotation_scale_m,
-                                max_demand_m=robot.vibration_unit.amplitude_max, limits=limits,
-                                initial_demand=demand) if mode == "closed_loop" else None
-    schedule = DemandSchedule(demand, frequency, blend_s=0.05)
-    stream = VibrationStream(robot, plan, StreamSettings(duration=duration_s, ramp_s=ramp_s, lead_s=0.05,
-                                                         lookahead_s=0.5, max_lookahead_s=0.5), demands=schedule)
+    loop = None
+    if mode == "closed_loop":
+        loop = closed_loop_for(robot, plan, cast(DemandSchedule, started.schedule), stream,
+                               cast(VibrationIdentification, identification), imu_axes, ramp_s, gain,
+                               IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S)
     run = BenchRun(mode)
-    t0 = emu.time + 0.1
+    t0 = emu.time + started.start_lead
 
-    def send(now, correction: bool = False) -> bool:
-        """Send the next window (``correction``: the one carrying a change of the demands, at once); False (with
-        the outcome set) when the robot refuses it."""
-        window = stream.correction_window(now) if correction else stream.next_window(now)
+    def send(window) -> bool:
+        """Send ``window`` (None: nothing); False (with the outcome set) when the robot refuses it."""
         if window is None:
             return True
         try:
@@ -171,9 +172,10 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
             return False
         return True
 
-    send(-0.1)
-    next_send, period = 0.25, 1.0 / frequency
-    times, accel, gyro, poses, legs = [], [], [], [], []
+    send(started.first)
+    period_s = s["window_period_s"]
+    next_send, span = -started.start_lead + period_s, 4 / frequency
+    times, poses, legs = [], [], []
     next_judge = 0.0
     while emu.time < t0 + duration_s + 0.05:
         emu.advance(STATE_PERIOD_S)
@@ -184,49 +186,41 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
         if report.state in ("stopped", "estopped") or emu.vibration.stop_start is not None:
             run.outcome = f"the robot ramped the vibration out: {emu.vibration.stop_reason or report.reason}"
             break
-        imu = emu.imu_sample()
-        times.append(now)
-        accel.append(imu.linear_acceleration)
-        gyro.append(imu.angular_velocity)
-        poses.append(emu.platform_pose())
-        true_lengths = emu.true_joint_state()[1]
-        legs.append(true_lengths[:6] + true_lengths[6:])  # strut and unit in series: the leg's vibration
-        span = measure_periods * period
-        if now > ramp_s + span and now <= duration_s - ramp_s:
+        if now >= 0:
+            times.append(now)
+            poses.append(emu.platform_pose())
+            true_lengths = emu.true_joint_state()[1]
+            legs.append(true_lengths[:6] + true_lengths[6:])  # strut and unit in series: the leg's vibration
+        if ramp_s + span < now <= duration_s - ramp_s and now >= next_judge:  # the truth, for judging only
+            next_judge = now + span
             t = np.asarray(times)
             recent = t > now - span
-            if now >= next_judge:  # the truth, for judging only
-                next_judge = now + span
-                run.times.append(now)
-                run.truth.append(delivered_figures(true_motion(t[recent], np.asarray(poses)[recent], frequency,
-                                                               rotation), target, rotation_scale_m))
-            if controller is not None and now >= max(schedule.settled_at, ramp_s) + span and stream.can_correct(now):
-                measured = platform_motion(t[recent], np.asarray(accel)[recent], np.asarray(gyro)[recent],
-                                           frequency, imu_axes, robot.gravity, IMU_AVERAGE_S)
-                step = controller.update(measured)
-                run.verdicts.append(step.verdict)
-                if step.verdict == "abort":
-                    run.outcome = step.reason
-                    window = stream.stop_window(now)
-                    if window is not None:
-                        emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity,
-                                              window.acceleration)
-                    break
-                schedule.correct(step.demand, stream.splice_time(now))
-                if not send(now, correction=True):
-                    break
-                next_send = now + 0.25
-        if now >= next_send:
-            if not send(now):
+            run.times.append(now)
+            run.truth.append(delivered_figures(true_motion(t[recent], np.asarray(poses)[recent], frequency,
+                                                           rotation), target, 0.1))
+        correct = False
+        if loop is not None:
+            imu = emu.imu_sample()
+            reason = loop.add_imu(now, imu.linear_acceleration, imu.angular_velocity)
+            step = LoopStep("abort", reason) if reason else loop.step(now, duration_s - ramp_s)
+            if step.control is not None:
+                run.verdicts.append(step.control.verdict)
+            if step.action == "abort":
+                run.outcome = step.reason
+                send(stream.stop_window(now))
                 break
-            next_send = now + 0.25
-    if controller is not None:
-        run.demand_correction = controller.correction
+            correct = step.action == "correct"
+        if correct or (now >= next_send and not stream.finished):
+            next_send = now + period_s
+            if not send(stream.correction_window(now) if correct else stream.next_window(now)):
+                break
+    if loop is not None:
+        run.demand_correction = loop.controller.correction
     steady = (np.asarray(times) > ramp_s) & (np.asarray(times) < duration_s - ramp_s)
     if steady.sum() > 100:
         z = np.asarray(poses)[steady, :3] @ plan.direction
         run.frequency_error = _frequency_error(np.asarray(times)[steady], z, frequency)
-        last = steady & (np.asarray(times) > np.asarray(times)[steady][-1] - measure_periods * period)
+        last = steady & (np.asarray(times) > np.asarray(times)[steady][-1] - span)
         run.leg_phase_spread_deg = leg_phase_spread(np.asarray(times)[last], np.asarray(legs)[last], frequency, plan)
     return run
 

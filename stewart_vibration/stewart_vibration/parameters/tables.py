@@ -12,6 +12,7 @@ from ..emulation.consumer_pace import MAX_WAIT_S
 from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S
 from ..motion.move_goal import MIN_SPEED_SCALE
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
+from ..vibration.closed_loop import DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN
 from ..vibration.settings import STREAM_PARAMETERS
 from .spec import ParameterSpec as P
 
@@ -30,9 +31,11 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
       "until the delivered vibration is the planned one, and ramp out when it leaves the abort limits "
       "(DELIVERY_LIMIT); only for a vibration planned with the identification's feed-forward (its response is the "
       "loop's plant estimate)"),
-    P("loop_gain", "double", 0.5, "the closed loop's correction per update (of the estimated error)", "", 0.05, 1.0),
-    P("imu_silence_s", "double", 0.1, "the closed loop ramps the vibration out (DELIVERY_LIMIT) when the newest "
-      "platform/imu sample it needs is older than this (the loop cannot see what it delivers)", "s", 0.01, 1.0),
+    P("loop_gain", "double", DEFAULT_LOOP_GAIN, "the closed loop's correction per update (of the estimated error)",
+      "", 0.05, 1.0),
+    P("imu_silence_s", "double", DEFAULT_IMU_SILENCE_S, "the closed loop ramps the vibration out (DELIVERY_LIMIT) "
+      "when the newest platform/imu sample it needs is older than this (the loop cannot see what it delivers)", "s",
+      0.01, 1.0),
     P("imu_average_s", "double", 0.002, "the IMU's accelerometer averages over this interval before each sample (its "
       "sample period)", "s", 0.0, 0.1),
     P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
