@@ -401,7 +401,7 @@ def planner_vibrating(robot, ros_domain, tmp_path, name: str, args, **vibration)
                          ["--ros-args", *args]) as (proc, client):
         windows = client.subscribe("vibration/joint_trajectory", JointTrajectory)
         poses = client.publisher("platform/pose_estimate", PoseStamped)
-        idle_robot_heartbeat(client)
+        client.heartbeat = idle_robot_heartbeat(client)  # SyntheticImu.at_start ends it: the units then run
         assert client.wait_for_subscribers("platform/pose_estimate"), proc.log_text()
         goal = start_with_pose(client, poses, paper_pose(robot), **vibration)
         assert goal.plan() is not None, goal.outcome()
@@ -493,6 +493,7 @@ class SyntheticImu:
         self.pub = client.node.create_publisher(Imu, "platform/imu", QoSProfile(
             depth=500, reliability=ReliabilityPolicy.RELIABLE))
         self.client, self.rotation, self.gravity, self.t0, self.ramp_s = client, rotation, gravity, t0, ramp_s
+        self.next_status = np.inf  # publish_running repeats the robot's status from then on
 
     @classmethod
     def at_start(cls, robot, pose, proc, client, poses, t0: float, ramp_s: float = 0.2) -> SyntheticImu:
@@ -503,8 +504,18 @@ class SyntheticImu:
         while time.time() < t0:
             poses.publish(pose_msg(pose))
             client.spin_for(0.01)
-        status_publisher(client).publish(emulator_status("running", t0, now=time.time()))
+        # the robot's status says the units run from t0 on, as the emulator's does: its idle heartbeat ends (a
+        # later "idle" would replace "running" in the status topic's history of one before it was delivered)
+        heartbeat = getattr(client, "heartbeat", None)
+        if heartbeat is not None:
+            heartbeat.cancel()
+        imu.publish_running()
         return imu
+
+    def publish_running(self) -> None:
+        """The emulator's vibration/status: running since t0, sent now (repeated as the emulator repeats it)."""
+        status_publisher(self.client).publish(emulator_status("running", self.t0, now=time.time()))
+        self.next_status = time.time() + 0.5
 
     def run(self, motion, seconds: float, until=lambda: False) -> None:
         from sensor_msgs.msg import Imu
@@ -515,6 +526,8 @@ class SyntheticImu:
         end = time.time() + seconds
         while time.time() < end and not until():
             stamp = time.time()
+            if stamp >= self.next_status:
+                self.publish_running()
             t = stamp - self.t0
             e = float(envelope(np.array([t]), None, self.ramp_s)[0][0])
             y = motion(t) * e * np.exp(1j * w * t)
