@@ -194,3 +194,17 @@ def test_the_unit_that_delivers_off_its_demand_is_named_whichever_limit_trips(ki
     ramping = SineController(kinematic_map, target, limits=SineControlLimits(converge_updates=0))
     step = ramping.update(0.5 * kinematic_map @ (faults * ramping.demand), envelope=0.5)
     assert step.verdict == "abort" and "unit 3 delivers 0.60 x its demand at +20 deg" in step.reason
+
+
+def test_once_inside_the_bands_every_abort_limit_holds_at_once(kinematic_map):
+    """Before convergence the direction limit waits for converge_updates corrections (the loop removes the
+    units' initial tilt); once an update was inside every band, a 12 deg tilt from a changed plant aborts at
+    the next update, however few corrections were made."""
+    target = target_along([0, 0, 1])
+    tilt = AMPLITUDE * np.array([np.sin(np.radians(12)), 0, np.cos(np.radians(12)), 0, 0, 0])
+    fresh = SineController(kinematic_map, target)
+    assert fresh.update(tilt).verdict == "converging" and fresh.updates == 1  # not judged on direction yet
+    settled = SineController(kinematic_map, target)
+    assert settled.update(target).verdict == "in_tolerance" and settled.updates == 1
+    step = settled.update(tilt)
+    assert step.verdict == "abort" and step.reason.startswith("vibration direction 12.00 deg"), step.reason

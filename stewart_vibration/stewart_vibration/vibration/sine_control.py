@@ -41,8 +41,10 @@ class SineControlLimits:
     abort_amplitude_db: float = 3.0  # delivered this far above the target (20 log10 ratio): always judged
     abort_direction_deg: float = 10.0
     abort_off_axis: float = 0.25
-    # the direction and off-axis limits hold from this many corrections on: uncorrected units (+-30 % gain,
-    # +-20 deg phase) tilt a translation along the force line by up to ~30 deg, which the loop removes
+    # the direction and off-axis limits hold from this many corrections on, or from the first update inside
+    # every tolerance band if that comes first: uncorrected units (+-30 % gain, +-20 deg phase) tilt a
+    # translation along the force line by up to ~30 deg, which the loop removes; once it has, a departure is
+    # the plant's, not the loop's start
     converge_updates: int = 10
     # a loop that had to move the demands this far from where it started (the identification's feed-forward),
     # ||u - u0|| / ||u0||, says the identification no longer describes the robot: identify again
@@ -181,6 +183,7 @@ class SineController:
                        else np.asarray(initial_demand, dtype=complex).reshape(6))
         self.initial = self.demand.copy()
         self.updates = 0
+        self.settled = False  # an update was inside every tolerance band: every abort limit holds from then on
 
     @property
     def correction(self) -> float:
@@ -202,7 +205,8 @@ class SineController:
         if not 0 < envelope <= 1:
             raise InvalidInputError(f"envelope must be in (0, 1], got {envelope!r}")
         figures = delivered_figures(measured, self.target * envelope, self.rotation_scale_m)
-        verdict, reason = judge(figures, self.limits, self.updates)
+        verdict, reason = judge(figures, self.limits, None if self.settled else self.updates)
+        self.settled = self.settled or verdict == "in_tolerance"
         if verdict == "abort":
             reason = self.with_unit_fault(reason, np.asarray(measured) / envelope)  # as at full amplitude
             return ControlStep(self.demand.copy(), figures, verdict, reason)
