@@ -22,7 +22,13 @@ from ..kinematics import inverse_kinematics
 from ..kinematics.rotations import rotation_from_quaternion, rotation_from_rpy, so3_exp, so3_log
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
-from ..vibration.closed_loop import DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN, LoopStep, closed_loop_for
+from ..vibration.closed_loop import (
+    DEFAULT_IMU_AVERAGE_S,
+    DEFAULT_IMU_SILENCE_S,
+    DEFAULT_LOOP_GAIN,
+    LoopStep,
+    closed_loop_for,
+)
 from ..vibration.compensation import target_motion
 from ..vibration.demand_schedule import DemandSchedule
 from ..vibration.identification_run import excitation_plan, identify_units, step_samples
@@ -33,7 +39,6 @@ from ..vibration.unit_identification import VibrationIdentification
 from .emulator import HardwareEmulator
 
 STATE_PERIOD_S = 0.002  # the emulator's sensor period (500 Hz)
-IMU_AVERAGE_S = 0.002  # the IMU integrates and dumps over its sample period
 UNIT_SENSOR_LATENCY_S = 0.0005  # a unit's sensor reports its 2 kHz firmware's last reading
 
 
@@ -101,7 +106,7 @@ def identify(emu: HardwareEmulator, robot: Robot, pose, frequencies, amplitude_m
     steps = excitation_plan(frequencies, min_measure_s=min_measure_s)
     rec = run_excitation(emu, steps, amplitude_m)
     return identify_units(steps, amplitude_m, pose, rec["times"], rec["units"], rec["accel"], rec["gyro"],
-                          gravity=robot.gravity, accel_average_s=IMU_AVERAGE_S,
+                          gravity=robot.gravity, accel_average_s=DEFAULT_IMU_AVERAGE_S,
                           unit_sensor_latency_s=UNIT_SENSOR_LATENCY_S, rotation=rotation)
 
 
@@ -155,7 +160,7 @@ def vibrate(emu: HardwareEmulator, robot: Robot, pose, direction, mode: str, acc
     if mode == "closed_loop":
         loop = closed_loop_for(robot, plan, cast(DemandSchedule, started.schedule), stream,
                                cast(VibrationIdentification, identification), imu_axes, ramp_s, gain,
-                               IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S)
+                               DEFAULT_IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S)
     run = BenchRun(mode)
     t0 = emu.time + started.start_lead
 

@@ -505,13 +505,13 @@ class VibrationPlannerNode(Node):
         t0 = run["t0"]
         window = stream.stop_window(self.now_s() - t0)
         self.state = "stopping"
+        if window is not None:
+            self.publish(window)
         if window is None:
             message = f"the vibration already ends at {t0 + stream.rest_at:.4f} s; letting it ramp out"
         elif cast(float, stream.stop_at) <= 0.0:
-            self.publish(window)
             message = f"stopping before the vibration began at {t0:.4f} s: the units stay at rest"
         else:
-            self.publish(window)
             message = (f"stopping: ramp-out from {t0 + stream.stop_at:.4f} s over {run['settings']['ramp_s']} s, at "
                        f"rest at {t0 + window.rest_at:.4f} s")
         self._report(OK, "stopping")

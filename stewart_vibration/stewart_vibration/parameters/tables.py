@@ -12,7 +12,7 @@ from ..emulation.consumer_pace import MAX_WAIT_S
 from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S
 from ..motion.move_goal import MIN_SPEED_SCALE
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
-from ..vibration.closed_loop import DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN
+from ..vibration.closed_loop import DEFAULT_IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN
 from ..vibration.settings import STREAM_PARAMETERS
 from .spec import ParameterSpec as P
 
@@ -36,8 +36,8 @@ VIBRATION_PLANNER = (ROBOT_CONFIG,) + tuple(
     P("imu_silence_s", "double", DEFAULT_IMU_SILENCE_S, "the closed loop ramps the vibration out (DELIVERY_LIMIT) "
       "when the newest platform/imu sample it needs is older than this (the loop cannot see what it delivers)", "s",
       0.01, 1.0),
-    P("imu_average_s", "double", 0.002, "the IMU's accelerometer averages over this interval before each sample (its "
-      "sample period)", "s", 0.0, 0.1),
+    P("imu_average_s", "double", DEFAULT_IMU_AVERAGE_S, "the IMU's accelerometer averages over this interval before "
+      "each sample (its sample period)", "s", 0.0, 0.1),
     P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
       "firmware's control period): removed from the identified unit responses", "s", 0.0, 0.01),)
 

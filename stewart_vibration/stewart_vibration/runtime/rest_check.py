@@ -4,9 +4,8 @@ still for a hold time of sim time."""
 
 from __future__ import annotations
 
+from ..vibration.start_gate import UNITS_AT_REST
 from .sim_clock import StillFor
-
-UNITS_AT_REST = ("idle", "stopped", "estopped")  # the emulator's vibration/status states with the units still
 
 
 class RestCheck:

@@ -36,6 +36,7 @@ MIN_SAMPLES = 8  # IMU samples a measurement needs over its measure_periods
 # corrected per update (sine_control's docstring: its stability margins), and the IMU's silence that aborts
 DEFAULT_LOOP_GAIN = 0.5
 DEFAULT_IMU_SILENCE_S = 0.1
+DEFAULT_IMU_AVERAGE_S = 0.002  # the emulated IMU integrates and dumps over its sample period (500 Hz)
 
 
 @dataclass(frozen=True)

@@ -7,6 +7,7 @@ from ..errors import RefusedError
 
 UNITS_MOVING = ("ramping_in", "running", "ramping_out")  # vibration/status states of units that vibrate
 BUSY_STATES = ("pending", *UNITS_MOVING)  # a window queued or the units moving: not at rest
+UNITS_AT_REST = ("idle", "stopped", "estopped")  # vibration/status states with the units still
 CLOCK_MISMATCH_S = 10.0  # the planner's clock this far from the robot's: not the same clock
 
 
