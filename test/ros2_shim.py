@@ -1,7 +1,7 @@
-"""A stand-in for the ``ros2`` command (ros2cli is not on PyPI), so the README's ``ros2 ...`` lines run here
-exactly as written, over real DDS with rclpy.
+"""A stand-in for the ``ros2`` command (ros2cli is not on PyPI), so the ``ros2 ...`` lines of the README and
+the docs pages run here exactly as written, over real DDS with rclpy.
 
-It implements the verbs the README uses with ros2cli 0.32's arguments, waiting, output shape and exit codes,
+It implements the verbs they use with ros2cli 0.32's arguments, waiting, output shape and exit codes,
 and is no sturdier than it: nothing is resent, a lost answer is lost (here it ends after WAIT_S with exit 1
 where ros2cli would wait forever), and a refusal in an answer exits 0 as in ros2cli (tests read the output,
 as a user does):

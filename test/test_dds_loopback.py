@@ -1,4 +1,4 @@
-"""DDS stays on this machine ("Security"): with the bring-up's default environment
+"""DDS stays on this machine (docs/security.md): with the bring-up's default environment
 (config/fastdds_localhost.xml) real nodes talk to each other and to a client, and every socket they
 own is bound to a loopback address; with STEWART_DDS_PROFILE=multihost the same check sees sockets on
 0.0.0.0 (so it can tell the difference). Sockets are read from /proc: the inodes of /proc/<pid>/fd

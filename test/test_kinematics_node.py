@@ -141,7 +141,7 @@ def test_pose_estimate_move_goal_and_its_refusals(robot, kinematics_node):
     client.spin_for(0.3)
     assert len(trajectories) == sent
 
-    # hand-typed quaternions (the README's example: norm 1.00004) are normalised and accepted, also in an
+    # hand-typed quaternions (docs/planning-ui.md's example: norm 1.00004) are normalised and accepted, also in an
     # empty frame (documented as base)
     typed = pose_msg(robot.home_pose, quat=[0.0, 0.025, 0.0, 1.00003])
     typed.header.frame_id = ""
@@ -183,7 +183,7 @@ def test_plan_path_service(robot, kinematics_node):
     alone = client.call(PlanPath, "kinematics/plan_path", PlanPath.Request(waypoints=[pose_msg(goal)]))
     assert outcome_name(alone.outcome.code) == "NOT_READY"
 
-    # one waypoint, as the README calls it: from the current pose estimate (not from the origin)
+    # one waypoint, as docs/planning-ui.md calls it: from the current pose estimate (not from the origin)
     states = client.publisher("legs/joint_states", JointState)
     current = robot.home_pose + np.array([0.003, 0.0, 0.0, 0.0, 0.0, 0.0])
     estimates = client.subscribe("platform/pose_estimate", PoseStamped)

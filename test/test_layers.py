@@ -1,5 +1,5 @@
-"""The package's layers (README "Architecture"): each folder of the pure core imports only the layers listed
-before it, and nothing outside nodes/ (and the CLI that starts them) imports rclpy. Parses the sources (no
+"""The package's layers (docs/architecture.md, "Layers"): each folder of the pure core imports only the layers
+listed before it, and nothing outside nodes/ (and the CLI that starts them) imports rclpy. Parses the sources (no
 imports run), so a new cross-layer import or an rclpy import in the core fails here with the file named."""
 
 from __future__ import annotations

@@ -1,12 +1,14 @@
-"""Every command in the README's ```bash blocks, run exactly as written (engineering standard: a README
-command that nobody runs is a README command that is wrong).
+"""Every command in the ```bash blocks of the README and the docs pages (docs/*.md), run exactly as written
+(engineering standard: a documented command that nobody runs is a documented command that is wrong).
 
 The lines run in a copy of the checkout (so ``runs/``, ``report/`` ... land there), in a bash that has
 sourced ``tools/venv.sh`` -- what the README tells a user to do -- with this test's ROS domain. ``ros2``
 is test/ros2_shim.py (ros2cli is not on PyPI): ``topic pub/echo``, ``service call``, ``param set`` and
 ``run`` over real DDS. What needs a ROS install that this machine cannot have (``ros2 launch``, ``ros2
 bag``) is listed in NEEDS_A_ROS_INSTALL with the test that covers it instead; anything else unclassified
-fails test_every_readme_command_is_run_here, so a new README command needs a runner here.
+fails test_every_readme_command_is_run_here, so a new command in the README or a docs page needs a runner
+here. Blocks are looked up by the heading they stand under (the section's heading is kept when a section
+moves between the README and a docs page).
 """
 
 from __future__ import annotations
@@ -30,6 +32,7 @@ pytestmark = [pytest.mark.integration, pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+DOCS = [README, *sorted((ROOT / "docs").glob("*.md"))]  # the README first: its first block is the main job
 COPY_IGNORE = shutil.ignore_patterns(".git", ".venv", ".mypy_cache", "runs", "build", "install", "log", "__pycache__",
                                      "*.egg-info", ".pytest_cache", ".ruff_cache", "paper_figures", "report", "dyn")
 # Lines this machine cannot run (launch and rosbag2 are not on PyPI), each with the test that checks what it
@@ -63,19 +66,27 @@ def strip_comment(line: str) -> str:
 
 
 def readme_blocks(lang: str) -> list[tuple[str, list[str]]]:
-    """(section heading, commands) of every ```lang block; continuation lines joined, comments kept."""
-    blocks, heading, block = [], "", None
-    for line in README.read_text().splitlines():
-        if block is None:
-            if line.startswith("#"):
-                heading = line.lstrip("# ").strip()
+    """(section heading, commands) of every ```lang block of the README, then of each docs page (a page's
+    blocks before its first heading have the heading ""); continuation lines joined, comments kept. A line
+    starting with # inside another fenced block (a shell comment) is not a heading."""
+    blocks = []
+    for doc in DOCS:
+        heading, block, other_fence = "", None, False
+        for line in doc.read_text().splitlines():
+            if block is not None:
+                if line.strip() == "```":
+                    blocks.append((heading, block))
+                    block = None
+                else:
+                    block.append(line)
+            elif other_fence:
+                other_fence = line.strip() != "```"
             elif line.strip() == f"```{lang}":
                 block = []
-        elif line.strip() == "```":
-            blocks.append((heading, block))
-            block = None
-        else:
-            block.append(line)
+            elif line.strip().startswith("```"):
+                other_fence = True
+            elif line.startswith("#"):
+                heading = line.lstrip("# ").strip()
     result = []
     for heading, lines in blocks:
         if lang != "bash":
@@ -110,9 +121,9 @@ def test_every_readme_command_is_run_here():
     commands = [c for _, cs in readme_blocks("bash") for c in cs]
     assert len(commands) > 20
     unclassified = [c for c in commands if kind_of(c) is None]
-    assert not unclassified, f"README commands no test runs: {unclassified}"
+    assert not unclassified, f"README / docs commands no test runs: {unclassified}"
     ros_install = {strip_comment(c) for c in commands_of("ros_install")}
-    assert ros_install == set(NEEDS_A_ROS_INSTALL), "NEEDS_A_ROS_INSTALL is out of date with the README"
+    assert ros_install == set(NEEDS_A_ROS_INSTALL), "NEEDS_A_ROS_INSTALL is out of date with the README and docs"
     for covered_by in NEEDS_A_ROS_INSTALL.values():
         for name in re.findall(r"test_\w+\.py", covered_by):
             assert (ROOT / "test" / name).is_file(), name
@@ -237,8 +248,9 @@ def test_main_job_options_as_written(workspace, main_job_run):
 
 
 def test_keep_running_serves_the_ui_commands(workspace, main_job_run):
-    """``--keep-running``: the nodes stay up; the README's planning-UI commands and the ones the run prints
-    work against them from another shell (exported as printed); Ctrl-C stops it with 130."""
+    """``--keep-running``: the nodes stay up; the planning-UI commands (docs/planning-ui.md, "Driving it from a
+    planning UI") and the ones the run prints work against them from another shell (exported as printed);
+    Ctrl-C stops it with 130."""
     commands = commands_of("keep_running")
     assert commands
     ui_block = [c for heading, cs in readme_blocks("bash") if "planning UI" in heading for c in cs]
@@ -298,7 +310,7 @@ def run_ui_command(workspace: Workspace, command: str) -> None:
     if "action send_goal" in command:  # the vibration ran: its typed result and the goal's final status
         assert "Goal finished with status: SUCCEEDED" in result.stdout and "Feedback:" in result.stdout, \
             result.stdout[-3000:]
-    if "emergency_stop" in command:  # the reset that follows in the README needs time to move home
+    if "emergency_stop" in command:  # the reset that follows in the block needs time to move home
         time.sleep(1.0)
 
 

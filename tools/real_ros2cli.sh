@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The real ros2cli, launch and launch_ros (ROS 2 Jazzy, not on PyPI) built from their sources into a venv,
-# with this project set up in it as `source tools/env.sh` does: to try the README's `ros2 ...` lines as a ROS
+# with this project set up in it as `source tools/env.sh` does: to try the docs' `ros2 ...` lines as a ROS
 # user would, where there is no ROS install. By hand only (the tests use test/ros2_shim.py).
 #   tools/real_ros2cli.sh BASE            # BASE: a scratch folder (the venv, the sources and a clone go there)
 # Sources: git clones of github.com/ros2/{ros2cli,launch,launch_ros,rosidl_runtime_py}, branch jazzy, or with

@@ -9,7 +9,7 @@ Parameters come from share/stewart_vibration/config/suite_params.yaml (one
 file for both worlds); the node list from stewart_vibration.runtime.suite. DDS: like
 the pip-world bring-up, loopback only by default (share/stewart_vibration/config/
 fastdds_localhost.xml); STEWART_DDS_PROFILE=multihost (or a profile path) in the
-launching shell selects another (README, "Security"). The hardware emulator is a
+launching shell selects another (docs/security.md). The hardware emulator is a
 lifecycle node: this file configures and then activates it (`ros2 lifecycle get
 /stewart/hardware_emulator`).
 """

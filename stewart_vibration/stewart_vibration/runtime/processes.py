@@ -23,7 +23,7 @@ from typing import IO
 from ..errors import ConfigError
 from ..install import find_config_file, prepend_interpreter_prefix
 
-# Fast DDS transport profile of the suite (README "Security"): STEWART_DDS_PROFILE = "loopback"
+# Fast DDS transport profile of the suite (docs/security.md): STEWART_DDS_PROFILE = "loopback"
 # (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
 # (Fast DDS defaults: every interface, multicast discovery on the subnet) or the path of a Fast DDS
 # XML profile file (its default participant profile is used as it is).
