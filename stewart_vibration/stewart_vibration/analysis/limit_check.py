@@ -152,7 +152,7 @@ def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigu
     Args:
         robot: the robot (its limits, vibration-unit limits and hinge points).
         joints: (stamps [n] (s), {"position", "velocity", "effort": [n, 12]}) of legs/joint_states, leg_1..6
-            then vib_1..6 (``messages.arrays.joint_arrays``).
+            then vib_1..6 (``analysis.run_signals.load_signals``).
         pose: (stamps [m] (s), poses [m, 6] (m, rad)) of ground_truth/platform_pose, the true pose.
         clock_times: /clock values [c] (s) in the order they were recorded; None or empty: not checked.
 

@@ -120,7 +120,8 @@ def stream_summary(signals: dict) -> dict:
         streams (0.0 if none), "lost": states lost over all nodes, "windows": {"accepted", "refused",
         "refusals"} (of the last well-formed vibration status), "malformed_statuses": the recorded statuses
         that could not be read (messages.status_values), left out, "untyped_statuses": {topic: count} of
-        statuses recorded in another type (a log from before the typed statuses), not read}.
+        statuses recorded in another type (a log from before the typed statuses), not read, "undecodable":
+        {topic: count} of the recorded messages that could not be decoded, left out of every figure}.
     """
     counts = signals["stream_counts"]
     base = max(counts.get("legs/joint_states", 0), 1)
@@ -148,7 +149,8 @@ def stream_summary(signals: dict) -> dict:
                                             "platform/external_wrench_estimate") if t in topics]
     return {"topics": topics, "nodes": nodes, "worst_ratio": min(derived) if derived else 0.0,
             "lost": sum(n["lost"] for n in nodes.values()), "windows": windows, "malformed_statuses": malformed,
-            "untyped_statuses": dict(signals.get("untyped_statuses") or {})}
+            "untyped_statuses": dict(signals.get("untyped_statuses") or {}),
+            "undecodable": dict(signals.get("undecodable") or {})}
 
 
 def recording_problems(coverage: dict, restarts: list[dict]) -> list[str]:

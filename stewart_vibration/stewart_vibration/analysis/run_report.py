@@ -34,27 +34,6 @@ def _find(reader: RunReader | RunFiles, suffix: str) -> str | None:
     return None
 
 
-def _wrench_series(reader, topic):
-    t, rows = [], []
-    for raw, msg in reader.decoded([topic]):
-        f, m = msg.wrench.force, msg.wrench.torque
-        t.append(raw.publish_time)
-        rows.append([f.x, f.y, f.z, m.x, m.y, m.z])
-    return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, 6)
-
-
-def _joint_series(reader, topic, names, field):
-    t, rows = [], []
-    for raw, msg in reader.decoded([topic]):
-        values = getattr(msg, field)
-        index = {n: i for i, n in enumerate(msg.name)}
-        if not all(n in index and index[n] < len(values) for n in names):
-            continue
-        t.append(raw.publish_time)  # the header stamp: when the sample is from, not when it arrived
-        rows.append([values[index[n]] for n in names])
-    return np.array(t, dtype=np.int64), np.array(rows, dtype=float).reshape(-1, len(names))
-
-
 def vibration_window(data: dict, ramp_trim_s: float = 0.25) -> tuple[float, float] | None:
     """(start, end) s of the steady vibration: where any |vib_i| exceeds 2 % of its peak, minus
     ``ramp_trim_s`` at both ends (the ramps) when the interval is long enough; None if no vibration.
@@ -82,16 +61,17 @@ def _within(t: np.ndarray, window) -> np.ndarray:
     return np.ones(len(t), dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
 
 
-def extract(reader: RunReader | RunFiles) -> dict:
-    """Arrays of the run (SI) keyed by what they are; missing topics are left out.
+def extract(reader: RunReader | RunFiles, signals: dict) -> dict:
+    """Arrays of the run (SI) keyed by what they are, for the plots and the summary; missing topics are left out.
 
     Args:
-        reader: the open run.
+        reader: the open run (its first message is the time origin; its events).
+        signals: ``run_signals.load_signals`` of the same run (the arrays are taken from it, not decoded again).
 
     Returns:
         {"time_origin_s": log time of the first message (s); "leg_t", "leg_lengths" [n, 6] (m);
-        "vib_t", "vib" [n, 6] (m); "force_t", "force" [n, 6] (measured axial force, N); "est_t", "est"
-        [n, 6] (estimated leg force, N); "pose_t", "pose_xyz" [n, 3] (m); "wrench_applied(_t)",
+        "vib_t", "vib" [n, 6] (m); "force_t", "force" [n, 6] (measured axial force, N) from legs/joint_states;
+        "est_t", "est" [n, 6] (estimated leg force, N); "pose_t", "pose_xyz" [n, 3] (m); "wrench_applied(_t)",
         "wrench_estimated(_t)" [n, 6] ([N; N m], the estimate only with an applied one); "guard_trips";
         "events"; "vibration_window" (``vibration_window``)}. Every time (``*_t``, ``t_s``) is in s from
         the first message.
@@ -99,37 +79,38 @@ def extract(reader: RunReader | RunFiles) -> dict:
     data: dict = {}
     first = next(iter(reader.messages()), None)
     t0 = first.log_time if first is not None else 0
-    data["time_origin_s"] = t0 / 1e9
-    if js := _find(reader, "legs/joint_states"):
-        t, lengths = _joint_series(reader, js, LEG_NAMES, "position")
-        if len(t):
-            data["leg_t"], data["leg_lengths"] = (t - t0) / 1e9, lengths
-        t, vib = _joint_series(reader, js, VIB_NAMES, "position")
-        if len(t):
-            data["vib_t"], data["vib"] = (t - t0) / 1e9, vib
-        t, force = _joint_series(reader, js, LEG_NAMES, "effort")
-        if len(t):
-            data["force_t"], data["force"] = (t - t0) / 1e9, force
-    if est := _find(reader, "legs/force_estimate"):
-        t, force = _joint_series(reader, est, LEG_NAMES, "effort")
-        if len(t):
-            data["est_t"], data["est"] = (t - t0) / 1e9, force
-    if pose := _find(reader, "ground_truth/platform_pose"):
-        t, xyz = [], []
-        for raw, msg in reader.decoded([pose]):
-            p = msg.pose.position
-            t.append(raw.publish_time)
-            xyz.append([p.x, p.y, p.z])
-        data["pose_t"], data["pose_xyz"] = (np.array(t) - t0) / 1e9, np.array(xyz)
-    for key, suffix in (("applied", "ground_truth/tissue_wrench"), ("estimated", "platform/external_wrench_estimate")):
-        if (topic := _find(reader, suffix)) and (key == "applied" or "wrench_applied" in data):
-            t, wrench = _wrench_series(reader, topic)
-            if len(t):
-                data[f"wrench_{key}_t"], data[f"wrench_{key}"] = (t - t0) / 1e9, wrench
-    if guard := _find(reader, "kinematics/guard_status"):
-        statuses = [raw.data for raw in reader.messages([guard])]
-        data["guard_trips"] = [dict(trip.record(), t_s=(trip.trip_time_s * 1e9 - t0) / 1e9)
-                               for trip in guard_trips({"guard_status": statuses})]
+    origin = t0 / 1e9
+    data["time_origin_s"] = origin
+    st, sensed = signals["sensed_joints"]
+    for key, field, columns in (("leg", "position", slice(0, 6)), ("vib", "position", slice(6, 12)),
+                                ("force", "effort", slice(0, 6))):
+        values = sensed[field][:, columns]
+        kept = np.isfinite(values).all(axis=1)  # a state that left this field empty is not a sample of it
+        if kept.any():
+            name = {"leg": "leg_lengths", "vib": "vib", "force": "force"}[key]
+            data[f"{key}_t"], data[name] = st[kept] - origin, values[kept]
+    et, estimate = signals["force_estimate"]
+    kept = np.isfinite(estimate["effort"]).all(axis=1)
+    if kept.any():
+        data["est_t"], data["est"] = et[kept] - origin, estimate["effort"][kept]
+    pt, poses = signals["pose"]
+    if pt.size:
+        data["pose_t"], data["pose_xyz"] = pt - origin, poses[:, :3]
+    for key, name in (("applied", "tissue_wrench"), ("estimated", "wrench_estimate")):
+        t, wrench = signals[name]
+        if t.size and (key == "applied" or "wrench_applied" in data):
+            data[f"wrench_{key}_t"], data[f"wrench_{key}"] = t - origin, wrench
+    if signals["guard_status"]:
+        data["guard_trips"] = [dict(trip.record(), t_s=trip.trip_time_s - origin)
+                               for trip in guard_trips({"guard_status": signals["guard_status"]})]
+    data["events"] = _events(reader, t0)
+    data["vibration_window"] = vibration_window(data)
+    return data
+
+
+def _events(reader: RunReader | RunFiles, t0: int) -> list[dict]:
+    """Every /diagnostics status, and the /rosout lines that are warnings or name a start, stop or reset, with
+    their log time (s from ``t0``, ns)."""
     events = []
     for topic in ("/diagnostics", "/rosout"):
         if _find(reader, topic) != topic:
@@ -142,9 +123,7 @@ def extract(reader: RunReader | RunFiles) -> dict:
                     events.append({"t_s": when, "source": s.name, "level": level, "text": s.message})
             elif int(msg.level) >= 30 or any(w in msg.msg.lower() for w in EVENT_WORDS):
                 events.append({"t_s": when, "source": msg.name, "level": int(msg.level), "text": msg.msg})
-    data["events"] = events
-    data["vibration_window"] = vibration_window(data)
-    return data
+    return events
 
 
 def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Robot) -> dict:
@@ -304,8 +283,9 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
     reader = open_run(mcap_path, allow_truncated=allow_truncated, verify=True)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    data = extract(reader)
-    summary = summarize(reader, data, load_signals(reader), robot or load_robot())
+    signals = load_signals(reader)
+    data = extract(reader, signals)
+    summary = summarize(reader, data, signals, robot or load_robot())
     plots = run_plots.plot_all(data, summary, out)
     summary["plots"] = plots
     (out / "summary.json").write_text(json.dumps(summary, indent=2))

@@ -9,13 +9,11 @@ streams' stamps, counted for stream health, in ns).
 
 from __future__ import annotations
 
-from typing import Any
-
 import numpy as np
 
 from ..mcap_log.reader import RunFiles, RunReader, open_run
-from ..messages.arrays import joint_arrays, pose_array, stamp_s
-from ..robot import LEG_NAMES
+from ..robot import LEG_NAMES, VIB_NAMES
+from .run_streams import JOINTS, POSE, STAMP, WRENCH, StreamKind, decode_diagnostics, read_streams
 
 # topics a log recorded before the ground truth moved under ground_truth/ (old name -> new name)
 LEGACY_TRUTH = {"platform/pose": "ground_truth/platform_pose", "platform/tissue_wrench": "ground_truth/tissue_wrench"}
@@ -45,99 +43,71 @@ def load_signals(mcap_path) -> dict:
         "vibration_status" and "guard_status": the raw VibrationUnitsStatus and ForceGuardStatus messages (bytes;
         read with messages.status_values, which counts what is malformed), "untyped_statuses": {topic: count} of
         those recorded in another type (a log from before the typed statuses: left out), "node_diagnostics"
-        (``last_diagnostics``), "tissue_wrench" and "wrench_estimate" (``wrench_array``), "clock": the /clock
-        values (s) in recorded order, "stream_stamps" and "files" (``stream_stamps``)}.
+        (``last_diagnostics``), "tissue_wrench" and "wrench_estimate" (times [n] (s), wrenches [n, 6] [force N,
+        torque N m]), "clock": the /clock values (s) in recorded order, "stream_stamps": {key of STREAM_TOPICS:
+        publish times [n] (ns: the recorded header stamps), file after file}, "files": [{"file", "complete",
+        "states": legs/joint_states in it, "first_s", "last_s": its first and last state stamp (s, None without
+        states)}] in time order, "undecodable": {topic key: messages that could not be decoded, left out}}.
 
     Raises:
         McapFileError: a path that is missing, a folder without .mcap files, or a file that is empty or not MCAP.
     """
-    wanted: dict[str, list[Any]] = {
-        "ground_truth/platform_pose": [], "ground_truth/joint_states": [], "legs/joint_states": [],
-        "platform/pose_estimate": [], "legs/force_estimate": [], "vibration/joint_trajectory": [], "/diagnostics": [],
-        "ground_truth/tissue_wrench": [], "platform/external_wrench_estimate": [], "/clock": [],
-        **{old: [] for old in LEGACY_TRUTH}}
-    raw_wanted: dict[str, list[bytes]] = {"vibration/status": [], "kinematics/guard_status": []}
     reader = mcap_path if isinstance(mcap_path, (RunReader, RunFiles)) else open_run(mcap_path, allow_truncated=True)
-    stamps, files = stream_stamps(reader)
-    counts = counts_in_common_span(stamps)
-    def recorded(names):
-        return [t.topic for t in reader.topics() if any(t.topic.endswith("/" + w) or t.topic == w for w in names)]
-
-    for raw, msg in reader.decoded(recorded(wanted)):
-        for key, bucket in wanted.items():
-            if raw.topic.endswith("/" + key) or raw.topic == key:
-                bucket.append(msg)
-    untyped: dict[str, int] = {}
-    for raw in reader.messages(recorded(raw_wanted)):  # read field by field: a spoofed status is counted
-        for key, raw_bucket in raw_wanted.items():
-            if raw.topic.endswith("/" + key) or raw.topic == key:
-                if raw.type_name == TYPED_STATUS[key]:
-                    raw_bucket.append(raw.data)
-                else:  # a log from before the typed statuses (DiagnosticStatus): not read as one of them
-                    untyped[key] = untyped.get(key, 0) + 1
+    states = StreamKind(JOINTS, tuple(LEG_NAMES + VIB_NAMES))
+    kinds = {"ground_truth/joint_states": states, "legs/joint_states": states,
+             "legs/force_estimate": StreamKind(JOINTS, tuple(LEG_NAMES)),
+             **{key: StreamKind(POSE) for key in ("ground_truth/platform_pose", "platform/pose_estimate")},
+             **{key: StreamKind(WRENCH) for key in ("ground_truth/tissue_wrench", "platform/external_wrench_estimate")},
+             "vibration/joint_trajectory": StreamKind(STAMP), "/clock": StreamKind(STAMP),
+             "platform/pose": StreamKind(POSE), "platform/tissue_wrench": StreamKind(WRENCH)}  # LEGACY_TRUTH's
+    parts = reader.files if isinstance(reader, RunFiles) else [reader]
+    streams, per_file = read_streams(parts, kinds, raw=("vibration/status", "kinematics/guard_status", "/diagnostics"),
+                                     counted=STREAM_TOPICS)
+    got = streams.decoded
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
-        wanted[new] = wanted[new] or wanted[old]
-    sensed = joint_arrays(wanted["legs/joint_states"])
+        if not got[new][0].size:
+            got[new] = got[old]
+    typed: dict[str, list[bytes]] = {"vibration/status": [], "kinematics/guard_status": []}
+    untyped: dict[str, int] = {}
+    for key, bucket in typed.items():  # read field by field later: a spoofed status is counted
+        for type_name, data in streams.raw[key]:
+            if type_name == TYPED_STATUS[key]:
+                bucket.append(data)
+            else:  # a log from before the typed statuses (DiagnosticStatus): not read as one of them
+                untyped[key] = untyped.get(key, 0) + 1
+    diagnostics, bad_diagnostics = decode_diagnostics([data for _type, data in streams.raw["/diagnostics"]])
+    undecodable = dict(streams.undecodable)
+    if bad_diagnostics:
+        undecodable["/diagnostics"] = bad_diagnostics
+    stamps = streams.publish_ns
+    sensed = got["legs/joint_states"]
     return {
-        "pose": pose_array(wanted["ground_truth/platform_pose"]),
-        "joints": joint_arrays(wanted["ground_truth/joint_states"]) if wanted["ground_truth/joint_states"] else sensed,
+        "pose": got["ground_truth/platform_pose"],
+        "joints": got["ground_truth/joint_states"] if got["ground_truth/joint_states"][0].size else sensed,
         "sensed_joints": sensed,
-        "pose_estimate": pose_array(wanted["platform/pose_estimate"]),
-        "force_estimate": joint_arrays(wanted["legs/force_estimate"], names=LEG_NAMES),
-        "vibration_starts": np.unique([stamp_s(m.header) for m in wanted["vibration/joint_trajectory"]]),
-        "stream_counts": counts,
-        "vibration_status": raw_wanted["vibration/status"],
-        "node_diagnostics": last_diagnostics(wanted["/diagnostics"]),
-        "tissue_wrench": wrench_array(wanted["ground_truth/tissue_wrench"]),
-        "wrench_estimate": wrench_array(wanted["platform/external_wrench_estimate"]),
-        "guard_status": raw_wanted["kinematics/guard_status"],
+        "pose_estimate": got["platform/pose_estimate"],
+        "force_estimate": got["legs/force_estimate"],
+        "vibration_starts": np.unique(got["vibration/joint_trajectory"]),
+        "stream_counts": counts_in_common_span(stamps),
+        "vibration_status": typed["vibration/status"],
+        "node_diagnostics": last_diagnostics(diagnostics),
+        "tissue_wrench": got["ground_truth/tissue_wrench"],
+        "wrench_estimate": got["platform/external_wrench_estimate"],
+        "guard_status": typed["kinematics/guard_status"],
         "untyped_statuses": untyped,
-        "clock": np.array([m.clock.sec + m.clock.nanosec * 1e-9 for m in wanted["/clock"]]),
+        "undecodable": undecodable,
+        "clock": got["/clock"],
         "stream_stamps": stamps,
-        "files": files,
+        "files": [_file_coverage(f) for f in per_file],
     }
 
 
-def wrench_array(messages) -> tuple[np.ndarray, np.ndarray]:
-    """WrenchStamped messages -> (times [n] s, wrenches [n, 6] = [force N, torque N m]).
-
-    Args:
-        messages: WrenchStamped messages.
-
-    Returns:
-        (header-stamp times [n] (s), wrenches [n, 6] [force N; torque N m]); empty arrays without messages.
-    """
-    if not messages:
-        return np.empty(0), np.empty((0, 6))
-    times = np.array([stamp_s(m.header) for m in messages])
-    values = np.array([[m.wrench.force.x, m.wrench.force.y, m.wrench.force.z,
-                        m.wrench.torque.x, m.wrench.torque.y, m.wrench.torque.z] for m in messages])
-    return times, values
-
-
-def stream_stamps(reader: RunReader | RunFiles) -> tuple[dict, list[dict]]:
-    """Header stamps of every 500 Hz stream over every file, and what each file holds.
-
-    Args:
-        reader: the open run (one file or several).
-
-    Returns:
-        ({key of STREAM_TOPICS: stamps [n] (ns, int64, file after file)}, [{"file": name, "complete": bool,
-        "states": legs/joint_states in it, "first_s", "last_s": its first and last state stamp (s, None
-        without states)}] in time order).
-    """
-    names = {t.topic: key for t in reader.topics() for key in STREAM_TOPICS if t.topic.endswith("/" + key)}
-    stamps: dict[str, list[int]] = {key: [] for key in STREAM_TOPICS}
-    files = []
-    for part in reader.files if isinstance(reader, RunFiles) else [reader]:
-        states = stamps["legs/joint_states"]
-        before = len(states)
-        for raw in part.messages(list(names)):
-            stamps[names[raw.topic]].append(raw.publish_time)
-        mine = states[before:]
-        files.append({"file": part.path.name, "complete": part.complete, "states": len(mine),
-                      "first_s": min(mine) / 1e9 if mine else None, "last_s": max(mine) / 1e9 if mine else None})
-    return {key: np.asarray(v, dtype=np.int64) for key, v in stamps.items()}, files
+def _file_coverage(part: dict) -> dict:
+    """What one file holds: its name, whether it is complete, its states and their first and last stamp (s)."""
+    mine = part["publish_ns"]["legs/joint_states"]
+    first, last = (int(mine.min()) / 1e9, int(mine.max()) / 1e9) if mine.size else (None, None)
+    return {"file": part["file"], "complete": part["complete"], "states": int(mine.size), "first_s": first,
+            "last_s": last}
 
 
 def counts_in_common_span(stamps: dict) -> dict:
@@ -145,7 +115,7 @@ def counts_in_common_span(stamps: dict) -> dict:
     first stamp to the first last stamp: start-up and shut-down are not losses).
 
     Args:
-        stamps: {key of STREAM_TOPICS: stamps [n] (ns)} (``stream_stamps``).
+        stamps: {key of STREAM_TOPICS: stamps [n] (ns)} (``load_signals``' stream_stamps).
 
     Returns:
         {key: message count}; all messages of each topic when one of them is missing.
@@ -161,14 +131,13 @@ def last_diagnostics(arrays) -> dict:
     """{status name: (level, message, {key: value})} of the last DiagnosticStatus of each name.
 
     Args:
-        arrays: DiagnosticArray messages, in time order.
+        arrays: the status lists of DiagnosticArray messages (``messages.cdr.DiagnosticStatusData``), in time order.
 
     Returns:
         {status name: (level as int, message, {key: value})}.
     """
     out = {}
-    for array in arrays:
-        for status in array.status:
-            out[status.name] = (int.from_bytes(status.level, "little") if isinstance(status.level, bytes)
-                                else int(status.level), status.message, {kv.key: kv.value for kv in status.values})
+    for statuses in arrays:
+        for status in statuses:
+            out[status.name] = (int(status.level), status.message, dict(status.values))
     return out

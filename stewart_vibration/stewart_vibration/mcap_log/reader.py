@@ -14,10 +14,11 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
-from mcap.records import Channel, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader
+from mcap.records import Channel, Chunk, ChunkIndex, Message, Metadata, Schema
+from mcap.stream_reader import StreamReader, breakup_chunk
 
 from .bag_metadata import BagFile, TopicCount
 from .files import McapFileError, check_readable, run_files, truncated_error
@@ -61,6 +62,7 @@ class RunReader:
         self.end_ns = 0
         self._counts: dict[int, int] = {}
         self._messages: list[Message] | None = None
+        self._chunk_indexes: list[ChunkIndex] = []  # in file order
         self._load()
 
     def _load(self) -> None:
@@ -78,6 +80,7 @@ class RunReader:
                 self.channels = dict(summary.channels)
                 self._counts = dict(summary.statistics.channel_message_counts)
                 self.start_ns = int(summary.statistics.message_start_time)
+                self._chunk_indexes = sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
                 self.end_ns = int(summary.statistics.message_end_time)
                 for name, data in ((m.name, m.metadata) for m in reader.iter_metadata()):
                     self.metadata[name] = dict(data)
@@ -140,20 +143,37 @@ class RunReader:
             ch.topic, schema.name if schema else "", msg.log_time, msg.publish_time, msg.data
         )
 
-    def messages(self, topics: list[str] | None = None) -> Iterator[RawMessage]:
-        """Raw messages in log-time order, optionally only ``topics``."""
+    def messages(self, topics: list[str] | None = None, log_time_order: bool = True) -> Iterator[RawMessage]:
+        """Raw messages, optionally only ``topics``: in log-time order, or with ``log_time_order`` False in the
+        order they are in the file (chunk after chunk; no merge across chunks, several times faster)."""
         wanted = set(topics) if topics is not None else None
         if self._messages is not None:
             for m in self._messages:
                 if wanted is None or self.channels[m.channel_id].topic in wanted:
                     yield self._raw(m)
             return
+        if not log_time_order and self._chunk_indexes:
+            yield from self._chunk_after_chunk(wanted)
+            return
         with open(self.path, "rb") as f:
             reader = make_reader(f)
             for _schema, _channel, message in reader.iter_messages(
-                topics=list(wanted) if wanted is not None else None, log_time_order=True
+                topics=list(wanted) if wanted is not None else None, log_time_order=log_time_order
             ):
                 yield self._raw(message)
+
+    def _chunk_after_chunk(self, wanted: set[str] | None) -> Iterator[RawMessage]:
+        """The messages of ``wanted`` topics in file order, one chunk in memory at a time (the mcap library's
+        unordered read decompresses every chunk before it yields the first message)."""
+        ids = {cid for cid, ch in self.channels.items() if wanted is None or ch.topic in wanted}
+        with open(self.path, "rb") as f:
+            for index in self._chunk_indexes:
+                if index.message_index_offsets and not ids & index.message_index_offsets.keys():
+                    continue  # no message of a wanted topic in this chunk
+                f.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
+                for record in breakup_chunk(Chunk.read(ReadDataStream(f))):
+                    if isinstance(record, Message) and record.channel_id in ids:
+                        yield self._raw(record)
 
     def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, Any]]:
         """(raw, decoded) pairs using mcap_ros2's dynamic decoder (no ROS needed)."""

@@ -23,6 +23,7 @@ import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402 - matplotlib's own dependency
 
 from ..analysis.run_report import extract  # noqa: E402
+from ..analysis.run_signals import load_signals  # noqa: E402
 from ..errors import StewartError  # noqa: E402
 from ..kinematics.robot_config import load_robot  # noqa: E402
 from ..kinematics.rotations import rotation_from_quaternion  # noqa: E402
@@ -108,7 +109,7 @@ def render_run(path, out, at_s: float | None = None, robot_config=None) -> dict:
     pose_topic = next((t for t in topics if t.endswith("ground_truth/platform_pose")), None)
     if pose_topic is None:
         raise StewartError(f"{path}: no ground_truth/platform_pose recorded, nothing to draw")
-    data = extract(reader)
+    data = extract(reader, load_signals(reader))
     t0 = next(reader.messages()).log_time
     window = data.get("vibration_window")
     if at_s is None:

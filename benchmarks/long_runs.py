@@ -1,0 +1,125 @@
+"""Run summary and report of long recordings: time and peak memory against the recording's length.
+
+    python benchmarks/long_runs.py [--minutes 1 10 60] [--keep DIR]
+
+Synthesises a recording of each length with the main job's streams and rates (sensed and true joint states,
+true pose, pose estimate, leg-force estimate, external-wrench estimate and IMU at 500 Hz, /clock at 100 Hz;
+serialized as the nodes do, zstd chunks as the recorder writes), the units vibrating at 35 Hz throughout. Then,
+each in a process of its own, it reads the run's signals (``analysis.run_signals.load_signals``: what every
+figure of the run summary is computed from) and writes the report (``stewart-vibration report``), and prints
+per length the file's size, the wall time and peak resident memory of both, and the time as a share of the
+run's length. One JSON line per length, then a table.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from stewart_vibration.mcap_log.writer import BagFileWriter
+from stewart_vibration.messages import cdr
+from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
+
+STATE_HZ, CLOCK_HZ, VIBRATION_HZ = 500, 100, 35.0
+NS = "/stewart/"
+
+
+def synthesize(path: Path, seconds: float) -> int:
+    """Write a recording of ``seconds`` (s) to ``path``; returns its message count."""
+    writer = BagFileWriter(path)
+    joint_state, pose_stamped = "sensor_msgs/msg/JointState", "geometry_msgs/msg/PoseStamped"
+    types = {"legs/joint_states": joint_state, "ground_truth/joint_states": joint_state,
+             "ground_truth/platform_pose": pose_stamped, "platform/pose_estimate": pose_stamped,
+             "legs/force_estimate": joint_state, "platform/external_wrench_estimate": "geometry_msgs/msg/WrenchStamped",
+             "platform/imu": "sensor_msgs/msg/Imu"}
+    for name, type_name in types.items():
+        writer.add_topic(NS + name, type_name, "[]")
+    writer.add_topic("/clock", "rosgraph_msgs/msg/Clock", "[]")
+    states = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES, "base")
+    forces = cdr.JointStateEncoder(LEG_NAMES, "base", fields=("effort",))
+    pose, wrench, imu = cdr.PoseStampedEncoder("base"), cdr.WrenchStampedEncoder("base"), cdr.ImuEncoder("platform")
+    rng = np.random.default_rng(1)
+    amplitude = rng.uniform(5e-6, 2e-5, 6)
+    phase = rng.choice([0.0, np.pi], 6)
+    count = 0
+    for block in range(int(np.ceil(seconds))):  # one second at a time: the arrays stay small
+        t = block + np.arange(STATE_HZ) / STATE_HZ
+        t = t[t < seconds]
+        vib = amplitude * np.sin(2 * np.pi * VIBRATION_HZ * t[:, None] + phase)
+        legs = 0.45 + 1e-4 * np.sin(0.1 * t[:, None]) + vib
+        effort = 80.0 + 5.0 * np.sin(2 * np.pi * VIBRATION_HZ * t[:, None] + phase)
+        z = 0.3 + 2e-5 * np.sin(2 * np.pi * VIBRATION_HZ * t)
+        for i, ti in enumerate(t):
+            log = round(ti * 1e9) + 300_000
+            position = np.concatenate([legs[i], vib[i]])
+            for name in ("legs/joint_states", "ground_truth/joint_states"):
+                writer.write(NS + name, log, states.encode(ti, position, np.zeros(12), np.concatenate([effort[i],
+                                                                                                    np.zeros(6)])))
+            for name in ("ground_truth/platform_pose", "platform/pose_estimate"):
+                writer.write(NS + name, log, pose.encode(ti, [0.0, 0.0, z[i]], [0.0, 0.0, 0.0, 1.0]))
+            writer.write(NS + "legs/force_estimate", log, forces.encode(ti, effort=effort[i]))
+            writer.write(NS + "platform/external_wrench_estimate", log, wrench.encode(ti, np.zeros(6)))
+            writer.write(NS + "platform/imu", log, imu.encode(ti, np.zeros(3), [0.0, 0.0, 9.81]))
+            count += 7
+            if i % (STATE_HZ // CLOCK_HZ) == 0:
+                writer.write("/clock", log, cdr.encode_clock(ti))
+                count += 1
+    writer.finish()
+    return count
+
+
+def measured(command: list[str]) -> tuple[float, float]:
+    """(wall time s, peak resident memory MB) of ``command`` run to its end (raises if it fails)."""
+    start = time.perf_counter()
+    proc = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    _pid, status, usage = os.wait4(proc.pid, 0)
+    wall = time.perf_counter() - start
+    if os.waitstatus_to_exitcode(status) != 0:
+        raise RuntimeError(f"{command} failed: {proc.stderr.read().decode()[-2000:] if proc.stderr else ''}")
+    return wall, usage.ru_maxrss / 1024.0
+
+
+def main() -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, nargs="+", default=[1.0, 10.0, 60.0])
+    ap.add_argument("--keep", type=Path, default=None, help="write the recordings here and keep them")
+    args = ap.parse_args()
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        where = args.keep or Path(tmp)
+        for minutes in args.minutes:
+            path = where / f"run_{minutes:g}min.mcap"
+            start = time.perf_counter()
+            count = synthesize(path, minutes * 60.0)
+            made_s = time.perf_counter() - start
+            signals_s, signals_mb = measured([sys.executable, "-c", "import sys; from stewart_vibration.analysis."
+                                              "run_signals import load_signals; load_signals(sys.argv[1])", str(path)])
+            report_s, report_mb = measured([sys.executable, "-m", "stewart_vibration", "report", str(path), "--out",
+                                            str(where / f"report_{minutes:g}min")])
+            row = {"minutes": minutes, "messages": count, "mcap_mb": round(path.stat().st_size / 1e6, 1),
+                   "synthesized_s": round(made_s, 1), "signals_s": round(signals_s, 2),
+                   "signals_peak_mb": round(signals_mb), "report_s": round(report_s, 2),
+                   "report_peak_mb": round(report_mb),
+                   "report_share_of_run": round(report_s / (minutes * 60.0), 4)}
+            rows.append(row)
+            print(json.dumps(row), flush=True)
+            if args.keep is None:
+                path.unlink()
+    print("\n| run | MCAP | signals: time, peak memory | report: time, peak memory | report time / run length |")
+    print("|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['minutes']:g} min | {r['mcap_mb']} MB | {r['signals_s']} s, {r['signals_peak_mb']} MB | "
+              f"{r['report_s']} s, {r['report_peak_mb']} MB | {100 * r['report_share_of_run']:.1f} % |")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
