@@ -73,3 +73,21 @@ def test_report_summary_and_plots(tmp_path, capsys):
     for name in ("leg_lengths.png", "vibration.png", "platform.png", "forces.png", "events.png"):
         assert (out / name).stat().st_size > 10_000
     assert "vib amplitude" in (out / "summary.md").read_text()
+
+
+def test_a_long_series_is_plotted_as_its_envelope_with_every_peak():
+    from stewart_vibration.analysis.run_plots import PLOT_BINS, envelope
+
+    t = np.arange(1_800_000) / 500.0  # an hour at 500 Hz
+    y = 2e-5 * np.sin(2 * np.pi * 35.0 * t)
+    y[777_777], y[1_234_567] = 1e-3, -2e-3  # one-sample spikes must stay visible
+    y[5] = np.nan
+    te, ye = envelope(t, y)
+    assert te.size == ye.size == 2 * PLOT_BINS
+    assert ye.max() == 1e-3 and ye.min() == -2e-3
+    assert np.all(np.diff(te) >= 0) and te[0] >= t[0] and te[-1] <= t[-1]
+    spike = np.flatnonzero(ye == 1e-3)[0]  # drawn at its own time, within one bin
+    assert abs(te[spike] - t[777_777]) <= t[-1] / PLOT_BINS
+    short_t, short_y = envelope(t[:1000], y[:1000])
+    np.testing.assert_array_equal(short_t, t[:1000])
+    np.testing.assert_array_equal(short_y, y[:1000])

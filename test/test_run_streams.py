@@ -160,3 +160,13 @@ def test_a_file_of_many_chunks_is_read_chunk_after_chunk_as_its_log_time_order(t
     for topic in TOPICS:  # each topic in the same order either way
         assert [m for m in in_file if m[0] == topic] == [m for m in ordered if m[0] == topic]
     check(load_signals(reader), *made)
+
+
+def test_rows_beyond_the_expected_count_are_kept_in_order():
+    rows = run_streams._Rows(2, (6,))  # a file whose statistics undercount: the arrays grow
+    values = np.arange(30.0).reshape(5, 6)
+    rows.append(np.array([1, 3]), 0, np.array([0.1, 0.3]), values[:2])
+    rows.append(np.array([2, 4, 5]), 0, np.array([0.2, 0.4, 0.5]), values[2:])
+    times, got = rows.in_order()
+    np.testing.assert_array_equal(times, [0.1, 0.2, 0.3, 0.4, 0.5])
+    np.testing.assert_array_equal(got, values[[0, 2, 1, 3, 4]])

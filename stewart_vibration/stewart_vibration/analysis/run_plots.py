@@ -12,6 +12,30 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 
 COLORS = plt.get_cmap("tab10").colors  # type: ignore[attr-defined]  # tab10 is a ListedColormap
+PLOT_BINS = 2000  # a whole-run line is drawn as this many min/max pairs at most: more than the figure's pixels
+PATH_POINTS = 20_000  # samples of the 3D vibration path drawn at most
+
+
+def envelope(t, y, bins: int = PLOT_BINS) -> tuple[np.ndarray, np.ndarray]:
+    """(t, y) [n] reduced for a line plot: with more than 2 ``bins`` samples, each of ``bins`` equal runs of
+    samples becomes a vertical stroke from its min to its max at its middle time (every peak stays drawn, and an
+    hour of 500 Hz samples does not cost a figure millions of points); fewer samples are returned as they are.
+    Non-finite samples are left out of the min and max."""
+    t, y = np.asarray(t, dtype=float), np.asarray(y, dtype=float)
+    if t.size <= 2 * bins:
+        return t, y
+    starts = np.linspace(0, t.size, bins + 1).astype(int)[:-1]
+    finite = np.where(np.isfinite(y), y, np.nan)
+    with np.errstate(invalid="ignore"):
+        low = np.fmin.reduceat(finite, starts)
+        high = np.fmax.reduceat(finite, starts)
+    middle = t[starts + np.diff(np.append(starts, t.size)) // 2]
+    return np.repeat(middle, 2), np.column_stack([low, high]).ravel()
+
+
+def _line(ax, t, y, **style) -> None:
+    """``ax.plot`` of a whole-run series through its ``envelope``."""
+    ax.plot(*envelope(t, y), **style)
 
 
 def _legs_grid(title: str):
@@ -45,7 +69,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
     if "leg_lengths" in data:
         fig, axes = _legs_grid("Leg lengths (strut, from legs/joint_states)")
         for i, ax in enumerate(axes):
-            ax.plot(data["leg_t"], data["leg_lengths"][:, i] * 1e3, color=COLORS[i], lw=0.8)
+            _line(ax, data["leg_t"], data["leg_lengths"][:, i] * 1e3, color=COLORS[i], lw=0.8)
             ax.set_title(f"leg_{i + 1}")
             ax.set_ylabel("length (mm)")
             ax.grid(alpha=0.3)
@@ -56,7 +80,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         fig, axes = _legs_grid("Vibration unit displacement per leg (vib_*)")
         vib = summary.get("vibration", {})
         for i, ax in enumerate(axes):
-            ax.plot(data["vib_t"], data["vib"][:, i] * 1e3, color=COLORS[i], lw=0.8)
+            _line(ax, data["vib_t"], data["vib"][:, i] * 1e3, color=COLORS[i], lw=0.8)
             v = vib.get(f"vib_{i + 1}", {})
             ax.set_title(f"vib_{i + 1}: {v.get('amplitude_m', 0) * 1e3:.3f} mm at {v.get('frequency_hz', 0):.3f} Hz")
             ax.set_ylabel("displacement (mm)")
@@ -70,7 +94,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         dev = (data["pose_xyz"] - mean) * 1e3
         for k, name in enumerate("xyz"):
             ax = fig.add_subplot(3, 2, 2 * k + 1)
-            ax.plot(data["pose_t"], dev[:, k], color=COLORS[k], lw=0.8)
+            _line(ax, data["pose_t"], dev[:, k], color=COLORS[k], lw=0.8)
             ax.set_ylabel(f"{name} (mm)\nmean {mean[k] * 1e3:.2f}")
             ax.grid(alpha=0.3)
             if k == 0:
@@ -81,6 +105,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         if window:  # the vibration itself, in um, about its own mean
             sel = (data["pose_t"] >= window[0]) & (data["pose_t"] <= window[1])
             path = (data["pose_xyz"][sel] - data["pose_xyz"][sel].mean(axis=0)) * 1e6
+            path = path[::max(1, path.shape[0] // PATH_POINTS)]  # a back-and-forth line: a stride keeps its shape
             ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=0.8, color="gray")
             p = summary.get("platform", {})
             if p:
@@ -103,9 +128,9 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         fig, axes = _legs_grid("Leg axial force: measured (legs/joint_states) vs estimated (legs/force_estimate)")
         for i, ax in enumerate(axes):
             if "force" in data:
-                ax.plot(data["force_t"], data["force"][:, i], color="black", lw=1.0, label="measured")
+                _line(ax, data["force_t"], data["force"][:, i], color="black", lw=1.0, label="measured")
             if "est" in data:
-                ax.plot(data["est_t"], data["est"][:, i], color="tab:orange", lw=1.0, ls="--", label="estimated")
+                _line(ax, data["est_t"], data["est"][:, i], color="tab:orange", lw=1.0, ls="--", label="estimated")
             ax.set_title(f"leg_{i + 1}")
             ax.set_ylabel("force (N)")
             ax.grid(alpha=0.3)
@@ -163,16 +188,16 @@ def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
     for col, (what, unit, first) in enumerate((("force", "N", 0), ("moment", "N m", 3))):
         ax = axes[0, col]
         for k, name in enumerate("xyz"):
-            ax.plot(ta, wa[:, first + k], color=COLORS[k], lw=1.0, label=f"{name} applied")
+            _line(ax, ta, wa[:, first + k], color=COLORS[k], lw=1.0, label=f"{name} applied")
             if we is not None:
-                ax.plot(te, we[:, first + k], color=COLORS[k], lw=1.0, ls="--", label=f"{name} estimated")
+                _line(ax, te, we[:, first + k], color=COLORS[k], lw=1.0, ls="--", label=f"{name} estimated")
         ax.set_title(f"{what} components")
         ax.set_ylabel(f"{what} ({unit})")
         ax.legend(loc="upper right", fontsize=7, ncol=2)
         ax = axes[1, col]
-        ax.plot(ta, np.linalg.norm(wa[:, first:first + 3], axis=1), color="black", lw=1.0, label="|applied|")
+        _line(ax, ta, np.linalg.norm(wa[:, first:first + 3], axis=1), color="black", lw=1.0, label="|applied|")
         if we is not None:
-            ax.plot(te, np.linalg.norm(we[:, first:first + 3], axis=1), color="tab:orange", lw=1.0, ls="--",
+            _line(ax, te, np.linalg.norm(we[:, first:first + 3], axis=1), color="tab:orange", lw=1.0, ls="--",
                     label="|estimated|")
         ax.set_ylabel(f"|{what}| ({unit})")
         ax.legend(loc="best", fontsize=7)
@@ -181,7 +206,7 @@ def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
             # te: set with we (run_report.extract)
             common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(cast(np.ndarray, te), 6), return_indices=True)
             err = np.linalg.norm(we[ie, first:first + 3] - wa[ia, first:first + 3], axis=1)
-            ax.plot(common, err, color="tab:red", lw=0.8)
+            _line(ax, common, err, color="tab:red", lw=0.8)
         ax.set_ylabel(f"|error| ({unit})")
         ax.set_xlabel("time (s)")
     for trip in data.get("guard_trips", []):

@@ -88,11 +88,11 @@ def extract(reader: RunReader | RunFiles, signals: dict) -> dict:
         kept = np.isfinite(values).all(axis=1)  # a state that left this field empty is not a sample of it
         if kept.any():
             name = {"leg": "leg_lengths", "vib": "vib", "force": "force"}[key]
-            data[f"{key}_t"], data[name] = st[kept] - origin, values[kept]
+            data[f"{key}_t"], data[name] = st[kept] - origin, values if kept.all() else values[kept]
     et, estimate = signals["force_estimate"]
     kept = np.isfinite(estimate["effort"]).all(axis=1)
     if kept.any():
-        data["est_t"], data["est"] = et[kept] - origin, estimate["effort"][kept]
+        data["est_t"], data["est"] = et[kept] - origin, estimate["effort"] if kept.all() else estimate["effort"][kept]
     pt, poses = signals["pose"]
     if pt.size:
         data["pose_t"], data["pose_xyz"] = pt - origin, poses[:, :3]

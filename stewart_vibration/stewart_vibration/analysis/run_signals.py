@@ -55,7 +55,7 @@ def load_signals(mcap_path) -> dict:
     reader = mcap_path if isinstance(mcap_path, (RunReader, RunFiles)) else open_run(mcap_path, allow_truncated=True)
     states = StreamKind(JOINTS, tuple(LEG_NAMES + VIB_NAMES))
     kinds = {"ground_truth/joint_states": states, "legs/joint_states": states,
-             "legs/force_estimate": StreamKind(JOINTS, tuple(LEG_NAMES)),
+             "legs/force_estimate": StreamKind(JOINTS, tuple(LEG_NAMES), fields=("effort",)),
              **{key: StreamKind(POSE) for key in ("ground_truth/platform_pose", "platform/pose_estimate")},
              **{key: StreamKind(WRENCH) for key in ("ground_truth/tissue_wrench", "platform/external_wrench_estimate")},
              "vibration/joint_trajectory": StreamKind(STAMP), "/clock": StreamKind(STAMP),

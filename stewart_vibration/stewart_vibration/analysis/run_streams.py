@@ -10,7 +10,7 @@ counted per topic (``StreamSet.undecodable``), never a crash. Times are header s
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -23,29 +23,71 @@ BATCH_MESSAGES = 20_000  # raw messages held per topic before they are decoded t
 JOINTS, POSE, WRENCH, STAMP = "joints", "pose", "wrench", "stamp"
 
 
+JOINT_FIELDS = ("position", "velocity", "effort")
+
+
 @dataclass(frozen=True)
 class StreamKind:
-    """How a topic is decoded: ``kind`` JOINTS (JointState, the columns ``names``), POSE (PoseStamped -> [x, y, z,
-    roll, pitch, yaw] m, rad), WRENCH (WrenchStamped -> [force N, torque N m]) or STAMP (the header stamp, or a
-    Clock's time, only)."""
+    """How a topic is decoded: ``kind`` JOINTS (JointState, the columns ``names`` of the ``fields`` kept; a field
+    not kept reads NaN), POSE (PoseStamped -> [x, y, z, roll, pitch, yaw] m, rad), WRENCH (WrenchStamped ->
+    [force N, torque N m]) or STAMP (the header stamp, or a Clock's time, only)."""
 
     kind: str
     names: tuple = ()
+    fields: tuple = JOINT_FIELDS
 
 
-@dataclass
+class _Rows:
+    """Rows appended into arrays allocated once for the expected count (grown if it is passed): a long run's
+    streams are never held twice, as joining parts at the end would."""
+
+    def __init__(self, capacity: int, width: tuple):
+        self.n = 0
+        self.width = width  # the shape of one row of values: () for none
+        self.log = np.empty(capacity, np.int64)
+        self.file = np.empty(capacity, np.int32)
+        self.times = np.empty(capacity)
+        self.values = np.empty((capacity, *width)) if width else None
+
+    def append(self, log: np.ndarray, file_index: int, times: np.ndarray, values: np.ndarray | None = None) -> None:
+        end = self.n + times.size
+        if end > self.log.size:
+            self._grow(max(end, int(1.5 * self.log.size) + 1024))
+        self.log[self.n:end], self.file[self.n:end], self.times[self.n:end] = log, file_index, times
+        if self.values is not None:
+            self.values[self.n:end] = values
+        self.n = end
+
+    def _grow(self, capacity: int) -> None:
+        for name in ("log", "file", "times", "values"):
+            old = getattr(self, name)
+            if old is not None:
+                new = np.empty((capacity, *old.shape[1:]), old.dtype)
+                new[:self.n] = old[:self.n]
+                setattr(self, name, new)
+
+    def in_order(self) -> tuple[np.ndarray, np.ndarray | None]:
+        """(times, values) of the rows, file after file, each file's by log time (sorted only if they are not)."""
+        log, file = self.log[:self.n], self.file[:self.n]
+        times = self.times[:self.n]
+        values = self.values[:self.n] if self.values is not None else None
+        if ((np.diff(log) < 0) & (np.diff(file) == 0)).any():
+            order = np.lexsort((log, file))
+            times, values = times[order], values[order] if values is not None else None
+        return times, values
+
+
 class _Collector:
-    """One topic's pending raw messages (with their log times, ns) and its decoded parts."""
+    """One topic's pending raw messages (with their log times, ns), decoded a batch at a time into rows."""
 
-    spec: StreamKind
-    pending: list = field(default_factory=list)
-    pending_log: list = field(default_factory=list)
-    log_times: list = field(default_factory=list)
-    times: list = field(default_factory=list)
-    values: list = field(default_factory=list)
-    undecodable: int = 0
-    file_index: int = 0  # the file being read: rows are ordered file after file, each by log time
-    file_indices: list = field(default_factory=list)
+    def __init__(self, spec: StreamKind, capacity: int):
+        self.spec = spec
+        self.pending: list = []
+        self.pending_log: list = []
+        self.undecodable = 0
+        self.file_index = 0  # the file being read: rows are ordered file after file, each by log time
+        width = {JOINTS: (len(spec.fields), len(spec.names)), POSE: (6,), WRENCH: (6,), STAMP: ()}[spec.kind]
+        self.rows = _Rows(capacity, width)
 
     def add(self, data: bytes, log_time: int) -> None:
         self.pending.append(data)
@@ -59,9 +101,7 @@ class _Collector:
         batch, log = self.pending, np.asarray(self.pending_log, dtype=np.int64)
         self.pending, self.pending_log = [], []
         decode = {JOINTS: self._joints, POSE: self._pose, WRENCH: self._wrench, STAMP: self._stamps}[self.spec.kind]
-        before = len(self.log_times)
         decode(batch, log)
-        self.file_indices += [np.full(rows.size, self.file_index) for rows in self.log_times[before:]]
 
     def _joints(self, batch: list, log: np.ndarray) -> None:
         batches, kept = cdr.decode_joint_states_dropping_malformed(batch, on_malformed=self._count)
@@ -71,38 +111,32 @@ class _Collector:
             if any(n not in part.names for n in self.spec.names):  # a message without one of the columns: left out
                 continue
             columns = [part.names.index(n) for n in self.spec.names]
-            self.log_times.append(log[rows])
-            self.times.append(part.stamps)
-            self.values.append(np.stack([part.position[:, columns], part.velocity[:, columns],
-                                         part.effort[:, columns]]))
+            values = np.stack([getattr(part, name)[:, columns] for name in self.spec.fields], axis=1)
+            self.rows.append(log[rows], self.file_index, part.stamps, values)
 
     def _pose(self, batch: list, log: np.ndarray) -> None:
-        stamps, values = self._doubles(batch, log, 7, "PoseStamped")
+        stamps, values, kept = self._doubles(batch, 7, "PoseStamped")
         norms = np.linalg.norm(values[:, 3:], axis=1, keepdims=True)
         good = np.isfinite(values).all(axis=1) & (norms[:, 0] > 0)
         poses = np.full((len(stamps), 6), np.nan)  # a pose that is not one stays NaN: the limit check reports it
         poses[good, :3] = values[good, :3]
         poses[good, 3:] = rpy_from_quaternion(values[good, 3:] / norms[good])
-        self.times.append(stamps)
-        self.values.append(poses)
+        self.rows.append(log[kept], self.file_index, stamps, poses)
 
     def _wrench(self, batch: list, log: np.ndarray) -> None:
-        stamps, values = self._doubles(batch, log, 6, "WrenchStamped")
-        self.times.append(stamps)
-        self.values.append(values)
+        stamps, values, kept = self._doubles(batch, 6, "WrenchStamped")
+        self.rows.append(log[kept], self.file_index, stamps, values)
 
-    def _doubles(self, batch: list, log: np.ndarray, count: int, what: str) -> tuple[np.ndarray, np.ndarray]:
+    def _doubles(self, batch: list, count: int, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         stamps, _frames, values, kept, errors = cdr.decode_stamped_doubles(batch, count, what)
         self.undecodable += len(errors)
-        self.log_times.append(log[kept])
-        return stamps, values
+        return stamps, values, kept
 
     def _stamps(self, batch: list, log: np.ndarray) -> None:
         ns = [cdr.header_stamp_ns(data) for data in batch]
         good = np.array([t is not None for t in ns], dtype=bool)
         self.undecodable += int((~good).sum())
-        self.log_times.append(log[good])
-        self.times.append(np.array([t for t in ns if t is not None], dtype=np.int64) / 1e9)
+        self.rows.append(log[good], self.file_index, np.array([t for t in ns if t is not None], dtype=np.int64) / 1e9)
 
     def _count(self, _reason: str) -> None:
         self.undecodable += 1
@@ -112,17 +146,14 @@ class _Collector:
         values [n, 6]); STAMP: times [n] s. Rows file after file, each file's in log-time order (the order in which
         the recorder writes a topic; sorted here when a file holds it otherwise)."""
         self.flush()
-        log = np.concatenate(self.log_times) if self.log_times else np.empty(0, np.int64)
-        files = np.concatenate(self.file_indices) if self.file_indices else np.empty(0, int)
-        order = np.lexsort((log, files)) if ((np.diff(log) < 0) & (np.diff(files) == 0)).any() else slice(None)
-        times = (np.concatenate(self.times) if self.times else np.empty(0))[order]
+        times, values = self.rows.in_order()
         if self.spec.kind == STAMP:
             return times
         if self.spec.kind == JOINTS:
-            k = len(self.spec.names)
-            stacked = (np.concatenate(self.values, axis=1) if self.values else np.empty((3, 0, k)))[:, order]
-            return times, {"position": stacked[0], "velocity": stacked[1], "effort": stacked[2]}
-        return times, (np.concatenate(self.values) if self.values else np.empty((0, 6)))[order]
+            missing = np.broadcast_to(np.nan, (times.size, len(self.spec.names)))  # read-only, no memory
+            return times, {name: values[:, self.spec.fields.index(name)] if name in self.spec.fields else missing
+                           for name in JOINT_FIELDS}
+        return times, values
 
 
 @dataclass
@@ -157,7 +188,13 @@ def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, l
     Returns:
         (StreamSet, per file {"file", "complete", "publish_ns": {key: publish times [n] (ns) in that file}}).
     """
-    collectors = {key: _Collector(spec) for key, spec in decoded.items()}
+    expected = {key: 0 for key in decoded}
+    for part in parts:
+        for t in part.topics():
+            key = _topic_key(t.topic, decoded)
+            if key is not None:
+                expected[key] += t.message_count
+    collectors = {key: _Collector(spec, expected[key]) for key, spec in decoded.items()}
     raw_out: dict = {key: [] for key in raw}
     publish: dict = {key: [] for key in counted}
     files: list[dict] = []
@@ -169,7 +206,7 @@ def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, l
             collector.file_index = len(files)
         mine = _read_part(part, routes, collectors, raw_out, counted)
         for collector in collectors.values():
-            collector.flush()
+            collector.flush()  # a batch holds one file's messages
         for key, times in mine.items():
             publish[key].append(times)
         files.append({"file": part.path.name, "complete": part.complete, "publish_ns": mine})
@@ -188,15 +225,15 @@ def _read_part(part, routes: dict, collectors: dict, raw_out: dict, counted) -> 
     mine: dict = {key: array("q") for key in counted}
     mine_log: dict = {key: array("q") for key in counted}
     raw_log: dict = {key: [] for key in raw_out}
-    for message in part.messages(list(routes), log_time_order=False):
-        d_key, r_key, c_key = routes[message.topic]
+    for topic, type_name, log_time, publish_time, data in part.records_in_file_order(set(routes)):
+        d_key, r_key, c_key = routes[topic]
         if d_key is not None:
-            collectors[d_key].add(message.data, message.log_time)
+            collectors[d_key].add(data, log_time)
         if r_key is not None:
-            raw_log[r_key].append((message.log_time, message.type_name, message.data))
+            raw_log[r_key].append((log_time, type_name, data))
         if c_key is not None:
-            mine[c_key].append(message.publish_time)
-            mine_log[c_key].append(message.log_time)
+            mine[c_key].append(publish_time)
+            mine_log[c_key].append(log_time)
     for key, rows in raw_log.items():
         rows.sort(key=lambda row: row[0])
         raw_out[key].extend((type_name, data) for _log, type_name, data in rows)

@@ -9,6 +9,7 @@ bag directory too and refuses a truncated file (McapFileError, pointing at
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -18,11 +19,15 @@ from mcap.data_stream import ReadDataStream
 from mcap.exceptions import McapError
 from mcap.reader import make_reader
 from mcap.records import Channel, Chunk, ChunkIndex, Message, Metadata, Schema
-from mcap.stream_reader import StreamReader, breakup_chunk
+from mcap.stream_reader import StreamReader, get_chunk_data_stream
 
 from .bag_metadata import BagFile, TopicCount
 from .files import McapFileError, check_readable, run_files, truncated_error
 from .integrity import verify_mcap
+
+_RECORD = struct.Struct("<BQ")  # an MCAP record's opcode and content length
+_MESSAGE = struct.Struct("<HIQQ")  # a Message record's channel id, sequence, log time and publish time (ns)
+_MESSAGE_OPCODE = 0x05
 
 
 @dataclass(frozen=True)
@@ -163,17 +168,42 @@ class RunReader:
                 yield self._raw(message)
 
     def _chunk_after_chunk(self, wanted: set[str] | None) -> Iterator[RawMessage]:
-        """The messages of ``wanted`` topics in file order, one chunk in memory at a time (the mcap library's
-        unordered read decompresses every chunk before it yields the first message)."""
-        ids = {cid for cid, ch in self.channels.items() if wanted is None or ch.topic in wanted}
+        """The messages of ``wanted`` topics in file order (``records_in_file_order``)."""
+        for topic, type_name, log_time, publish_time, data in self.records_in_file_order(wanted):
+            yield RawMessage(topic, type_name, log_time, publish_time, data)
+
+    def records_in_file_order(self, wanted: set[str] | None) -> Iterator[tuple[str, str, int, int, bytes]]:
+        """(topic, type name, log time ns, publish time ns, serialized bytes) of every message of ``wanted``
+        topics (None: all), chunk after chunk in file order, one chunk in memory at a time.
+
+        The mcap library's unordered read decompresses every chunk before it yields the first message, and its
+        record objects cost several microseconds each: a long run is read here from the chunk's bytes (the
+        Message record layout of the MCAP specification). A file without chunk indexes (cut short, or not
+        chunked) is read through ``messages``.
+        """
+        if not self._chunk_indexes:
+            for m in self.messages(list(wanted) if wanted is not None else None):
+                yield m.topic, m.type_name, m.log_time, m.publish_time, m.data
+            return
+        names = {cid: (ch.topic, self.schemas[ch.schema_id].name if ch.schema_id in self.schemas else "")
+                 for cid, ch in self.channels.items() if wanted is None or ch.topic in wanted}
         with open(self.path, "rb") as f:
             for index in self._chunk_indexes:
-                if index.message_index_offsets and not ids & index.message_index_offsets.keys():
+                if index.message_index_offsets and not names.keys() & index.message_index_offsets.keys():
                     continue  # no message of a wanted topic in this chunk
                 f.seek(index.chunk_start_offset + 1 + 8)  # past the record's opcode and length
-                for record in breakup_chunk(Chunk.read(ReadDataStream(f))):
-                    if isinstance(record, Message) and record.channel_id in ids:
-                        yield self._raw(record)
+                stream, size = get_chunk_data_stream(Chunk.read(ReadDataStream(f)))
+                buf = stream.read(size)
+                pos = 0
+                while pos < size:
+                    opcode, length = _RECORD.unpack_from(buf, pos)
+                    pos += _RECORD.size
+                    if opcode == _MESSAGE_OPCODE:
+                        channel, _sequence, log_time, publish_time = _MESSAGE.unpack_from(buf, pos)
+                        name = names.get(channel)
+                        if name is not None:
+                            yield name[0], name[1], log_time, publish_time, buf[pos + _MESSAGE.size:pos + length]
+                    pos += length
 
     def decoded(self, topics: list[str] | None = None) -> Iterator[tuple[RawMessage, Any]]:
         """(raw, decoded) pairs using mcap_ros2's dynamic decoder (no ROS needed)."""
