@@ -170,3 +170,16 @@ def test_rows_beyond_the_expected_count_are_kept_in_order():
     times, got = rows.in_order()
     np.testing.assert_array_equal(times, [0.1, 0.2, 0.3, 0.4, 0.5])
     np.testing.assert_array_equal(got, values[[0, 2, 1, 3, 4]])
+
+
+def test_a_few_topics_of_a_long_file_come_in_the_libraries_log_time_order(tmp_path):
+    from mcap.reader import make_reader
+
+    write_run(tmp_path / "run.mcap", 10.0, 1500, shuffle=True)  # many chunks, each topic out of order in them
+    reader = open_run(tmp_path / "run.mcap")
+    for topics in (["/clock"], ["/clock", "/r/ground_truth/tissue_wrench"]):
+        ours = [(m.topic, m.log_time, m.data) for m in reader.messages(topics)]
+        with open(tmp_path / "run.mcap", "rb") as f:
+            theirs = [(c.topic, m.log_time, m.data) for _s, c, m in make_reader(f).iter_messages(topics=topics,
+                                                                                                  log_time_order=True)]
+        assert len(ours) == len(theirs) > 1000 and ours == theirs
