@@ -5,10 +5,11 @@
 Synthesises a recording of each length with the main job's streams and rates (sensed and true joint states,
 true pose, pose estimate, leg-force estimate, external-wrench estimate and IMU at 500 Hz, /clock at 100 Hz;
 serialized as the nodes do, zstd chunks as the recorder writes), the units vibrating at 35 Hz throughout. Then,
-each in a process of its own, it reads the run's signals (``analysis.run_signals.load_signals``: what every
-figure of the run summary is computed from) and writes the report (``stewart-vibration report``), and prints
-per length the file's size, the wall time and peak resident memory of both, and the time as a share of the
-run's length. One JSON line per length, then a table.
+each in a process of its own, it computes the run summary's figures that need no run record (the signals every
+figure is computed from, the recording's coverage, the streams, the limit check over every state: "summary")
+and writes the report (``stewart-vibration report``), and prints per length the file's size, the wall time and
+peak resident memory of both, and the time as a share of the run's length. One JSON line per length, then a
+table.
 """
 
 from __future__ import annotations
@@ -76,6 +77,20 @@ def synthesize(path: Path, seconds: float) -> int:
     return count
 
 
+def run_figures(path: str) -> None:
+    """The run summary's figures that need no run record: the signals, what the recording covers, the streams
+    and the limit check over every recorded state (the vibration figures need the vibrate goal's settings)."""
+    from stewart_vibration.analysis.run_coverage import recording_coverage, stream_summary
+    from stewart_vibration.analysis.run_signals import load_signals
+    from stewart_vibration.analysis.run_verdict import limit_summary
+    from stewart_vibration.kinematics.robot_config import load_robot
+
+    signals = load_signals(path)
+    recording_coverage(signals, None)
+    stream_summary(signals)
+    limit_summary(load_robot(), signals)
+
+
 def measured(command: list[str]) -> tuple[float, float]:
     """(wall time s, peak resident memory MB) of ``command`` run to its end (raises if it fails)."""
     start = time.perf_counter()
@@ -91,7 +106,11 @@ def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, nargs="+", default=[1.0, 10.0, 60.0])
     ap.add_argument("--keep", type=Path, default=None, help="write the recordings here and keep them")
+    ap.add_argument("--figures-of", default=None, help=argparse.SUPPRESS)  # the measured child process
     args = ap.parse_args()
+    if args.figures_of:
+        run_figures(args.figures_of)
+        return 0
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         where = args.keep or Path(tmp)
@@ -100,23 +119,22 @@ def main() -> int:
             start = time.perf_counter()
             count = synthesize(path, minutes * 60.0)
             made_s = time.perf_counter() - start
-            signals_s, signals_mb = measured([sys.executable, "-c", "import sys; from stewart_vibration.analysis."
-                                              "run_signals import load_signals; load_signals(sys.argv[1])", str(path)])
+            summary_s, summary_mb = measured([sys.executable, __file__, "--figures-of", str(path)])
             report_s, report_mb = measured([sys.executable, "-m", "stewart_vibration", "report", str(path), "--out",
                                             str(where / f"report_{minutes:g}min")])
             row = {"minutes": minutes, "messages": count, "mcap_mb": round(path.stat().st_size / 1e6, 1),
-                   "synthesized_s": round(made_s, 1), "signals_s": round(signals_s, 2),
-                   "signals_peak_mb": round(signals_mb), "report_s": round(report_s, 2),
+                   "synthesized_s": round(made_s, 1), "summary_s": round(summary_s, 2),
+                   "summary_peak_mb": round(summary_mb), "report_s": round(report_s, 2),
                    "report_peak_mb": round(report_mb),
                    "report_share_of_run": round(report_s / (minutes * 60.0), 4)}
             rows.append(row)
             print(json.dumps(row), flush=True)
             if args.keep is None:
                 path.unlink()
-    print("\n| run | MCAP | signals: time, peak memory | report: time, peak memory | report time / run length |")
+    print("\n| run | MCAP | summary: time, peak memory | report: time, peak memory | report time / run length |")
     print("|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['minutes']:g} min | {r['mcap_mb']} MB | {r['signals_s']} s, {r['signals_peak_mb']} MB | "
+        print(f"| {r['minutes']:g} min | {r['mcap_mb']} MB | {r['summary_s']} s, {r['summary_peak_mb']} MB | "
               f"{r['report_s']} s, {r['report_peak_mb']} MB | {100 * r['report_share_of_run']:.1f} % |")
     return 0
 

@@ -178,3 +178,21 @@ def test_from_an_mcap_written_by_the_recorders_writer(robot, tmp_path):
     assert t[0] + 0.4 <= rows["vibration unit displacement"]["time_s"] < t[0] + 0.6
     assert rows["time going back (/clock, state stamps)"]["violations"] == 0
     assert rows["universal joint angle"]["worst"] == pytest.approx(np.degrees(joint_angles(robot, poses)[0].max()))
+
+
+@pytest.mark.parametrize("kind", ["universal joint angle", "spherical joint angle", "condition number"])
+def test_pose_figures_over_slabs_are_those_of_the_whole_run(robot, monkeypatch, kind):
+    from stewart_vibration.analysis import limit_check
+
+    joints, (pt, poses), clock = legal_run(robot)
+    poses = poses.copy()
+    poses[650:720, 4] += 0.66  # a tilt past the spherical joints' limit, across a slab boundary (679)
+    poses[1333, 4] += 0.7  # and a worse one, alone, in a later slab
+    whole = {f.name: f for f in check_limits(robot, joints, (pt, poses), clock)}
+    monkeypatch.setattr(limit_check, "POSE_SLAB", 97)
+    slabbed = {f.name: f for f in check_limits(robot, joints, (pt, poses), clock)}
+    assert slabbed == whole
+    legal = {f.name: f for f in check_limits(robot, *legal_run(robot))}
+    assert whole[kind].worst > legal[kind].worst  # the figure is a tilted sample's, found across the slabs
+    assert whole[kind].time_s in set(pt[650:720]) | {pt[1333]}
+    assert whole["spherical joint angle"].violations > 2  # summed over the slabs the tilt spans

@@ -25,7 +25,7 @@ states (a lost sample is not motion).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -38,6 +38,7 @@ TOLERANCE = 0.02  # relative excess over a rate limit that is still differentiat
 MEASURED_TOLERANCE = 1e-6  # relative, for figures measured or computed from poses (displacement, angles, conditioning)
 STROKE_TOLERANCE_M = 1e-6  # a length is measured, not differentiated: 1 um is the servo's following error
 GAP_FACTOR = 1.5  # a step longer than this many median state periods is a gap (not differentiated)
+POSE_SLAB = 50_000  # poses whose joint angles and condition numbers are computed together
 
 
 @dataclass(frozen=True)
@@ -146,6 +147,31 @@ def joint_angles_at(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, np.nda
     return universal, spherical
 
 
+def _pose_figures(robot: Robot, times: np.ndarray, poses: np.ndarray) -> list[LimitFigure]:
+    """The universal and spherical joint angles and the condition number at finite poses [n, 6] (times [n] s),
+    computed POSE_SLAB poses at a time (the per-pose matrices of an hour of poses would take gigabytes)."""
+    lim = robot.limits
+    slabs = []
+    for lo in range(0, max(len(times), 1), POSE_SLAB):
+        t, p = times[lo:lo + POSE_SLAB], poses[lo:lo + POSE_SLAB]
+        universal, spherical = joint_angles_at(robot, p) if len(p) else (np.empty((0, 6)), np.empty((0, 6)))
+        cond = np.asarray(condition_number(robot, p)) if len(p) else np.empty(0)
+        slabs.append([_worst(np.degrees(universal), t, np.degrees(lim.universal_joint_max), "universal joint angle",
+                             "deg", MEASURED_TOLERANCE),
+                      _worst(np.degrees(spherical), t, np.degrees(lim.spherical_joint_max), "spherical joint angle",
+                             "deg", MEASURED_TOLERANCE),
+                      _worst(cond, t, lim.condition_number_max, "condition number", "", MEASURED_TOLERANCE)])
+    return [combined_worst(list(parts)) for parts in zip(*slabs, strict=True)]
+
+
+def combined_worst(parts: list[LimitFigure]) -> LimitFigure:
+    """One figure of consecutive slabs' ``_worst`` figures: the first largest worst (NaN the largest, as in
+    ``_worst``), the violations summed."""
+    key = [np.inf if np.isnan(f.worst) else f.worst for f in parts]
+    best = parts[int(np.argmax(key))]
+    return replace(best, violations=sum(f.violations for f in parts))
+
+
 def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigure]:
     """Every limit figure of a recorded run.
 
@@ -177,14 +203,7 @@ def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigu
     figures.append(_worst(a, ta, unit.acceleration_max, "vibration unit acceleration", "m/s^2"))  # in m/s^2
     pt, poses = np.asarray(pose[0], float), np.asarray(pose[1], float).reshape(-1, 6)
     finite_pose = np.isfinite(poses).all(axis=1)
-    universal, spherical = joint_angles_at(robot, poses[finite_pose]) if finite_pose.any() else \
-        (np.empty((0, 6)), np.empty((0, 6)))
-    for name, angles, limit in (("universal joint angle", universal, lim.universal_joint_max),
-                                ("spherical joint angle", spherical, lim.spherical_joint_max)):
-        figures.append(_worst(np.degrees(angles), pt[finite_pose], np.degrees(limit), name, "deg", MEASURED_TOLERANCE))
-    cond = condition_number(robot, poses[finite_pose]) if finite_pose.any() else np.empty(0)
-    figures.append(_worst(np.asarray(cond), pt[finite_pose], lim.condition_number_max, "condition number", "",
-                          MEASURED_TOLERANCE))
+    figures += _pose_figures(robot, pt[finite_pose], poses[finite_pose])
     arrays = [np.asarray(cols[k], float) for k in ("position", "velocity", "effort") if k in cols and len(jt)]
     not_finite = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays) + int(np.count_nonzero(~finite_pose))
     figures.append(LimitFigure("non-finite values", "", float(not_finite), 0.0, violations=not_finite))
