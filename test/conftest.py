@@ -14,8 +14,11 @@ from stewart_vibration import load_robot
 from stewart_vibration.runtime.processes import claim_ros_domain
 
 # Every process this test session starts inherits this mark in its environment: the left-behind check looks
-# at those alone, never at another checkout's run (a CI run, a benchmark) on the same machine.
+# at those alone, never at another checkout's run (a CI run, a benchmark) on the same machine, nor at another
+# pytest-xdist worker's (each worker of ``./tools/test --fast`` marks its own).
 SESSION_MARK_ENV = "STEWART_TEST_SESSION"
+if os.environ.get("PYTEST_XDIST_WORKER"):
+    os.environ[SESSION_MARK_ENV] = f"{os.getpid()}-{time.time_ns()}"
 os.environ.setdefault(SESSION_MARK_ENV, f"{os.getpid()}-{time.time_ns()}")
 _SESSION_MARK = f"{SESSION_MARK_ENV}={os.environ[SESSION_MARK_ENV]}".encode()
 

@@ -12,6 +12,7 @@ more than 10,000.
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -69,10 +70,11 @@ MAX_EXAMPLES = {"pose": 2500, "struts": 2000, "vibration_emulator": 1000, "vibra
                 "settings": 1200, "settings_plan": 300, "plan_path": 800, "cdr_trajectory": 600,
                 "cdr_joint_state": 400, "cdr_joint_states": 300, "cdr_pose": 300}
 assert sum(MAX_EXAMPLES.values()) >= 10_000
+FAST_SHARE = 0.1 if os.environ.get("STEWART_FAST_TESTS") == "1" else 1.0  # ./tools/test --fast: a tenth of them
 
 
 def examples(name: str):
-    return settings(max_examples=MAX_EXAMPLES[name], deadline=None,
+    return settings(max_examples=max(10, round(MAX_EXAMPLES[name] * FAST_SHARE)), deadline=None,
                     suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large,
                                            HealthCheck.filter_too_much])
 
