@@ -17,9 +17,8 @@ from stewart_vibration.runtime.processes import claim_ros_domain
 # at those alone, never at another checkout's run (a CI run, a benchmark) on the same machine, nor at another
 # pytest-xdist worker's (each worker of ``./tools/test --fast`` marks its own).
 SESSION_MARK_ENV = "STEWART_TEST_SESSION"
-if os.environ.get("PYTEST_XDIST_WORKER"):
+if os.environ.get("PYTEST_XDIST_WORKER") or SESSION_MARK_ENV not in os.environ:
     os.environ[SESSION_MARK_ENV] = f"{os.getpid()}-{time.time_ns()}"
-os.environ.setdefault(SESSION_MARK_ENV, f"{os.getpid()}-{time.time_ns()}")
 _SESSION_MARK = f"{SESSION_MARK_ENV}={os.environ[SESSION_MARK_ENV]}".encode()
 
 

@@ -81,18 +81,14 @@ def extract(reader: RunReader | RunFiles, signals: dict) -> dict:
     t0 = first.log_time if first is not None else 0
     origin = t0 / 1e9
     data["time_origin_s"] = origin
-    st, sensed = signals["sensed_joints"]
-    for key, field, columns in (("leg", "position", slice(0, 6)), ("vib", "position", slice(6, 12)),
-                                ("force", "effort", slice(0, 6))):
-        values = sensed[field][:, columns]
+    (st, sensed), (et, estimate) = signals["sensed_joints"], signals["force_estimate"]
+    for key, name, t, values in (("leg", "leg_lengths", st, sensed["position"][:, :6]),
+                                 ("vib", "vib", st, sensed["position"][:, 6:12]),
+                                 ("force", "force", st, sensed["effort"][:, :6]),
+                                 ("est", "est", et, estimate["effort"])):
         kept = np.isfinite(values).all(axis=1)  # a state that left this field empty is not a sample of it
         if kept.any():
-            name = {"leg": "leg_lengths", "vib": "vib", "force": "force"}[key]
-            data[f"{key}_t"], data[name] = st[kept] - origin, values if kept.all() else values[kept]
-    et, estimate = signals["force_estimate"]
-    kept = np.isfinite(estimate["effort"]).all(axis=1)
-    if kept.any():
-        data["est_t"], data["est"] = et[kept] - origin, estimate["effort"] if kept.all() else estimate["effort"][kept]
+            data[f"{key}_t"], data[name] = t[kept] - origin, values if kept.all() else values[kept]
     pt, poses = signals["pose"]
     if pt.size:
         data["pose_t"], data["pose_xyz"] = pt - origin, poses[:, :3]

@@ -41,9 +41,8 @@ class _Rows:
     """Rows appended into arrays allocated once for the expected count (grown if it is passed): a long run's
     streams are never held twice, as joining parts at the end would."""
 
-    def __init__(self, capacity: int, width: tuple):
+    def __init__(self, capacity: int, width: tuple):  # width: the shape of one row of values, () for none
         self.n = 0
-        self.width = width  # the shape of one row of values: () for none
         self.log = np.empty(capacity, np.int64)
         self.file = np.empty(capacity, np.int32)
         self.times = np.empty(capacity)
