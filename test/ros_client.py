@@ -15,6 +15,7 @@ import rclpy
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.context import Context
 from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
 from stewart_vibration.nodes.run_loop import make_executor
@@ -83,8 +84,12 @@ class RosTestClient:
         self._actions: dict = {}
         self._acceptances: dict = {}
 
-    def subscribe(self, topic: str, msg_type, depth: int = 1000):
-        self.node.create_subscription(msg_type, topic, self.received[topic].append, depth)
+    def subscribe(self, topic: str, msg_type, depth: int = 1000, latched: bool = False):
+        """Received messages of ``topic`` (a list that fills while the client spins). ``latched``: reliable,
+        transient local -- a command topic's messages sent before DDS matched this reader still arrive."""
+        qos = depth if not latched else QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
+                                                   durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.node.create_subscription(msg_type, topic, self.received[topic].append, qos)
         return self.received[topic]
 
     def publisher(self, topic: str, msg_type, depth: int = 10):

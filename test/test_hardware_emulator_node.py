@@ -272,3 +272,50 @@ def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
     finally:
         client.close()
         assert proc.stop() is not None
+
+
+def test_a_command_sent_before_the_robot_listens_never_moves_it(robot, ros_domain, tmp_path):
+    """The command topics are offered transient local (a late recorder still gets them), but the robot reads
+    them volatile: a leg trajectory latched before the emulator starts is never taken, the same trajectory
+    sent once it listens is; the graph shows both of its command subscriptions volatile."""
+    from stewart_vibration.kinematics.ik import inverse_kinematics
+    from stewart_vibration.nodes.run_loop import COMMAND_QOS
+
+    client = RosTestClient()
+    proc = None
+    try:
+        target = robot.home_pose + np.array([0.0, 0.0, 0.003, 0.0, 0.0, 0.0])
+        move = JointTrajectory(joint_names=[f"leg_{i}" for i in range(1, 7)])
+        move.points = [JointTrajectoryPoint(positions=[float(x) for x in inverse_kinematics(robot, target)],
+                                            time_from_start=duration_msg(1.5))]
+        latched = client.node.create_publisher(JointTrajectory, "legs/joint_trajectory", COMMAND_QOS)
+        latched.publish(move)
+        states = client.subscribe("legs/joint_states", JointState, depth=5000)
+        answers = client.subscribe("legs/trajectory_status", LegTrajectoryStatus)
+        proc = start_python_module("emulator", "stewart_vibration.nodes.hardware_emulator_node",
+                                   ["--ros-args", "-p", "real_time_factor:=1"], ros_environment(ros_domain), tmp_path)
+        assert client.spin_until(lambda: latched.get_subscription_count() >= 1 and len(states) > 10, 30), \
+            logs([proc])
+        def legs_of(msg):
+            return np.array(msg.position[:6])
+
+        start = legs_of(states[0])
+        client.spin_for(3.0)  # twice the trajectory's duration, had it been taken
+        assert not answers, [(a.accepted, a.outcome.message) for a in answers]
+        assert np.abs(legs_of(states[-1]) - start).max() < 1e-6, legs_of(states[-1]) - start
+
+        latched.publish(move)  # the same command, now that the robot listens: taken, and the legs move
+        assert client.spin_until(lambda: answers and answers[-1].accepted, 20), logs([proc])
+        assert client.spin_until(lambda: np.abs(legs_of(states[-1]) - start).max() > 1e-3, 20), logs([proc])
+
+        def emulator_reads(topic: str) -> list:
+            return [i.qos_profile.durability for i in client.node.get_subscriptions_info_by_topic(f"/{topic}")
+                    if i.node_name == "hardware_emulator"]
+
+        for topic in ("legs/joint_trajectory", "vibration/joint_trajectory"):
+            assert client.spin_until(lambda: emulator_reads(topic), 10), topic  # noqa: B023 - used at once
+            assert emulator_reads(topic) == [DurabilityPolicy.VOLATILE], (topic, emulator_reads(topic))
+    finally:
+        client.close()
+        if proc is not None:
+            proc.stop()

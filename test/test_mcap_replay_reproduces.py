@@ -83,6 +83,7 @@ def record_main_job(out: Path, domain: int) -> Path:
             proc.wait()
     files = sorted(out.glob("*.mcap"))
     assert len(files) == 1 and "MCAP:" in stdout, stdout[-4000:]
+    (out / "main_job_output.txt").write_text(stdout)  # what the run said, for a failure to show
     return files[0]
 
 
@@ -181,7 +182,8 @@ def _vibration_windows(path: Path) -> tuple[list, list]:
                             t0 + round(_seconds(msg.points[-1].time_from_start) * 1e9)))
         else:
             legs.append((raw.log_time, _seconds(msg.points[-1].time_from_start)))
-    assert windows, "no vibration window in the run"
+    said = path.parent / "main_job_output.txt"
+    assert windows, f"no vibration window in the run; it said:\n{said.read_text()[-4000:] if said.exists() else ''}"
     return sorted(windows), legs
 
 

@@ -45,7 +45,7 @@ class Suite:
         self.client = c = RosTestClient()
         self.clock = c.subscribe("/clock", Clock)
         self.states = c.subscribe("legs/joint_states", JointState, depth=5000)
-        self.windows = c.subscribe("vibration/joint_trajectory", JointTrajectory)
+        self.windows = c.subscribe("vibration/joint_trajectory", JointTrajectory, latched=True)
         self.planner_diag = []  # (wall time, DiagnosticStatus)
         self.status = []  # (wall time, VibrationReport)
         c.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
