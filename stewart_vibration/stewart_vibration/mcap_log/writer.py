@@ -365,3 +365,4 @@ class McapRunWriter:
             queue_.clear()
         except BaseException as exc:  # surfaced by close()
             self._error = exc
+

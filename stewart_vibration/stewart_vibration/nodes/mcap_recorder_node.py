@@ -1,50 +1,32 @@
 """mcap_recorder: record the suite's topics as serialized CDR to a rosbag2-compatible MCAP.
 
-Raw subscriptions with the QoS the publishers offer (rosbag2's rule: reliable /
-transient_local only when every publisher offers it), created as soon as a
-topic appears on the graph. log_time = receive time on the node clock (sim
-time with use_sim_time); publish_time = header.stamp when the type starts with
-a std_msgs/Header, else log_time. A writer thread does all MCAP work
-(stewart_vibration.mcap_log.writer), so callbacks only enqueue.
+Raw subscriptions with the QoS the publishers offer (rosbag2's rule: reliable / transient_local only when every
+publisher offers it), created as soon as a topic appears on the graph. log_time = receive time on the node clock
+(sim time with use_sim_time); publish_time = header.stamp when the type starts with a std_msgs/Header, else
+log_time. A writer thread does all MCAP work (mcap_log.writer), so callbacks only enqueue.
 
-Parameters: output_dir (str, "": a new run folder runs/run_<stamp>/ under the working directory, with
-runs/latest pointing at it; else the bag folder: relative paths under the working directory without
-'..', absolute ones an existing directory; see mcap_log.output_paths), file_pattern (str,
-"run_{stamp}.mcap": a plain file name ending in .mcap whose only placeholders {stamp} (local time
-YYYYmmdd_HHMMSS), {node} and {index} (the file's number in the bag, from 1) are replaced as text),
-record_on_start (bool, true), topics (str[], empty = the topics of docs/interfaces.md relative to the namespace plus
-/clock, /diagnostics, /rosout), qos_depth (int, 3000, 1..1000000), chunk_size (bytes, 262144), flush_period_s (s,
-0.5), discovery_period_s (s, 0.2). A bad output_dir or file_pattern is refused with the reason: at start
-(one line, exit code 2) and by ``ros2 param set``.
+Parameters (parameters/tables.py, docs/parameters.md): output_dir ("": a run folder of its own under runs/),
+file_pattern, record_on_start, topics (empty: the suite's, plus /clock, /diagnostics, /rosout), qos_depth,
+chunk_size, flush_period_s, discovery_period_s. A bad output_dir or file_pattern is refused with the reason: at
+start (one line, exit code 2) and by ``ros2 param set``.
 Services: ~/start (StartRecording: a new file, optionally named; the outcome and the file's path), ~/stop
 (StopRecording: the outcome, the finished file's path, its message and byte counts; NOT_RECORDING when there
 is none, RECORDING_FAILED when its write failed).
 SIGINT/SIGTERM (also during start-up): the file is finished (summary, metadata.yaml) before exit.
 
-Faults it reports at once on /diagnostics (ERROR, with ``fault`` = write_failed, ``fault_code`` = the
-errno name and ``fault_reason``): a failed write (a full disk, an I/O error) or a file that lost its
-name (its folder removed). The recording stops there, the file keeps every whole chunk written before
-(``mcap-recover`` rebuilds its summary) and is not listed in metadata.yaml. Samples lost before they reached
-the recorder are counted from the gaps in the publication sequence numbers of topics with one publisher
-(``lost``, ``sequence_gaps``, WARN) when the node runs the single-threaded executor (STEWART_EXECUTOR=single:
-rclpy 7.1's EventsExecutor cannot hand a callback the message info). The recorder arms no DDS "message lost"
-event: in the rmw_fastrtps of these wheels taking that event and DDS reporting a loss lock the same two
-mutexes in opposite orders (ros2/rmw_implementation#278 is the regression test of the fix), and under real
-loss the recorder deadlocked (it stopped recording and ignored SIGINT). The run summary finds lost samples
-in the recording itself either way (gaps in every 500 Hz stream's stamps and in /clock).
+Faults it reports at once on /diagnostics (ERROR, with ``fault`` = write_failed, ``fault_code`` = the errno name
+and ``fault_reason``): a failed write (a full disk, an I/O error) or a file that lost its name (its folder
+removed). The recording stops there, the file keeps every whole chunk written before (``mcap-recover`` rebuilds
+its summary) and is not listed in metadata.yaml. Samples lost before they reached the recorder are counted from
+the gaps in the publication sequence numbers of topics with one publisher (``lost``, ``sequence_gaps``, WARN)
+when the node runs the single-threaded executor (STEWART_EXECUTOR=single: rclpy 7.1's EventsExecutor cannot hand
+a callback the message info). The recorder arms no DDS "message lost" event: in the rmw_fastrtps of these wheels,
+taking that event while DDS reports a loss locks two mutexes in opposite orders, and under real loss the recorder
+deadlocked (stopped recording, ignored SIGINT). The run summary finds lost samples in the recording itself either
+way (gaps in every 500 Hz stream's stamps and in /clock).
 
-Bag directory: ``output_dir`` is a rosbag2 bag directory. When a recording
-finishes, the recorder writes ``output_dir/metadata.yaml`` (rosbag2 version 9,
-as ``ros2 bag record`` does) listing the files this recorder process wrote
-there (one per ~/start..~/stop, like rosbag2's splits), so ``ros2 bag
-info/play output_dir`` and ``rosbags.rosbag2.Reader(output_dir)`` open it.
-While a file is being written the folder has no metadata.yaml. A metadata.yaml
-an earlier recorder wrote in the folder (it carries the recorder's mark in
-custom_data) is taken over: its complete files stay listed beside the new ones.
-A folder with a metadata.yaml the recorder did not write is refused. After a crash
-(SIGKILL) the folder has none until ``stewart-vibration mcap-recover`` rebuilds
-the cut file and writes one. Other files in the folder (logs/, report/,
-summary.json) are ignored by bag readers.
+Bag directory: ``output_dir`` is a rosbag2 bag directory with a metadata.yaml listing the files finished there
+(``ros2 bag info/play`` open it); see mcap_log.bag_folders.
 """
 
 from __future__ import annotations
@@ -52,7 +34,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 from rcl_interfaces.msg import SetParametersResult
@@ -62,19 +43,10 @@ from rclpy.node import Node
 from stewart_vibration_interfaces.srv import StartRecording, StopRecording
 
 from ..errors import InvalidInputError
-from ..mcap_log.bag_metadata import BagFile, bag_metadata, remove_metadata_yaml, write_metadata_yaml
-from ..mcap_log.output_paths import (
-    RECORDED_BY,
-    RECORDED_BY_KEY,
-    bag_folder,
-    check_bag_folder,
-    check_file_pattern,
-    file_name,
-    listed_files,
-    written_by_recorder,
-)
+from ..mcap_log.bag_folders import BagFolders
+from ..mcap_log.output_paths import bag_folder, check_file_pattern
 from ..mcap_log.qos_yaml import dump_qos_profiles, request_for_offers
-from ..mcap_log.reader import bag_file_of
+from ..mcap_log.recording_status import finished_report, recording_status
 from ..mcap_log.writer import McapRunWriter
 from ..messages.fields import check_text
 from ..messages.status_values import MAX_PATH
@@ -87,26 +59,12 @@ from .outcomes import outcome
 from .ros_graph import message_class, offered_profile, rclpy_profile
 from .run_loop import run_node
 
-SUITE_TOPICS = [
-    "legs/trajectory_status",
-    "legs/joint_trajectory",
-    "vibration/joint_trajectory",
-    "legs/joint_states",
-    "platform/imu",
-    "platform/tracker_pose",
-    "ground_truth/joint_states",
-    "ground_truth/platform_pose",
-    "platform/pose_estimate",
-    "legs/force_estimate",
-    "platform/external_wrench_estimate",
-    "ground_truth/tissue_wrench",
-    "kinematics/guard_status",
-    "kinematics/calibration_samples",
-    "vibration/status",
-    "robot_markers",
-    "/clock",
-    "/diagnostics",
-    "/rosout",
+SUITE_TOPICS = [  # the suite's topics (docs/interfaces.md), relative to the namespace, and the global ones
+    "legs/trajectory_status", "legs/joint_trajectory", "vibration/joint_trajectory", "legs/joint_states",
+    "platform/imu", "platform/tracker_pose", "ground_truth/joint_states", "ground_truth/platform_pose",
+    "platform/pose_estimate", "legs/force_estimate", "platform/external_wrench_estimate",
+    "ground_truth/tissue_wrench", "kinematics/guard_status", "kinematics/calibration_samples", "vibration/status",
+    "robot_markers", "/clock", "/diagnostics", "/rosout",
 ]
 RUNS_ROOT = "runs"  # where output_dir "" makes the recorder's own run folder (under the working directory)
 FAULT_CHECK_PERIOD_S = 0.1  # how often the writer thread's failure is looked for (wall s)
@@ -129,8 +87,7 @@ class McapRecorderNode(Node):
         self._known: dict[str, tuple[str, str, str]] = {}  # topic -> (type, qos yaml, hash)
         self._subs = {}
         self._writer: McapRunWriter | None = None
-        self._bag_files: dict[Path, list[BagFile]] = {}  # folder -> files finished there (taken over or ours)
-        self._own_folder: Path | None = None  # the run folder output_dir "" made
+        self.bags = BagFolders(self._cwd, lambda: new_run_folder(self._cwd / RUNS_ROOT))
         self._clock = self.get_clock()
         # message info (publication sequence numbers) reaches callbacks only with the single-threaded executor
         self._gaps = SequenceGaps() if os.environ.get("STEWART_EXECUTOR") == "single" else None
@@ -167,30 +124,12 @@ class McapRecorderNode(Node):
         return SetParametersResult(successful=True)
 
     def report(self) -> None:
-        """/diagnostics: recording <path> (OK), not recording, or the write failure (ERROR), with the counters;
-        WARN once messages were dropped (queue full) or lost (DDS)."""
-        per_topic = self._gaps.per_topic() if self._gaps else {}
-        lost = sum(per_topic.values())
-        counts = {"lost": lost, "lost_topics": ",".join(f"{t}:{n}" for t, n in sorted(per_topic.items()))}
-        if self._gaps is not None:
-            counts["sequence_gaps"] = self._gaps.total
-        fault = {"fault": "write_failed" if self._fault else "", "fault_code": self._fault[0] if self._fault else "",
-                 "fault_reason": self._fault[1] if self._fault else ""}
+        """/diagnostics: the recording, its counters and its fault (mcap_log.recording_status)."""
         writer = self._writer
-        if writer is None:
-            level, message = (ERROR, f"recording failed: {self._fault[1]}") if self._fault else (OK, "not recording")
-            self.diagnostics.set(level, message, path="", last_file=self._last_file, **counts, **fault)
-            return
-        stats = writer.stats
-        if self._fault:
-            level, message = ERROR, f"recording failed: {self._fault[1]}; nothing is recorded since"
-        else:
-            level = WARN if stats.dropped or lost else OK
-            message = f"recording {writer.path}" + (f"; {stats.dropped} messages dropped" if stats.dropped else "") \
-                + (f"; {lost} samples lost before they reached the recorder" if lost else "")
-        self.diagnostics.set(level, message, path=str(writer.path), last_file=self._last_file,
-                             received=stats.received, written=stats.written, dropped=stats.dropped,
-                             topics=len(self._known), **counts, **fault)
+        severity, message, values = recording_status(writer.path if writer else None,
+                                                     writer.stats if writer else None, self._fault, self._gaps)
+        self.diagnostics.set({"ok": OK, "warn": WARN, "error": ERROR}[severity], message, last_file=self._last_file,
+                             topics=len(self._known), **values)
 
     def _check_writer(self) -> None:
         """A failed write is reported the moment the writer thread has seen it (ERROR, logged once)."""
@@ -205,41 +144,6 @@ class McapRecorderNode(Node):
         self.report()
 
     # -- recording ------------------------------------------------------------------
-    def _folder(self) -> Path:
-        """The bag folder of the next file (output_dir checked again: the disk may have changed)."""
-        output_dir = str(self.get_parameter("output_dir").value)
-        if output_dir:
-            folder = bag_folder(output_dir, self._cwd)
-            folder.mkdir(parents=True, exist_ok=True)
-            return folder
-        if self._own_folder is None or not self._own_folder.is_dir():
-            self._own_folder = new_run_folder(self._cwd / RUNS_ROOT)
-        check_bag_folder(self._own_folder)
-        return self._own_folder
-
-    def _next_path(self, folder: Path, name: str = "") -> Path:
-        """The next file in ``folder``: ``name``.mcap if given, else of file_pattern (an existing name gets _n)."""
-        pattern = f"{name}.mcap" if name else str(self.get_parameter("file_pattern").value)
-        check_file_pattern(pattern)
-        index = len(self._bag_files.get(folder, [])) + 1
-        name = file_name(pattern, stamp=time.strftime("%Y%m%d_%H%M%S"), node=self.get_name(), index=index)
-        path = folder / name
-        n = 1
-        while path.exists():
-            path = path.with_name(f"{Path(name).stem}_{n}{Path(name).suffix}")
-            n += 1
-        return path
-
-    def _take_over(self, folder: Path) -> None:
-        """Adopt the complete files an earlier recorder's metadata.yaml lists in ``folder``, then remove it (the
-        folder has no metadata.yaml while a file is written)."""
-        if folder not in self._bag_files and written_by_recorder(folder):
-            entries = [bag_file_of(folder / name) for name in listed_files(folder)]
-            self._bag_files[folder] = [e for e in entries if e is not None]
-            self.get_logger().info(f"{folder} holds an earlier recording: its {len(self._bag_files[folder])} "
-                                   "file(s) stay listed in its metadata.yaml beside the new ones")
-        remove_metadata_yaml(folder)
-
     def start_recording(self, name: str = "") -> Path:
         """Open a new file (if not recording; ``name``: its stem, "" = file_pattern) and declare every topic
         already subscribed.
@@ -249,9 +153,13 @@ class McapRecorderNode(Node):
             OSError: the folder or the file cannot be created.
         """
         if self._writer is None:
-            folder = self._folder()
-            path = self._next_path(folder, name)
-            self._take_over(folder)
+            folder = self.bags.folder(str(self.get_parameter("output_dir").value))
+            pattern = f"{name}.mcap" if name else str(self.get_parameter("file_pattern").value)
+            path = self.bags.next_path(folder, pattern, self.get_name())
+            adopted = self.bags.take_over(folder)
+            if adopted is not None:
+                self.get_logger().info(f"{folder} holds an earlier recording: its {adopted} file(s) stay listed in "
+                                       "its metadata.yaml beside the new ones")
             writer = McapRunWriter(
                 path,
                 chunk_size=int(self.get_parameter("chunk_size").value),
@@ -272,17 +180,13 @@ class McapRecorderNode(Node):
         if writer is None:
             return None
         stats = writer.close()
-        folder = writer.path.parent
-        files = self._bag_files.setdefault(folder, [])
         failure = writer.failure
-        if failure is None:
-            files.append(writer.bag_file())
-        else:
+        if failure is not None:
             self._fault = (failure.code, failure.reason)
         metadata = None
         try:
-            metadata = write_metadata_yaml(folder, bag_metadata(files, {RECORDED_BY_KEY: RECORDED_BY}))
-            self.get_logger().info(f"finished {writer.path}; {metadata} lists {len(files)} file(s)")
+            metadata, listed = self.bags.finish(writer.path.parent, writer.bag_file() if failure is None else None)
+            self.get_logger().info(f"finished {writer.path}; {metadata} lists {listed} file(s)")
         except OSError as exc:
             self.get_logger().error(f"finished {writer.path}, but its metadata.yaml cannot be written: {exc}")
         if failure is not None:
@@ -290,22 +194,8 @@ class McapRecorderNode(Node):
                                     f"rebuild it with: stewart-vibration mcap-recover {writer.path}")
         self._last_file = str(writer.path)
         self.report()
-        report = {
-            "path": str(writer.path),
-            # the node clock when the file was finished (sim s with use_sim_time): what it had received by then
-            "stopped_at_s": self._clock.now().nanoseconds * 1e-9,
-            "metadata_yaml": str(metadata) if metadata else None,
-            "received": stats.received,
-            "written": stats.written,
-            "dropped": stats.dropped,
-            "max_backlog": stats.max_backlog,
-            "per_topic": dict(stats.per_topic),
-            "lost": self._gaps.total if self._gaps else 0,
-            "lost_per_topic": self._gaps.per_topic() if self._gaps else {},
-            "sequence_gaps": self._gaps.per_topic() if self._gaps else None,
-            "failure": {"code": failure.code, "reason": failure.reason, "good_bytes": failure.good_bytes,
-                        "lost_after_failure": stats.lost_after_failure} if failure else None,
-        }
+        report = finished_report(writer.path, stats, failure, self._gaps, self._clock.now().nanoseconds * 1e-9,
+                                 metadata)
         # One machine-readable line for tests, the bring-up and the benchmark. The log may be on the disk that is
         # full: a failed print must not take the recorder (and the file it finishes) down.
         try:
