@@ -115,16 +115,64 @@ REFINED_SAMPLES = 64  # ... and this many in segments that come within NEAR_LIMI
 NEAR_LIMIT = 0.9
 
 
+# Hermite basis polynomials in s (ascending coefficients) of the terms p0, h v0, h^2 a0, p1, h v1, h^2 a1: the
+# same curves as ``quintic_hermite`` and ``cubic_hermite`` (the cubic has no acceleration terms)
+_QUINTIC_BASIS = np.array([
+    [1, 0, 0, -10, 15, -6],
+    [0, 1, 0, -6, 8, -3],
+    [0, 0, 0.5, -1.5, 1.5, -0.5],
+    [0, 0, 0, 10, -15, 6],
+    [0, 0, 0, -4, 7, -3],
+    [0, 0, 0, 0.5, -1, 0.5],
+])
+_CUBIC_BASIS = np.array([
+    [1, 0, -3, 2, 0, 0],
+    [0, 1, -2, 1, 0, 0],
+    [0, 0, 0, 0, 0, 0],
+    [0, 0, 3, -2, 0, 0],
+    [0, 0, -1, 1, 0, 0],
+    [0, 0, 0, 0, 0, 0],
+])
+
+
+def _basis_at(basis: np.ndarray, s: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The six basis terms and their first two derivatives in s, each [len(s), 6]."""
+    P = np.polynomial.polynomial
+
+    def terms(order: int) -> np.ndarray:
+        return np.stack([P.polyval(s, P.polyder(row, order)) for row in basis], axis=1)
+
+    return terms(0), terms(1), terms(2)
+
+
 def _segment_extremes(knot_times, positions, velocities, accelerations, samples: int, segments):
     """Per segment [m, k]: min and max position, max |velocity|, max |acceleration| over its ends and
-    ``samples`` points inside."""
+    ``samples`` points inside (the same points in every segment's normalised time, so the basis is evaluated once
+    and each segment is a weighted sum of its six knot terms)."""
     seg = np.asarray(segments)
-    frac = np.arange(samples + 2) / (samples + 1)
-    grid = (knot_times[seg, None] + (knot_times[seg + 1] - knot_times[seg])[:, None] * frac).ravel()
-    p, v, a = spline_segments(knot_times, positions, velocities, accelerations, grid, np.repeat(seg, samples + 2))
-    shape = (len(seg), samples + 2, -1)
-    p = p.reshape(shape)
-    return p.min(axis=1), p.max(axis=1), np.abs(v).reshape(shape).max(axis=1), np.abs(a).reshape(shape).max(axis=1)
+    s = np.arange(samples + 2) / (samples + 1)
+    h = knot_times[seg + 1] - knot_times[seg]
+    hh = h[:, None]
+    p0, v0, p1, v1 = positions[seg], velocities[seg], positions[seg + 1], velocities[seg + 1]
+    if accelerations is None:
+        a0 = a1 = np.zeros_like(p0)
+        quintic = np.zeros(len(seg), dtype=bool)
+    else:
+        a0, a1 = accelerations[seg], accelerations[seg + 1]
+        quintic = ~(np.isnan(a0[:, 0]) | np.isnan(a1[:, 0]))
+        a0, a1 = np.where(quintic[:, None], a0, 0.0), np.where(quintic[:, None], a1, 0.0)
+    terms = np.stack([p0, hh * v0, hh * hh * a0, p1, hh * v1, hh * hh * a1])  # [6, m, k]
+    lo, hi, vmax, amax = (np.empty_like(p0) for _ in range(4))
+    for basis, rows in ((_QUINTIC_BASIS, quintic), (_CUBIC_BASIS, ~quintic)):
+        if rows.any():
+            bp, bv, ba = _basis_at(basis, s)
+            t = terms[:, rows].reshape(6, -1)  # one matrix product per quantity: [points, 6] @ [6, segments * k]
+            shape = (s.size, int(rows.sum()), p0.shape[1])
+            p = (bp @ t).reshape(shape)
+            lo[rows], hi[rows] = p.min(axis=0), p.max(axis=0)
+            vmax[rows] = np.abs((bv @ t).reshape(shape)).max(axis=0) / h[rows, None]
+            amax[rows] = np.abs((ba @ t).reshape(shape)).max(axis=0) / h[rows, None] ** 2
+    return lo, hi, vmax, amax
 
 
 def spline_extremes(knot_times, positions, velocities, accelerations=None, *, position_bounds=None,
