@@ -147,8 +147,10 @@ def unit_fault(delivery, band: float) -> str:
     faulty = [int(i) for i in np.argsort(-off) if off[i] > band]
     if not faulty:
         return ""
-    named = ", ".join(f"unit {i + 1} delivers {abs(r[i]):.2f} x its demand at {np.degrees(np.angle(r[i])):+.0f} deg"
-                      for i in faulty)
+    # whole degrees as an int: a phase of -1e-14 deg (the solve's rounding) reads +0, never -0
+    phases = [round(float(np.degrees(np.angle(r[i])))) for i in faulty]
+    named = ", ".join(f"unit {i + 1} delivers {abs(r[i]):.2f} x its demand at {phase:+d} deg"
+                      for i, phase in zip(faulty, phases, strict=True))
     return f"{named} (as identified: 1.00 x at +0 deg)"
 
 
