@@ -38,7 +38,6 @@ from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 import foxglove
-import numpy as np
 from foxglove.channels import FrameTransformsChannel, SceneUpdateChannel
 from foxglove.messages import (
     SceneEntityDeletion,
@@ -62,6 +61,7 @@ from ..parameters.tables import FOXGLOVE_BRIDGE
 from ..robot import VIB_NAMES
 from ..visualization import scene as scene_model
 from ..visualization.foxglove_schemas import foxglove_entities, foxglove_timestamp, foxglove_transforms
+from ..visualization.scene_stream import SceneStream
 from .diagnostics import OK, Diagnostics, MalformedInputs
 from .mcap_recorder_node import SUITE_TOPICS
 from .node_parameters import declare_table
@@ -72,8 +72,6 @@ if TYPE_CHECKING:
     from rclpy.qos import QoSProfile
     from rclpy.subscription import Subscription
 
-# vibration/status states in which a vibration is planned or under way (emulation.vibration_status)
-VIBRATING_STATES = frozenset({"pending", "ramping_in", "running", "ramping_out"})
 SUBSCRIPTION_DEPTH = 100  # history of the forwarding subscriptions (0.2 s of a 500 Hz stream)
 DISCOVERY_PERIOD_S = 1.0
 RECONCILE_PERIOD_S = 0.2  # subscriptions follow the clients' within this
@@ -117,12 +115,7 @@ class FoxgloveBridgeNode(Node):
         self._topics: dict[str, BridgedTopic] = {}
         self._pose_data: bytes | None = None
         self._bad_pose: bytes | None = None  # the latest pose found malformed
-        self._vibrating = False
-        self._window: np.ndarray | None = None  # latest planned vib_1..6 samples (n, 6)
-        self._direction: np.ndarray | None = None
-        self._direction_stale = False
-        self._arrow_shown = False
-        self._static_sent = float("-inf")  # steady time the static entities were last sent
+        self.scene_stream = SceneStream(self.scene_builder, STATIC_PERIOD_S)
         self._clock = self.get_clock()
 
         self.server = start_websocket_server(host, port, self.fox_context)
@@ -218,7 +211,7 @@ class FoxgloveBridgeNode(Node):
         report = self.malformed.read("vibration/status", vibration_report_from_cdr, data)
         if report is None:
             return
-        self._vibrating = report.state in VIBRATING_STATES
+        self.scene_stream.on_status(report.state)
 
     def _on_vibration_window(self, data: bytes) -> None:
         try:
@@ -230,15 +223,13 @@ class FoxgloveBridgeNode(Node):
             return
         if len(window.times) < 2:
             return
-        self._window = window.positions
-        self._direction_stale = True
+        self.scene_stream.on_window(window.positions)
 
     # -- the scene ------------------------------------------------------------------------------
     def _publish_scene(self) -> None:
         data = self._pose_data
         if data is None or not self.scene_watched():
-            self._arrow_shown = False  # a client that subscribes again starts from a clean scene
-            self._static_sent = float("-inf")
+            self.scene_stream.unwatched()
             return
         if data is self._bad_pose:
             return  # judged once (the scene timer would count it at every tick)
@@ -247,26 +238,14 @@ class FoxgloveBridgeNode(Node):
             self.malformed.refuse("ground_truth/platform_pose", batch.errors[0])
             self._bad_pose = data
             return
-        stamp, position, quaternion = float(batch.stamps[0]), batch.values[0, :3], batch.values[0, 3:]
-        if self._direction_stale and self._window is not None:
-            self._direction = scene_model.vibration_direction_from_window(
-                self.scene_builder.robot, position, quaternion, self._window)
-            self._direction_stale = False
-        direction = self._direction if self._vibrating else None
-        scene = self.scene_builder.scene(position, quaternion, stamp, direction)
-        entities = scene.entities
-        if time.monotonic() - self._static_sent < STATIC_PERIOD_S:
-            entities = [e for e in entities if e.id not in scene_model.STATIC_ENTITIES]
-        else:
-            self._static_sent = time.monotonic()
+        stamp = float(batch.stamps[0])
+        frame = self.scene_stream.frame(batch.values[0, :3], batch.values[0, 3:], stamp, time.monotonic())
         now = header_stamp_ns(data) or self._clock.now().nanoseconds  # the pose's time, as its forwarded copy
-        self._transforms.log(foxglove_transforms(scene), log_time=now)
-        deletions = []
-        if direction is None and self._arrow_shown:
-            deletions = [SceneEntityDeletion(timestamp=foxglove_timestamp(stamp),
-                                             type=SceneEntityDeletionType.MatchingId, id=scene_model.VIBRATION_ENTITY)]
-        self._arrow_shown = direction is not None
-        self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(scene.stamp, entities)),
+        self._transforms.log(foxglove_transforms(frame.scene), log_time=now)
+        deletions = [SceneEntityDeletion(timestamp=foxglove_timestamp(stamp), type=SceneEntityDeletionType.MatchingId,
+                                         id=scene_model.VIBRATION_ENTITY)] if frame.delete_arrow else []
+        self._entities.log(SceneUpdate(deletions=deletions, entities=foxglove_entities(frame.scene.stamp,
+                                                                                        frame.entities)),
                            log_time=now)
         self.server.broadcast_time(now)
 
