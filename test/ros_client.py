@@ -15,7 +15,6 @@ import rclpy
 from lifecycle_msgs.srv import ChangeState, GetState
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
 import stewart_vibration.nodes  # noqa: F401  (AMENT_PREFIX_PATH in the pip world)
 from stewart_vibration.nodes.run_loop import make_executor
@@ -80,17 +79,21 @@ class RosTestClient:
         self.executor.add_node(self.node)
         self.received = defaultdict(list)
         self._publishers = {}
+        self._subscriptions: dict = {}
         self.clients = ServiceClients(self.node)
         self._actions: dict = {}
         self._acceptances: dict = {}
 
-    def subscribe(self, topic: str, msg_type, depth: int = 1000, latched: bool = False):
-        """Received messages of ``topic`` (a list that fills while the client spins). ``latched``: reliable,
-        transient local -- a command topic's messages sent before DDS matched this reader still arrive."""
-        qos = depth if not latched else QoSProfile(depth=depth, reliability=ReliabilityPolicy.RELIABLE,
-                                                   durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        self.node.create_subscription(msg_type, topic, self.received[topic].append, qos)
+    def subscribe(self, topic: str, msg_type, depth: int = 1000):
+        self._subscriptions[topic] = self.node.create_subscription(msg_type, topic, self.received[topic].append,
+                                                                   depth)
         return self.received[topic]
+
+    def wait_matched(self, topic: str, count: int = 1, timeout: float = 20.0) -> bool:
+        """Spin until this client's subscription of ``topic`` has matched ``count`` publishers: a message sent
+        before DDS matched them is lost (volatile QoS), and the graph shows them before that."""
+        subscription = self._subscriptions[topic]
+        return self.spin_until(lambda: subscription.get_publisher_count() >= count, timeout)
 
     def publisher(self, topic: str, msg_type, depth: int = 10):
         if topic not in self._publishers:

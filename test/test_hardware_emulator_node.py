@@ -275,11 +275,10 @@ def test_above_real_time_physics_waits_for_late_estimates(ros_domain, tmp_path):
 
 
 def test_a_command_sent_before_the_robot_listens_never_moves_it(robot, ros_domain, tmp_path):
-    """The command topics are offered transient local (a late recorder still gets them), but the robot reads
-    them volatile: a leg trajectory latched before the emulator starts is never taken, the same trajectory
-    sent once it listens is; the graph shows both of its command subscriptions volatile."""
+    """The robot reads its command topics volatile: a leg trajectory latched (transient local, as a hostile or
+    stale sender may offer it) before the emulator starts is never taken, the same trajectory sent once it
+    listens is; the graph shows both of its command subscriptions volatile."""
     from stewart_vibration.kinematics.ik import inverse_kinematics
-    from stewart_vibration.nodes.run_loop import COMMAND_QOS
 
     client = RosTestClient()
     proc = None
@@ -288,7 +287,8 @@ def test_a_command_sent_before_the_robot_listens_never_moves_it(robot, ros_domai
         move = JointTrajectory(joint_names=[f"leg_{i}" for i in range(1, 7)])
         move.points = [JointTrajectoryPoint(positions=[float(x) for x in inverse_kinematics(robot, target)],
                                             time_from_start=duration_msg(1.5))]
-        latched = client.node.create_publisher(JointTrajectory, "legs/joint_trajectory", COMMAND_QOS)
+        latched = client.node.create_publisher(JointTrajectory, "legs/joint_trajectory", QoSProfile(
+            depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL))
         latched.publish(move)
         states = client.subscribe("legs/joint_states", JointState, depth=5000)
         answers = client.subscribe("legs/trajectory_status", LegTrajectoryStatus)

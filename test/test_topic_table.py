@@ -32,8 +32,7 @@ MODULES = {
 NOT_NODES = {"run summary", "tests", "RViz/Foxglove", "every node on sim time"}  # readers of no node module here
 # modules that publish or subscribe what their user names, not a topic of the suite
 GENERIC = {"mcap_replay_node", "service_calls", "topic_listener"}
-DEPTHS = {"STREAM_DEPTH": "3000", "CLOCK_DEPTH": "100", "STATUS_QOS": "transient local, 1",
-          "COMMAND_QOS": "transient local, 10"}
+DEPTHS = {"STREAM_DEPTH": "3000", "CLOCK_DEPTH": "100", "STATUS_QOS": "transient local, 1"}
 
 
 def table_rows() -> dict[str, dict]:

@@ -45,7 +45,7 @@ class Suite:
         self.client = c = RosTestClient()
         self.clock = c.subscribe("/clock", Clock)
         self.states = c.subscribe("legs/joint_states", JointState, depth=5000)
-        self.windows = c.subscribe("vibration/joint_trajectory", JointTrajectory, latched=True)
+        self.windows = c.subscribe("vibration/joint_trajectory", JointTrajectory)
         self.planner_diag = []  # (wall time, DiagnosticStatus)
         self.status = []  # (wall time, VibrationReport)
         c.node.create_subscription(DiagnosticArray, "/diagnostics", self._on_diag, 100)
@@ -53,6 +53,7 @@ class Suite:
         estimates = c.subscribe("platform/pose_estimate", PoseStamped)
         assert c.spin_until(lambda: self.status and self.clock and len(estimates) > 10, 60), self.logs()
         assert c.vibrate_server_ready(30), self.logs()
+        assert c.wait_matched("vibration/joint_trajectory", timeout=30), self.logs()
 
     def _on_diag(self, msg):
         for s in msg.status:

@@ -92,7 +92,7 @@ from .message_conversions import JointColumns, RawBatcher, duration_msg, duratio
 from .move_messages import base_pose
 from .node_parameters import declare_table
 from .outcomes import outcome, outcome_name, outcome_of
-from .run_loop import COMMAND_QOS, STATUS_QOS, STREAM_DEPTH, run_node
+from .run_loop import STATUS_QOS, STREAM_DEPTH, run_node
 from .status_messages import guard_status_msg
 
 FEEDBACK_PERIOD_S = 0.05  # wall time between a move goal's feedback messages (20 Hz)
@@ -147,7 +147,7 @@ class KinematicsNode(Node):
         self.decoder = cdr.JointStateDecoder()
         self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
         self.batcher = RawBatcher(self, batch_size, period, self.process)
-        self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", COMMAND_QOS)
+        self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
         self.diagnostics.report_readers("platform/pose_estimate", self.pose_pub)
         # 1 s of states at 500 Hz: under CPU load the executor stalls > 0.1 s and depth 50 lost estimates

@@ -26,10 +26,6 @@ from .diagnostics import MalformedInputs
 STREAM_DEPTH = 3000
 # the status topics (the robot's vibration status, the force guard's): a late joiner gets the current state
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-# the command topics (leg trajectories, vibration windows) as offered: sparse messages (a short vibration is one
-# window), so a reader whose match completes after one was sent -- the recorder, a monitor, on a loaded machine
-# -- still gets the last ten. The robot subscribes volatile: it acts only on commands sent while it listens.
-COMMAND_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def make_executor(context=None):

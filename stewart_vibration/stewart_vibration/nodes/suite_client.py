@@ -62,6 +62,7 @@ NOT_READY_YET = ("NOT_READY", "CLOCK_NOT_RUNNING")
 # allows 10 mm/s); at most ESTIMATES_CURRENT_WAIT_S of wall time, then the run goes on and says so
 ESTIMATES_CURRENT_S = 0.15
 ESTIMATES_CURRENT_WAIT_S = 60.0
+RECORDED_BEFORE_READY = ("legs/joint_states", "legs/joint_trajectory", "vibration/joint_trajectory")  # by the recorder
 
 
 class SuiteClient:
@@ -230,11 +231,11 @@ class SuiteClient:
         self.spin_until(self.vibrate_client.server_is_ready, 60, "the vibration_planner/vibrate action")
         progress("ready: vibration_planner (action), mcap_recorder (services)")
 
-        def recorder_subscribed():
-            infos = self.node.get_subscriptions_info_by_topic(f"{ns}/legs/joint_states")
-            return any(i.node_name == "mcap_recorder" for i in infos)
+        def recorder_subscribed():  # the states, and the commands: a short vibration is one window
+            return all(any(i.node_name == "mcap_recorder" for i in self.node.get_subscriptions_info_by_topic(
+                f"{ns}/{topic}")) for topic in RECORDED_BEFORE_READY)
 
-        self.spin_until(recorder_subscribed, 60, "the recorder to subscribe to legs/joint_states")
+        self.spin_until(recorder_subscribed, 60, f"the recorder to subscribe to {', '.join(RECORDED_BEFORE_READY)}")
         self.recorder_ready_clock = self.clock
         progress("ready: mcap_recorder is recording the suite's topics")
         self._wait_estimates_current(progress)

@@ -80,7 +80,7 @@ from ..vibration.waveform import envelope, fade_out
 from .diagnostics import ERROR, OK, WARN, Diagnostics, MalformedInputs, reject
 from .node_parameters import declare_table
 from .outcomes import end_goal, outcome
-from .run_loop import COMMAND_QOS, STATUS_QOS, run_node
+from .run_loop import STATUS_QOS, run_node
 from .vibration_goal import UNIT_STATES, goal_settings, plan_message
 
 POLL_PERIOD_S = 0.01  # wall-clock polling of the sim clock for the streaming
@@ -133,7 +133,7 @@ class VibrationPlannerNode(Node):
         # they are scaled to as many more sim seconds
         self.clock_rate = ClockRate()
         self._last_rate_sample = 0.0
-        self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", COMMAND_QOS)
+        self.pub = self.create_publisher(JointTrajectory, "vibration/joint_trajectory", 10)
         self.create_subscription(PoseStamped, "platform/pose_estimate", self.on_pose, 10, raw=True)
         self.create_subscription(VibrationUnitsStatus, "vibration/status", self.on_status, STATUS_QOS, raw=True)
         self.action = ActionServer(self, Vibrate, "vibration_planner/vibrate", execute_callback=self.execute,
