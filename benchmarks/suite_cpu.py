@@ -89,7 +89,7 @@ def probe_lag(domain: int, seconds: float, estimate: str, namespace: str = "/ste
     timestamp), split into its node's part (the state's publication to the estimate's: the node's input queue
     and processing) and the second hop (the estimate's publication to its reception). A reader of every stream
     at once (2,000 messages per second into one Python process) measured itself: its second hop reached p99
-    0.8-1.7 s while a reader of two streams beside it saw 1-14 ms, and the nodes' part stayed at p99 11-14 ms.
+    0.4-1.7 s while readers of two streams saw 1-3 ms on most runs, and the nodes' part stayed at p99 11-20 ms.
 
     Returns:
         {"legs/joint_states": {p50, p99, max, count} (their DDS transit), estimate: {..., "node": {...},

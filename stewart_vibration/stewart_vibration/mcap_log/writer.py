@@ -365,4 +365,3 @@ class McapRunWriter:
             queue_.clear()
         except BaseException as exc:  # surfaced by close()
             self._error = exc
-
