@@ -43,6 +43,8 @@ def run_role(role: str, seconds: float) -> None:
     from sensor_msgs.msg import JointState
 
     from stewart_vibration.messages import cdr
+    from stewart_vibration.messages.joint_states import JointStateEncoder
+    from stewart_vibration.messages.stamped_doubles import PoseStampedEncoder, WrenchStampedEncoder
     from stewart_vibration.nodes.run_loop import STREAM_DEPTH, make_executor, spin_until_stopped
     from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
@@ -50,9 +52,9 @@ def run_role(role: str, seconds: float) -> None:
     node = Node(f"floor_{role}")
     executor = make_executor()
     executor.add_node(node)
-    states = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
-    forces = cdr.JointStateEncoder(LEG_NAMES)
-    poses = cdr.PoseStampedEncoder("base")
+    states = JointStateEncoder(LEG_NAMES + VIB_NAMES)
+    forces = JointStateEncoder(LEG_NAMES)
+    poses = PoseStampedEncoder("base")
     six, quat = np.zeros(6), np.array([0.0, 0.0, 0.0, 1.0])
     kept = []
 
@@ -87,7 +89,7 @@ def run_role(role: str, seconds: float) -> None:
     elif role == "estimator":
         force = node.create_publisher(JointState, "legs/force_estimate", STREAM_DEPTH)
         wrench = node.create_publisher(WrenchStamped, "platform/external_wrench_estimate", STREAM_DEPTH)
-        encode_wrench = cdr.WrenchStampedEncoder("base")
+        encode_wrench = WrenchStampedEncoder("base")
 
         def estimate(data: bytes) -> None:
             t = stamp_of(data)

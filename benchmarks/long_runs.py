@@ -27,6 +27,8 @@ import numpy as np
 
 from stewart_vibration.mcap_log.writer import BagFileWriter
 from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_states import JointStateEncoder
+from stewart_vibration.messages.stamped_doubles import ImuEncoder, PoseStampedEncoder, WrenchStampedEncoder
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
 STATE_HZ, CLOCK_HZ, VIBRATION_HZ = 500, 100, 35.0
@@ -44,9 +46,9 @@ def synthesize(path: Path, seconds: float) -> int:
     for name, type_name in types.items():
         writer.add_topic(NS + name, type_name, "[]")
     writer.add_topic("/clock", "rosgraph_msgs/msg/Clock", "[]")
-    states = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES, "base")
-    forces = cdr.JointStateEncoder(LEG_NAMES, "base", fields=("effort",))
-    pose, wrench, imu = cdr.PoseStampedEncoder("base"), cdr.WrenchStampedEncoder("base"), cdr.ImuEncoder("platform")
+    states = JointStateEncoder(LEG_NAMES + VIB_NAMES, "base")
+    forces = JointStateEncoder(LEG_NAMES, "base", fields=("effort",))
+    pose, wrench, imu = PoseStampedEncoder("base"), WrenchStampedEncoder("base"), ImuEncoder("platform")
     rng = np.random.default_rng(1)
     amplitude = rng.uniform(5e-6, 2e-5, 6)
     phase = rng.choice([0.0, np.pi], 6)

@@ -19,8 +19,19 @@ import timeit
 import numpy as np
 
 from stewart_vibration.kinematics.rotations import pose_from_position_quaternion
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_states import (
+    JointStateDecoder,
+    JointStateEncoder,
+    decode_joint_states,
+    decode_joint_states_dropping_malformed,
+)
 from stewart_vibration.messages.stamped import MAX_JOINT_POSITION_M, poses_from_cdr, rows_within, wrenches_from_cdr
+from stewart_vibration.messages.stamped_doubles import (
+    PoseStampedEncoder,
+    WrenchStampedEncoder,
+    decode_pose_stamped,
+    decode_wrench_stamped,
+)
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 
 BURST = 10
@@ -32,26 +43,26 @@ def best_us(function, number: int = 2000) -> float:
 
 
 def measure() -> dict:
-    states = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
+    states = JointStateEncoder(LEG_NAMES + VIB_NAMES)
     burst = [states.encode(1 + 0.002 * i, np.full(12, 0.17), np.zeros(12), np.zeros(12)) for i in range(BURST)]
-    decoder = cdr.JointStateDecoder()
-    batch = cdr.decode_joint_states(burst, decoder)[0]
+    decoder = JointStateDecoder()
+    batch = decode_joint_states(burst, decoder)[0]
     lengths = batch.position[:, :6] + batch.position[:, 6:]
-    wrench = cdr.WrenchStampedEncoder("base")
+    wrench = WrenchStampedEncoder("base")
     wrenches = [wrench.encode(1 + 0.002 * i, np.zeros(6)) for i in range(BURST)]
-    pose = cdr.PoseStampedEncoder("base")
+    pose = PoseStampedEncoder("base")
     poses = [pose.encode(1 + 0.002 * i, [0.0, 0.0, 0.16], [0.0, 0.0, 0.0, 1.0]) for i in range(BURST)]
 
     def old_wrenches():
-        decoded = [cdr.decode_wrench_stamped(m) for m in wrenches]
+        decoded = [decode_wrench_stamped(m) for m in wrenches]
         return np.array([d[0] for d in decoded]), np.array([d[2] for d in decoded])
 
     def old_poses():
-        decoded = [cdr.decode_pose_stamped(m) for m in poses]
+        decoded = [decode_pose_stamped(m) for m in poses]
         return pose_from_position_quaternion(np.array([d[2] for d in decoded]), np.array([d[3] for d in decoded]))
 
     return {
-        "states_decode_us": best_us(lambda: cdr.decode_joint_states_dropping_malformed(burst, decoder)),
+        "states_decode_us": best_us(lambda: decode_joint_states_dropping_malformed(burst, decoder)),
         "states_rows_within_us": best_us(lambda: rows_within(lengths, MAX_JOINT_POSITION_M)),
         "states_isfinite_only_us": best_us(lambda: np.isfinite(lengths).all(axis=1)),
         "wrenches_checked_us": best_us(lambda: wrenches_from_cdr(wrenches)),

@@ -19,7 +19,9 @@ from rclpy.serialization import serialize_message
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from stewart_vibration.emulation.vibration_status import VibrationReport
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_states import JointStateEncoder
+from stewart_vibration.messages.joint_trajectory import encode_joint_trajectory
+from stewart_vibration.messages.stamped_doubles import PoseStampedEncoder, WrenchStampedEncoder
 from stewart_vibration.motion.guard_status import GuardStatus
 from stewart_vibration.nodes.status_messages import guard_status_msg, vibration_status_msg
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
@@ -194,7 +196,7 @@ def joint_states(rng, names=LEG_NAMES + VIB_NAMES, count: int = 60) -> list[byte
     than the names, repeated or NUL names, a stamp's nanosec past a second, mangled bytes."""
     names = list(names)
     k = len(names)
-    encoder = cdr.JointStateEncoder(names)
+    encoder = JointStateEncoder(names)
     good = encoder.encode(1.0, np.full(k, 0.17), np.zeros(k), np.zeros(k))
     out = []
     for i in range(count):
@@ -204,18 +206,18 @@ def joint_states(rng, names=LEG_NAMES + VIB_NAMES, count: int = 60) -> list[byte
             pos[int(rng.integers(k))] = float(rng.choice([np.nan, np.inf, -np.inf, 1e300, -1e300]))
             out.append(encoder.encode(1.0 + i * 1e-3, pos, np.zeros(k), np.zeros(k)))
         elif kind == 1:
-            out.append(cdr.JointStateEncoder(names[:-1] + names[:1]).encode(1.0, np.full(k, 0.17)))  # repeated
+            out.append(JointStateEncoder(names[:-1] + names[:1]).encode(1.0, np.full(k, 0.17)))  # repeated
         elif kind == 2:
-            short = cdr.JointStateEncoder(names, fields=("velocity",))
+            short = JointStateEncoder(names, fields=("velocity",))
             out.append(short.encode(1.0, velocity=np.zeros(k)))  # no positions at all
         elif kind == 3:
-            out.append(cdr.JointStateEncoder([names[0] + "\0x"] + names[1:]).encode(1.0, np.full(k, 0.17)))
+            out.append(JointStateEncoder([names[0] + "\0x"] + names[1:]).encode(1.0, np.full(k, 0.17)))
         elif kind == 4:
             bad = bytearray(good)
             bad[8:12] = int(rng.integers(1_000_000_000, 2**32)).to_bytes(4, "little")
             out.append(bytes(bad))
         elif kind == 5:
-            out.append(cdr.JointStateEncoder(names[:3]).encode(1.0, np.full(3, 0.17)))  # names missing
+            out.append(JointStateEncoder(names[:3]).encode(1.0, np.full(3, 0.17)))  # names missing
         else:
             out.extend(mangled(rng, good, 1, i))
     return out
@@ -226,23 +228,23 @@ def poses(rng, count: int = 40) -> list[bytes]:
     / 1e300 coordinates, a zero or non-unit quaternion, nanosec past a second, mangled bytes."""
     q = np.array([0.0, 0.0, 0.0, 1.0])
     p = np.array([0.0, 0.0, 0.16])
-    refused = cdr.PoseStampedEncoder("base").encode(1.0, [np.nan, 0.0, 0.16], q)  # the base of the mangled ones
+    refused = PoseStampedEncoder("base").encode(1.0, [np.nan, 0.0, 0.16], q)  # the base of the mangled ones
     out = []
     frames = ["base\0x", "world", "Base", " base", "x" * 70_000, "base\x01", "\0"]
     for i in range(count):
         kind = i % 6
         if kind == 0:
-            out.append(cdr.PoseStampedEncoder(frames[i % len(frames)]).encode(1.0, p, q))
+            out.append(PoseStampedEncoder(frames[i % len(frames)]).encode(1.0, p, q))
         elif kind == 1:
             bad = p.copy()
             bad[i % 3] = float(rng.choice([np.nan, np.inf, -np.inf, 1e300]))
-            out.append(cdr.PoseStampedEncoder("base").encode(1.0, bad, q))
+            out.append(PoseStampedEncoder("base").encode(1.0, bad, q))
         elif kind == 2:
-            out.append(cdr.PoseStampedEncoder("base").encode(1.0, p, [0, 0, 0, 0] if i % 2 else [0, 0, 0, 2.0]))
+            out.append(PoseStampedEncoder("base").encode(1.0, p, [0, 0, 0, 0] if i % 2 else [0, 0, 0, 2.0]))
         elif kind == 3:
-            out.append(cdr.PoseStampedEncoder("base").encode(1.0, p, [np.nan, 0, 0, 1]))
+            out.append(PoseStampedEncoder("base").encode(1.0, p, [np.nan, 0, 0, 1]))
         elif kind == 4:
-            bad = bytearray(cdr.PoseStampedEncoder("base").encode(1.0, p, q))
+            bad = bytearray(PoseStampedEncoder("base").encode(1.0, p, q))
             bad[8:12] = (4_000_000_000).to_bytes(4, "little")
             out.append(bytes(bad))
         else:
@@ -252,16 +254,16 @@ def poses(rng, count: int = 40) -> list[bytes]:
 
 def wrenches(rng, count: int = 30) -> list[bytes]:
     """WrenchStamped messages each malformed in one way: non-finite values, a frame other than base, mangled."""
-    refused = cdr.WrenchStampedEncoder("base").encode(1.0, np.full(6, np.nan))
+    refused = WrenchStampedEncoder("base").encode(1.0, np.full(6, np.nan))
     out = []
     for i in range(count):
         kind = i % 3
         if kind == 0:
             w = np.zeros(6)
             w[i % 6] = float(rng.choice([np.nan, np.inf, -np.inf]))
-            out.append(cdr.WrenchStampedEncoder("base").encode(1.0, w))
+            out.append(WrenchStampedEncoder("base").encode(1.0, w))
         elif kind == 1:
-            out.append(cdr.WrenchStampedEncoder(["platform", "base\0x", "world"][i % 3]).encode(1.0, np.ones(6)))
+            out.append(WrenchStampedEncoder(["platform", "base\0x", "world"][i % 3]).encode(1.0, np.ones(6)))
         else:
             out.extend(mangled(rng, refused, 1, i))
     return out
@@ -273,20 +275,20 @@ def trajectories(rng, names, count: int = 40) -> list[bytes]:
     names = list(names)
     k = len(names)
     base = 0.17 if names[0].startswith("leg") else 0.0
-    refused = cdr.encode_joint_trajectory(names, 0.0, [0.5, 1.0], np.full((2, k), np.nan), np.zeros((2, k)))
+    refused = encode_joint_trajectory(names, 0.0, [0.5, 1.0], np.full((2, k), np.nan), np.zeros((2, k)))
     out = []
     for i in range(count):
         kind = i % 8
         pos = np.full((2, k), base)
         if kind == 0:
             pos[1, i % k] = float(rng.choice([np.nan, np.inf, 1e300, -1e300]))
-            out.append(cdr.encode_joint_trajectory(names, 0.0, [0.5, 1.0], pos, np.zeros((2, k))))
+            out.append(encode_joint_trajectory(names, 0.0, [0.5, 1.0], pos, np.zeros((2, k))))
         elif kind == 1:
-            out.append(cdr.encode_joint_trajectory(names[:-1] + names[:1], 0.0, [0.5, 1.0], pos))
+            out.append(encode_joint_trajectory(names[:-1] + names[:1], 0.0, [0.5, 1.0], pos))
         elif kind == 2:
-            out.append(cdr.encode_joint_trajectory([names[0] + "\0x"] + names[1:], 0.0, [0.5, 1.0], pos))
+            out.append(encode_joint_trajectory([names[0] + "\0x"] + names[1:], 0.0, [0.5, 1.0], pos))
         elif kind == 3:
-            out.append(cdr.encode_joint_trajectory(names, 0.0, [1.0, 0.5], pos))  # times decreasing
+            out.append(encode_joint_trajectory(names, 0.0, [1.0, 0.5], pos))  # times decreasing
         elif kind == 4:
             msg = JointTrajectory(joint_names=names)
             msg.points = [JointTrajectoryPoint(positions=[base] * (k - 1)), JointTrajectoryPoint(positions=[base] * k)]
@@ -295,7 +297,7 @@ def trajectories(rng, names, count: int = 40) -> list[bytes]:
         elif kind == 5:
             out.append(serialize_message(JointTrajectory(joint_names=names)))  # no points
         elif kind == 6:
-            out.append(cdr.encode_joint_trajectory(names, -5.0, [-1.0, 0.5], pos))  # negative time_from_start
+            out.append(encode_joint_trajectory(names, -5.0, [-1.0, 0.5], pos))  # negative time_from_start
         else:
             out.extend(mangled(rng, refused, 1, i))
     return out

@@ -19,7 +19,7 @@ from stewart_vibration.emulation.command_size import (
 )
 from stewart_vibration.emulation.safety_controller import SafetyController
 from stewart_vibration.errors import ActuatorLimitError, VibrationLimitError
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_trajectory import encode_joint_trajectory
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.vibration.settings import MAX_WINDOW_SAMPLES
 
@@ -48,10 +48,10 @@ def test_the_bounds_are_the_ones_documented(robot):
 def test_a_maximal_leg_trajectory_message_passes_the_byte_check_and_one_beyond_it_does_not(robot):
     home = SafetyController(robot, 5e-4).home_lengths
     t, pos, vel = slow_trajectory(home, MAX_TRAJECTORY_POINTS)
-    maximal = cdr.encode_joint_trajectory(LEG_NAMES, 0.0, t, pos, vel, np.zeros_like(pos))
+    maximal = encode_joint_trajectory(LEG_NAMES, 0.0, t, pos, vel, np.zeros_like(pos))
     assert len(maximal) <= max_message_bytes(LEG_TRAJECTORY) and raw_command_refusal(maximal, LEG_TRAJECTORY) is None
     t2, pos2, vel2 = slow_trajectory(home, 2 * MAX_TRAJECTORY_POINTS)
-    oversized = cdr.encode_joint_trajectory(LEG_NAMES, 0.0, t2, pos2, vel2, np.zeros_like(pos2))
+    oversized = encode_joint_trajectory(LEG_NAMES, 0.0, t2, pos2, vel2, np.zeros_like(pos2))
     reason = raw_command_refusal(oversized, LEG_TRAJECTORY)
     assert reason is not None and str(len(oversized)) in reason and str(MAX_TRAJECTORY_POINTS) in reason
     assert raw_command_refusal(oversized, VIBRATION_WINDOW) is None  # a window may be longer

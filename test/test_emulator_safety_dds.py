@@ -35,7 +35,7 @@ from trajectory_msgs.msg import JointTrajectory
 from stewart_vibration import inverse_kinematics
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics import condition_number, joint_angles
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_trajectory import encode_joint_trajectory
 from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.nodes.message_conversions import pose_from_msg
@@ -138,7 +138,7 @@ def minjerk_bytes(robot, delta, speed=0.9, points=100):
     goal = home + np.asarray(delta)
     duration = minimum_jerk_duration(home, goal, speed * robot.limits.strut_velocity_max, 0.5)
     times = np.linspace(duration / points, duration, points)
-    return cdr.encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(home, goal, duration, times)), duration
+    return encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(home, goal, duration, times)), duration
 
 
 def test_legal_per_strut_trajectories_that_wreck_the_platform_are_refused_and_nothing_moves(robot, ros_domain,
@@ -178,7 +178,7 @@ def test_an_estop_before_the_braking_near_the_stroke_end_keeps_the_struts_inside
         t, pos, vel, acc, braking = stroke_end_approach(robot, home)
         begin = rec.now()
         client.publisher("legs/joint_trajectory", JointTrajectory).publish(
-            cdr.encode_joint_trajectory(LEG_NAMES, 0.0, t, pos, vel, acc))
+            encode_joint_trajectory(LEG_NAMES, 0.0, t, pos, vel, acc))
         assert rec.wait_sim(begin + braking - 0.05, 60)
         assert client.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request()).success
         stop_time = rec.now()
@@ -229,7 +229,7 @@ def test_a_vibration_estop_at_49_hz_and_09_g_with_a_5_ms_ramp_stays_within_1_g(r
         started(client, rec, proc.log_text)
         start = rec.now() + 0.5
         client.publisher("vibration/joint_trajectory", JointTrajectory).publish(
-            cdr.encode_joint_trajectory(VIB_NAMES, start, *vibration_window(49.0, 0.9, 3.0)))
+            encode_joint_trajectory(VIB_NAMES, start, *vibration_window(49.0, 0.9, 3.0)))
         assert client.spin_until(lambda: rec.status and report(rec.status[-1]).state == "running", 30)
         assert rec.wait_sim(start + 1.0)
         assert client.call(Trigger, "hardware_emulator/emergency_stop", Trigger.Request()).success
@@ -255,7 +255,7 @@ def test_an_oversized_trajectory_is_refused_without_stalling_physics(robot, ros_
         count = 1_000_000
         t = np.linspace(1e-3, 1000.0, count)
         ease = minimum_jerk(home, home + 0.001, 1000.0, t)
-        data = cdr.encode_joint_trajectory(LEG_NAMES, 0.0, t, *ease)
+        data = encode_joint_trajectory(LEG_NAMES, 0.0, t, *ease)
         assert len(data) > 170e6
         rss_before = rss_bytes(proc.popen.pid)
         walls = []
@@ -316,7 +316,7 @@ def test_a_physics_divergence_latches_a_fault_reported_as_error_and_the_robot_is
         goal = inverse_kinematics(robot, robot.home_pose + np.array([0, 0, 0.002, 0, 0, 0]))
         times = np.linspace(0.05, 2.0, 40)
         client.publisher("legs/joint_trajectory", JointTrajectory).publish(
-            cdr.encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(home, goal, 2.0, times)))
+            encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(home, goal, 2.0, times)))
 
         def fault_values():
             return [{kv.key: kv.value for kv in s.values} for a in rec.diagnostics for s in a.status
@@ -336,7 +336,7 @@ def test_a_physics_divergence_latches_a_fault_reported_as_error_and_the_robot_is
         assert (np.diff(all_stamps) > 0).all()  # never back in time
         count = len(rec.rejections())
         client.publisher("legs/joint_trajectory", JointTrajectory).publish(
-            cdr.encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(goal, home, 2.0, times)))
+            encode_joint_trajectory(LEG_NAMES, 0.0, times, *minimum_jerk(goal, home, 2.0, times)))
         assert client.spin_until(lambda: len(rec.rejections()) > count and "physics fault" in rec.rejections()[-1],
                                  10)
         assert proc.alive()

@@ -20,7 +20,8 @@ from ros_client import RosTestClient
 from sensor_msgs.msg import JointState
 
 from stewart_vibration.mcap_log.msg_definitions import full_message_definition
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_states import JointStateDecoder
+from stewart_vibration.messages.stamped_doubles import decode_pose_stamped
 from stewart_vibration.runtime.processes import ros_environment, start_python_module, wait_for
 
 pytestmark = pytest.mark.integration
@@ -195,7 +196,7 @@ def test_bridge_forwards_raw_cdr_and_publishes_the_scene(emulator_and_bridge):
                if cdr_stamp_ns(payload) in dds["states"]]
     assert len(matched) > 0.9 * len(states), (len(matched), len(states))
     assert all(a == b for a, b in matched)
-    decoded = cdr.JointStateDecoder().decode(matched[-1][0])
+    decoded = JointStateDecoder().decode(matched[-1][0])
     assert list(decoded.names)[:6] == [f"leg_{i}" for i in range(1, 7)]
 
     # the scene: frames for the platform and every leg, the platform frame = the ground-truth pose
@@ -207,7 +208,7 @@ def test_bridge_forwards_raw_cdr_and_publishes_the_scene(emulator_and_bridge):
         assert {parent for _, parent, _, _ in tf.values()} == {"base"}
         stamp, _, translation, rotation = tf["platform"]
         if stamp in dds["poses"]:
-            _, frame, position, quaternion = cdr.decode_pose_stamped(dds["poses"][stamp])
+            _, frame, position, quaternion = decode_pose_stamped(dds["poses"][stamp])
             assert frame == "base"
             np.testing.assert_allclose(translation, position, rtol=0, atol=1e-9)
             np.testing.assert_allclose(rotation, quaternion, rtol=0, atol=1e-9)

@@ -20,7 +20,7 @@ from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_trajectory import encode_joint_trajectory
 from stewart_vibration.messages.status_values import vibration_report_from_cdr
 from stewart_vibration.nodes.message_conversions import duration_msg, pose_from_msg
 from stewart_vibration.nodes.outcomes import outcome_name
@@ -76,7 +76,7 @@ def vib_window(stamp: float, t0: float, t1: float, amp: float = A, at_rest_end: 
         e, de = e * g, de * g - e * dg
     pos = np.tile((amp * e * np.sin(W * t))[:, None], 6)
     vel = np.tile((amp * (de * np.sin(W * t) + e * W * np.cos(W * t)))[:, None], 6)
-    return cdr.encode_joint_trajectory(VIB_NAMES, stamp, t, pos, vel)
+    return encode_joint_trajectory(VIB_NAMES, stamp, t, pos, vel)
 
 
 def test_emulator_moves_vibrates_refuses_and_stops_safely(robot, suite):

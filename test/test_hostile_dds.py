@@ -37,7 +37,7 @@ from stewart_vibration import inverse_kinematics, load_robot
 from stewart_vibration.errors import StewartError
 from stewart_vibration.kinematics import check_pose
 from stewart_vibration.kinematics.rotations import quaternion_from_rpy
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_trajectory import encode_joint_trajectory
 from stewart_vibration.motion.move_goal import move_request
 from stewart_vibration.nodes.message_conversions import pose_from_msg, pose_stamped
 from stewart_vibration.nodes.move_messages import MOVE_ACTION, base_pose
@@ -435,8 +435,8 @@ def test_hostile_messages_leave_every_node_alive_and_the_robot_reaching_a_target
     targets = hostile_move_goals(robot, rng)
     legs = hostile_leg_trajectories(robot, rng)
     windows = hostile_vibration_windows(robot, rng)
-    valid_legs = cdr.encode_joint_trajectory(LEG_NAMES, now, [1.0, 2.0], np.full((2, 6), 0.174))
-    valid_vib = cdr.encode_joint_trajectory(VIB_NAMES, now + 0.2, [0.0, 0.01], np.zeros((2, 6)), np.zeros((2, 6)))
+    valid_legs = encode_joint_trajectory(LEG_NAMES, now, [1.0, 2.0], np.full((2, 6), 0.174))
+    valid_vib = encode_joint_trajectory(VIB_NAMES, now + 0.2, [0.0, 0.01], np.zeros((2, 6)), np.zeros((2, 6)))
     raw_legs, raw_vib = garbage(rng, valid_legs, 30), garbage(rng, valid_vib, 30)
     plans = hostile_plan_requests(robot, rng)
     triggers = iter(TRIGGER_ORDER)

@@ -37,7 +37,9 @@ from stewart_vibration.kinematics.rotations import (
     rotation_from_quaternion,
     rotation_from_rpy,
 )
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.joint_states import JointStateDecoder, JointStateEncoder, decode_joint_states
+from stewart_vibration.messages.joint_trajectory import decode_joint_trajectory, encode_joint_trajectory
+from stewart_vibration.messages.stamped_doubles import PoseStampedEncoder, decode_pose_stamped
 from stewart_vibration.motion.move_goal import move_request
 from stewart_vibration.motion.paths import checked_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
@@ -880,7 +882,7 @@ def trajectory_bytes(draw):
               else None for _ in range(3)]
     if fields[0] is None:
         fields[0] = np.zeros((n, k))
-    data = cdr.encode_joint_trajectory(names, draw(st.floats(0.0, 1e6)), times, *fields,
+    data = encode_joint_trajectory(names, draw(st.floats(0.0, 1e6)), times, *fields,
                                        frame_id=draw(st.sampled_from(["", "base"]) | st.text(max_size=5)))
     return draw(mutated(data)) if draw(st.integers(0, 5)) else data
 
@@ -888,7 +890,7 @@ def trajectory_bytes(draw):
 @examples("cdr_trajectory")
 @given(data=trajectory_bytes())
 def test_joint_trajectory_bytes_decode_or_are_refused_with_a_reason_and_validate(data):
-    decoded, refusal = attempt(cdr.decode_joint_trajectory, data, label="decode")
+    decoded, refusal = attempt(decode_joint_trajectory, data, label="decode")
     assert refusal is None or isinstance(refusal, InvalidInputError)
     if refusal is None:  # then what the emulator does with it before the limits: names, shapes, numbers
         for names in (LEG_NAMES, VIB_NAMES):
@@ -901,7 +903,7 @@ def test_joint_trajectory_bytes_decode_or_are_refused_with_a_reason_and_validate
 def joint_state_bytes(draw, encoder_names=None):
     names = encoder_names if encoder_names is not None else draw(NAME_LISTS)
     fields = draw(st.sampled_from([("position", "velocity", "effort"), ("position",), ("position", "velocity"), ()]))
-    encoder = cdr.JointStateEncoder(names, draw(st.sampled_from(["", "base"])), fields)
+    encoder = JointStateEncoder(names, draw(st.sampled_from(["", "base"])), fields)
     k = len(names)
     arrays = {f: np.array(draw(st.lists(VALUES, min_size=k, max_size=k))) for f in fields}
     return encoder.encode(draw(st.floats(0.0, 1e6)), **arrays)
@@ -910,7 +912,7 @@ def joint_state_bytes(draw, encoder_names=None):
 @examples("cdr_joint_state")
 @given(data=joint_state_bytes().flatmap(lambda d: st.just(d) | mutated(d) | mutated(d)))
 def test_joint_state_bytes_decode_or_are_refused_with_a_reason(data):
-    _, refusal = attempt(cdr.JointStateDecoder().decode, data, label="decode")
+    _, refusal = attempt(JointStateDecoder().decode, data, label="decode")
     assert refusal is None or isinstance(refusal, InvalidInputError)
 
 
@@ -928,19 +930,19 @@ def joint_state_streams(draw):
 @examples("cdr_joint_states")
 @given(messages=joint_state_streams())
 def test_joint_state_streams_decode_or_are_refused_with_a_reason(messages):
-    batches, refusal = attempt(cdr.decode_joint_states, messages, label="decode")
+    batches, refusal = attempt(decode_joint_states, messages, label="decode")
     assert refusal is None or isinstance(refusal, InvalidInputError)
     if refusal is None:
         assert sum(len(b.stamps) for b in batches) == len(messages)
 
 
 @examples("cdr_pose")
-@given(data=st.builds(lambda frame, stamp, values: cdr.PoseStampedEncoder(frame).encode(stamp, values[:3], values[3:]),
+@given(data=st.builds(lambda frame, stamp, values: PoseStampedEncoder(frame).encode(stamp, values[:3], values[3:]),
                       st.sampled_from(["", "base"]) | st.text(max_size=6), st.floats(0.0, 1e6),
                       st.lists(VALUES | st.floats(-1.0, 1.0), min_size=7, max_size=7))
        .flatmap(lambda d: st.just(d) | mutated(d) | mutated(d)))
 def test_pose_stamped_bytes_decode_or_are_refused_with_a_reason(data):
-    decoded, refusal = attempt(cdr.decode_pose_stamped, data, label="decode")
+    decoded, refusal = attempt(decode_pose_stamped, data, label="decode")
     assert refusal is None or isinstance(refusal, InvalidInputError)
     if refusal is None:  # the planner's use of a pose estimate
         _, refusal = attempt(pose_from_position_quaternion, decoded[2], decoded[3])

@@ -49,7 +49,7 @@ from websockets.sync.client import connect
 from stewart_vibration import load_robot
 from stewart_vibration.errors import InvalidInputError, MalformedMessageError, StewartError
 from stewart_vibration.kinematics import check_pose
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.diagnostic_status import decode_diagnostic_array
 from stewart_vibration.messages.fields import check_frame
 from stewart_vibration.nodes.message_conversions import pose_from_msg, pose_stamped
 from stewart_vibration.nodes.move_messages import MOVE_ACTION
@@ -582,7 +582,7 @@ def test_the_main_job_survives_spoofed_statuses_and_prints_its_summary(ros_domai
     # the MCAP reader's business; 100 kB messages at 5 Hz slow the whole suite through Fast DDS's fragmentation)
     statuses = [m for m in bad.vibration_statuses(rng, 60) if wire_clean(m, VibrationUnitsStatus)]
     guards = [m for m in bad.guard_statuses(rng) if wire_clean(m, ForceGuardStatus)]
-    arrays = [m for m in bad.diagnostic_arrays(rng, 28) if wire_clean(m, cdr.decode_diagnostic_array)]
+    arrays = [m for m in bad.diagnostic_arrays(rng, 28) if wire_clean(m, decode_diagnostic_array)]
     client = RosTestClient("run_spoofer")
     status_pub = client.node.create_publisher(VibrationUnitsStatus, "/stewart/vibration/status", STATUS_QOS)
     guard_pub = client.node.create_publisher(ForceGuardStatus, "/stewart/kinematics/guard_status", STATUS_QOS)

@@ -25,7 +25,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from stewart_vibration.emulation.vibration_status import VibrationReport
 from stewart_vibration.errors import InvalidInputError, MalformedMessageError
 from stewart_vibration.kinematics.rotations import pose_from_position_quaternion, quaternion_from_rpy
-from stewart_vibration.messages import cdr
+from stewart_vibration.messages.diagnostic_status import decode_diagnostic_array, decode_diagnostic_status
 from stewart_vibration.messages.fields import (
     MAX_TEXT,
     check_frame,
@@ -35,8 +35,20 @@ from stewart_vibration.messages.fields import (
     parse_integer,
     parse_number,
 )
+from stewart_vibration.messages.joint_states import (
+    JointStateEncoder,
+    decode_joint_states,
+    decode_joint_states_dropping_malformed,
+)
+from stewart_vibration.messages.joint_trajectory import decode_joint_trajectory, encode_joint_trajectory
 from stewart_vibration.messages.malformed import MalformedCounter
 from stewart_vibration.messages.stamped import pose_from_cdr, poses_from_cdr, rows_within, wrenches_from_cdr
+from stewart_vibration.messages.stamped_doubles import (
+    PoseStampedEncoder,
+    WrenchStampedEncoder,
+    decode_pose_stamped,
+    decode_stamped_doubles,
+)
 from stewart_vibration.messages.status_values import (
     MAX_VALUES,
     StatusMessage,
@@ -175,7 +187,7 @@ def test_status_decoder_matches_rclpy_serialization():
     assert dict(status.values) == values and status.message == msg.message
     array = DiagnosticArray(status=[status_msg("a: x", {"k": "1"}), status_msg("b: y", {}, 1), msg])
     array.header.stamp.sec, array.header.frame_id = 7, "f"
-    stamp, frame, decoded = cdr.decode_diagnostic_array(serialize_message(array))
+    stamp, frame, decoded = decode_diagnostic_array(serialize_message(array))
     assert (stamp, frame, [d.name for d in decoded]) == (7.0, "f", ["a: x", "b: y", msg.name])
     good, bad = statuses_from_cdr(serialize_message(array))
     assert [s.name for s in good] == ["a: x", "b: y", msg.name] and not bad
@@ -183,7 +195,7 @@ def test_status_decoder_matches_rclpy_serialization():
 
 def test_a_nul_rclpy_would_cut_is_seen_in_raw_bytes():
     data = with_raw_string(status_msg(values={"rejections": "12XYZ"}), "12XYZ", b"12\0YZ")
-    assert cdr.decode_diagnostic_status(data).values == (("rejections", "12\0YZ"),)
+    assert decode_diagnostic_status(data).values == (("rejections", "12\0YZ"),)
     with malformed("text", "rejections"):
         status_from_cdr(data)
 
@@ -365,7 +377,7 @@ def poses_and_messages(n=8, seed=1):
     rng = np.random.default_rng(seed)
     poses = np.column_stack([rng.uniform(-0.05, 0.05, (n, 3)), rng.uniform(-0.3, 0.3, (n, 3))])
     quats = quaternion_from_rpy(poses[:, 3:])
-    encoder = cdr.PoseStampedEncoder("base")
+    encoder = PoseStampedEncoder("base")
     return poses, [encoder.encode(0.002 * i, poses[i, :3], quats[i]) for i in range(n)]
 
 
@@ -379,12 +391,12 @@ def test_pose_batch_round_trip_and_its_bad_messages(robot):
     from stewart_vibration.kinematics.rotations import pose_to_position_quaternion
 
     p, q = pose_to_position_quaternion(poses[2])
-    bad[1] = cdr.PoseStampedEncoder("base\0x").encode(0.0, p, q)  # what rclpy would send as "base"
-    bad[2] = cdr.PoseStampedEncoder("world").encode(0.0, p, q)
-    bad[3] = cdr.PoseStampedEncoder("base").encode(0.0, [np.nan, 0, 0], q)
-    bad[4] = cdr.PoseStampedEncoder("base").encode(0.0, p, [0, 0, 0, 0])
+    bad[1] = PoseStampedEncoder("base\0x").encode(0.0, p, q)  # what rclpy would send as "base"
+    bad[2] = PoseStampedEncoder("world").encode(0.0, p, q)
+    bad[3] = PoseStampedEncoder("base").encode(0.0, [np.nan, 0, 0], q)
+    bad[4] = PoseStampedEncoder("base").encode(0.0, p, [0, 0, 0, 0])
     bad[5] = b"\x00\x01\x00\x00garbage"
-    bad[6] = cdr.PoseStampedEncoder("base").encode(0.0, [5e3, 0, 0], q)
+    bad[6] = PoseStampedEncoder("base").encode(0.0, [5e3, 0, 0], q)
     batch = poses_from_cdr(bad)
     assert list(batch.kept) == [0, 7] and len(batch.errors) == 6
     np.testing.assert_allclose(batch.values, poses[[0, 7]], atol=1e-12)
@@ -399,17 +411,17 @@ def test_pose_batch_round_trip_and_its_bad_messages(robot):
 
 def test_quaternion_tolerance():
     _, messages = poses_and_messages(1)
-    _, _, p, q = cdr.decode_pose_stamped(messages[0])
-    slightly = cdr.PoseStampedEncoder("").encode(1.0, p, q * (1 + 5e-4))
+    _, _, p, q = decode_pose_stamped(messages[0])
+    slightly = PoseStampedEncoder("").encode(1.0, p, q * (1 + 5e-4))
     assert poses_from_cdr([slightly]).errors and not poses_from_cdr([slightly], unit_tolerance=1e-3).errors
 
 
 def test_wrench_batch():
-    encoder = cdr.WrenchStampedEncoder("base")
+    encoder = WrenchStampedEncoder("base")
     wrenches = np.arange(30.0).reshape(5, 6)
     messages = [encoder.encode(0.01 * i, wrenches[i]) for i in range(5)]
     messages[2] = encoder.encode(0.02, [0, np.inf, 0, 0, 0, 0])
-    messages[3] = cdr.WrenchStampedEncoder("platform").encode(0.03, wrenches[3])
+    messages[3] = WrenchStampedEncoder("platform").encode(0.03, wrenches[3])
     batch = wrenches_from_cdr(messages)
     assert list(batch.kept) == [0, 1, 4] and len(batch.errors) == 2
     np.testing.assert_array_equal(batch.values, wrenches[[0, 1, 4]])
@@ -422,24 +434,24 @@ def test_rows_within():
 
 # -- stamps and names in the raw streams ---------------------------------------------------------------------------
 def test_a_stamp_with_nanosec_past_a_second_is_malformed_and_dropped_alone():
-    encoder = cdr.JointStateEncoder(LEG_NAMES + VIB_NAMES)
+    encoder = JointStateEncoder(LEG_NAMES + VIB_NAMES)
     messages = [encoder.encode(0.002 * i, np.full(12, 0.1), np.zeros(12), np.zeros(12)) for i in range(10)]
     bad = bytearray(messages[4])
     bad[8:12] = (1_500_000_000).to_bytes(4, "little")
     messages[4] = bytes(bad)
     with pytest.raises(InvalidInputError, match="nanosec"):
-        cdr.decode_joint_states(messages)
+        decode_joint_states(messages)
     reasons = []
-    batches, kept = cdr.decode_joint_states_dropping_malformed(messages, on_malformed=reasons.append)
+    batches, kept = decode_joint_states_dropping_malformed(messages, on_malformed=reasons.append)
     assert list(kept) == [0, 1, 2, 3, 5, 6, 7, 8, 9] and len(reasons) == 1 and "nanosec" in reasons[0]
     assert sum(len(b.stamps) for b in batches) == 9
-    window = cdr.encode_joint_trajectory(VIB_NAMES, 1.0, [0.1, 0.2], np.zeros((2, 6)), np.zeros((2, 6)))
-    assert cdr.decode_joint_trajectory(window).times.tolist() == pytest.approx([0.1, 0.2])
+    window = encode_joint_trajectory(VIB_NAMES, 1.0, [0.1, 0.2], np.zeros((2, 6)), np.zeros((2, 6)))
+    assert decode_joint_trajectory(window).times.tolist() == pytest.approx([0.1, 0.2])
     data = bytearray(window)
     at = len(data) - 4  # the last point's time_from_start nanosec
     data[at:at + 4] = (2_000_000_000).to_bytes(4, "little")
     with pytest.raises(InvalidInputError, match="nanosec"):
-        cdr.decode_joint_trajectory(bytes(data))
+        decode_joint_trajectory(bytes(data))
 
 
 def test_repeated_joint_names_have_no_columns():
@@ -495,15 +507,15 @@ def test_stamped_batches_decode_as_one_by_one_in_arrival_order():
     """decode_stamped_doubles against the one-message decoder: uniform runs through one view, the rest one by one
     (another frame of the same size, another size, a bad nanosec, garbage), in arrival order."""
     rng = np.random.default_rng(4)
-    encoders = [cdr.PoseStampedEncoder(f) for f in ("base", "base", "base", "bass", "")]
+    encoders = [PoseStampedEncoder(f) for f in ("base", "base", "base", "bass", "")]
     messages = [encoders[int(rng.integers(5))].encode(0.01 * i, rng.normal(size=3), rng.normal(size=4))
                 for i in range(40)]
     bad_ns = bytearray(messages[7])
     bad_ns[8:12] = (1_000_000_000).to_bytes(4, "little")
     messages[7], messages[20] = bytes(bad_ns), b"\x00\x01\x00\x00" + bytes(3)
-    stamps, frames, values, kept, errors = cdr.decode_stamped_doubles(messages, 7, "PoseStamped")
+    stamps, frames, values, kept, errors = decode_stamped_doubles(messages, 7, "PoseStamped")
     assert list(kept) == [i for i in range(40) if i not in (7, 20)] and len(errors) == 2
     for j, i in enumerate(kept):
-        stamp, frame, position, quaternion = cdr.decode_pose_stamped(messages[i])
+        stamp, frame, position, quaternion = decode_pose_stamped(messages[i])
         assert (stamps[j], frames[j]) == (stamp, frame)
         np.testing.assert_array_equal(values[j], np.concatenate([position, quaternion]))

@@ -131,7 +131,8 @@ def last_diagnostics(arrays) -> dict:
     """{status name: (level, message, {key: value})} of the last DiagnosticStatus of each name.
 
     Args:
-        arrays: the status lists of DiagnosticArray messages (``messages.cdr.DiagnosticStatusData``), in time order.
+        arrays: the status lists of DiagnosticArray messages (``messages.diagnostic_status.DiagnosticStatusData``), in
+            time order.
 
     Returns:
         {status name: (level as int, message, {key: value})}.

@@ -1,10 +1,10 @@
 """A run's recorded topics decoded into arrays in one pass over its MCAP (pure: no rclpy, no mcap_ros2).
 
 The high-rate streams (JointState, PoseStamped, WrenchStamped at 500 Hz, /clock at 100 Hz) are collected as raw
-bytes and decoded a batch at a time with the vectorised CDR decoders of ``messages.cdr``: an hour of states is
-arrays of floats, not millions of Python message objects. A message that cannot be decoded is left out and
-counted per topic (``StreamSet.undecodable``), never a crash. Times are header stamps in s; publish times
-(the recorder's copy of the header stamp) in ns.
+bytes and decoded a batch at a time with the vectorised CDR decoders of ``messages.joint_states`` and
+``messages.stamped_doubles``: an hour of states is arrays of floats, not millions of Python message objects. A
+message that cannot be decoded is left out and counted per topic (``StreamSet.undecodable``), never a crash. Times
+are header stamps in s; publish times (the recorder's copy of the header stamp) in ns.
 """
 
 from __future__ import annotations
@@ -17,6 +17,9 @@ import numpy as np
 from ..errors import InvalidInputError
 from ..kinematics.rotations import rpy_from_quaternion
 from ..messages import cdr
+from ..messages.diagnostic_status import decode_diagnostic_array
+from ..messages.joint_states import decode_joint_states_dropping_malformed
+from ..messages.stamped_doubles import decode_stamped_doubles
 
 BATCH_MESSAGES = 20_000  # raw messages held per topic before they are decoded together
 
@@ -103,7 +106,7 @@ class _Collector:
         decode(batch, log)
 
     def _joints(self, batch: list, log: np.ndarray) -> None:
-        batches, kept = cdr.decode_joint_states_dropping_malformed(batch, on_malformed=self._count)
+        batches, kept = decode_joint_states_dropping_malformed(batch, on_malformed=self._count)
         row = 0
         for part in batches:
             rows, row = kept[row:row + part.stamps.size], row + part.stamps.size
@@ -127,7 +130,7 @@ class _Collector:
         self.rows.append(log[kept], self.file_index, stamps, values)
 
     def _doubles(self, batch: list, count: int, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        stamps, _frames, values, kept, errors = cdr.decode_stamped_doubles(batch, count, what)
+        stamps, _frames, values, kept, errors = decode_stamped_doubles(batch, count, what)
         self.undecodable += len(errors)
         return stamps, values, kept
 
@@ -249,7 +252,7 @@ def decode_diagnostics(messages) -> tuple[list, int]:
     arrays, bad = [], 0
     for data in messages:
         try:
-            arrays.append(cdr.decode_diagnostic_array(data)[2])
+            arrays.append(decode_diagnostic_array(data)[2])
         except InvalidInputError:
             bad += 1
     return arrays, bad

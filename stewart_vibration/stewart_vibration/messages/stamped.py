@@ -1,5 +1,5 @@
-"""Checked raw PoseStamped and WrenchStamped messages (pure; numpy): the decoders of messages.cdr plus
-what a reader needs to trust them -- frame ``base`` (or empty), finite values, a unit quaternion.
+"""Checked raw PoseStamped and WrenchStamped messages (pure; numpy): the decoders of messages.stamped_doubles
+plus what a reader needs to trust them -- frame ``base`` (or empty), finite values, a unit quaternion.
 
 A batch keeps the messages that pass and hands back the errors of the others (``MalformedMessageError``),
 so one bad message costs only itself. The checks run on the stacked batch (one numpy pass), not per
@@ -14,8 +14,8 @@ import numpy as np
 
 from ..errors import MalformedMessageError
 from ..kinematics.rotations import rpy_from_quaternion
-from .cdr import decode_stamped_doubles
 from .fields import BASE_FRAME, check_frame
+from .stamped_doubles import decode_stamped_doubles
 
 _FRAMES = {"", BASE_FRAME}
 MAX_POSITION_M = 1000.0  # a pose further than 1 km from the base origin is no pose of this robot

@@ -27,7 +27,8 @@ from ..errors import InvalidInputError, MalformedMessageError
 from ..kinematics.rotations import pose_from_position_quaternion
 from ..motion.guard_status import GUARD_STATES, TRIP_LIMITS, GuardStatus
 from ..vibration.settings import STREAM_KEYS
-from .cdr import CdrReader, DiagnosticStatusData, decode_diagnostic_array, decode_diagnostic_status
+from .cdr import CdrReader
+from .diagnostic_status import DiagnosticStatusData, decode_diagnostic_array, decode_diagnostic_status
 from .fields import check_number, check_text, parse_integer, parse_number
 from .outcome_codes import NAMES as OUTCOME_NAMES
 
@@ -98,7 +99,7 @@ def checked_status(level, name, message, hardware_id, pairs) -> StatusMessage:
 
 
 def status_from_data(data: DiagnosticStatusData) -> StatusMessage:
-    """A checked StatusMessage of a decoded one (cdr.DiagnosticStatusData)."""
+    """A checked StatusMessage of a decoded one (diagnostic_status.DiagnosticStatusData)."""
     return checked_status(data.level, data.name, data.message, data.hardware_id, data.values)
 
 

@@ -53,8 +53,8 @@ from ..errors import StewartError
 from ..kinematics.robot_config import load_robot
 from ..mcap_log.msg_definitions import MessageDefinitionError, full_message_definition, has_header_first
 from ..mcap_log.qos_yaml import request_for_offers
-from ..messages import cdr
 from ..messages.cdr import header_stamp_ns
+from ..messages.joint_trajectory import decode_joint_trajectory
 from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import vibration_report_from_cdr
 from ..parameters.tables import FOXGLOVE_BRIDGE
@@ -215,7 +215,7 @@ class FoxgloveBridgeNode(Node):
 
     def _on_vibration_window(self, data: bytes) -> None:
         try:
-            t = cdr.decode_joint_trajectory(data)
+            t = decode_joint_trajectory(data)
             window = build_trajectory(t.names, VIB_NAMES, t.stamp, t.times, t.positions, t.velocities,
                                       t.accelerations)
         except StewartError as exc:

@@ -72,9 +72,10 @@ from ..kinematics import check_pose, forward_kinematics
 from ..kinematics.robot_config import load_robot
 from ..kinematics.rotations import pose_to_position_quaternion
 from ..kinematics.workspace import check_strut_path
-from ..messages import cdr
 from ..messages.fields import BASE_FRAME
+from ..messages.joint_states import JointStateDecoder, decode_joint_states_dropping_malformed
 from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_cdr
+from ..messages.stamped_doubles import PoseStampedEncoder
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..motion.force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
@@ -144,8 +145,8 @@ class KinematicsNode(Node):
         self.fk_failures = 0
         self.health = StreamHealth()
         self.columns = JointColumns()
-        self.decoder = cdr.JointStateDecoder()
-        self.pose_encoder = cdr.PoseStampedEncoder(BASE_FRAME)
+        self.decoder = JointStateDecoder()
+        self.pose_encoder = PoseStampedEncoder(BASE_FRAME)
         self.batcher = RawBatcher(self, batch_size, period, self.process)
         self.traj_pub = self.create_publisher(JointTrajectory, "legs/joint_trajectory", 10)
         self.pose_pub = self.create_publisher(PoseStamped, "platform/pose_estimate", STREAM_DEPTH)
@@ -188,7 +189,7 @@ class KinematicsNode(Node):
     def process(self, messages: list, arrivals: np.ndarray) -> None:
         """Solve FK for a batch of states (one batch per layout) and publish one estimate each."""
         self.diagnostics.seen("legs/joint_states")
-        batches, kept = cdr.decode_joint_states_dropping_malformed(
+        batches, kept = decode_joint_states_dropping_malformed(
             messages, self.decoder, lambda reason: self._malformed(MalformedMessageError(reason)))
         arrivals = arrivals[kept]
         first = 0

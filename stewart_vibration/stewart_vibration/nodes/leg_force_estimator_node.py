@@ -35,9 +35,11 @@ from ..emulation.strut_trajectory import build_trajectory
 from ..errors import MalformedMessageError, StewartError
 from ..estimation import ForceEstimator
 from ..kinematics.robot_config import load_robot
-from ..messages import cdr
 from ..messages.fields import BASE_FRAME
+from ..messages.joint_states import JointStateDecoder, JointStateEncoder, decode_joint_states_dropping_malformed
+from ..messages.joint_trajectory import decode_joint_trajectory
 from ..messages.stamped import MAX_JOINT_POSITION_M, MAX_JOINT_SPEED_M_S, rows_within
+from ..messages.stamped_doubles import WrenchStampedEncoder
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..parameters.tables import LEG_FORCE_ESTIMATOR
@@ -61,11 +63,11 @@ class LegForceEstimatorNode(Node):
         self.malformed = MalformedInputs(self, self.diagnostics)
         self.health = StreamHealth()
         self.columns = JointColumns()
-        self.decoder = cdr.JointStateDecoder()
+        self.decoder = JointStateDecoder()
         self.batcher = RawBatcher(self, batch_size, period, self.process)
         self.last_reason = None
-        self.force_encoder = cdr.JointStateEncoder(LEG_NAMES, BASE_FRAME, fields=("effort",))
-        self.wrench_encoder = cdr.WrenchStampedEncoder(BASE_FRAME)
+        self.force_encoder = JointStateEncoder(LEG_NAMES, BASE_FRAME, fields=("effort",))
+        self.wrench_encoder = WrenchStampedEncoder(BASE_FRAME)
         self.force_pub = self.create_publisher(JointState, "legs/force_estimate", STREAM_DEPTH)
         self.wrench_pub = self.create_publisher(WrenchStamped, "platform/external_wrench_estimate", STREAM_DEPTH)
         self.diagnostics.report_readers("legs/force_estimate", self.force_pub)
@@ -94,7 +96,7 @@ class LegForceEstimatorNode(Node):
     # -- inputs ---------------------------------------------------------------------------
     def _trajectory(self, data: bytes, names, what: str):
         try:
-            t = cdr.decode_joint_trajectory(data)
+            t = decode_joint_trajectory(data)
             return build_trajectory(t.names, names, t.stamp, t.times, t.positions, t.velocities, t.accelerations)
         except StewartError as exc:
             self.malformed.refuse(what, exc)
@@ -136,7 +138,7 @@ class LegForceEstimatorNode(Node):
     def process(self, messages: list, arrivals: np.ndarray) -> None:
         """Modelled forces for a batch of states; one force and one wrench message per state."""
         self.diagnostics.seen("legs/joint_states")
-        batches, kept = cdr.decode_joint_states_dropping_malformed(
+        batches, kept = decode_joint_states_dropping_malformed(
             messages, self.decoder, lambda reason: self._malformed(MalformedMessageError(reason)))
         arrivals = arrivals[kept]
         first = 0

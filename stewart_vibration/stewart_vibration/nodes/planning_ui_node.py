@@ -57,7 +57,7 @@ from stewart_vibration_interfaces.srv import PlanPath
 
 from ..errors import MalformedMessageError, StewartError
 from ..kinematics.robot_config import load_robot
-from ..messages import cdr
+from ..messages.joint_states import JointStateDecoder, decode_joint_states_dropping_malformed
 from ..messages.stamped import poses_from_cdr
 from ..messages.status_values import (
     planner_settings,
@@ -121,7 +121,7 @@ class PlanningUiNode(Node):
         self.pending_calls: list = []  # (deadline, future, what, reply)
 
         # -- live state (executor thread only) --
-        self.decoder, self.force_decoder = cdr.JointStateDecoder(), cdr.JointStateDecoder()
+        self.decoder, self.force_decoder = JointStateDecoder(), JointStateDecoder()
         self.columns = JointColumns()
         self.raw = {"joints": [], "poses": [], "forces": []}
         self.seen: dict[str, float] = {}  # stream -> wall time last received
@@ -261,7 +261,7 @@ class PlanningUiNode(Node):
             self._decode_poses(poses)
 
     def _decode_joints(self, messages) -> None:
-        batches, _ = cdr.decode_joint_states_dropping_malformed(
+        batches, _ = decode_joint_states_dropping_malformed(
             messages, self.decoder, lambda r: self.malformed.refuse("legs/joint_states", MalformedMessageError(r)))
         for batch in batches:
             legs, vib = self.columns(batch.names)
@@ -279,7 +279,7 @@ class PlanningUiNode(Node):
                 self.plots["joints"].append([batch.stamps[i], *(rows[i, 6:12] * 1e6), *rows[i, 12:18]])
 
     def _decode_forces(self, messages) -> None:
-        batches, _ = cdr.decode_joint_states_dropping_malformed(
+        batches, _ = decode_joint_states_dropping_malformed(
             messages, self.force_decoder, lambda r: self.malformed.refuse("legs/force_estimate",
                                                                           MalformedMessageError(r)))
         for batch in batches:

@@ -29,7 +29,8 @@ from ..kinematics.robot_config import load_robot  # noqa: E402
 from ..kinematics.rotations import rotation_from_quaternion  # noqa: E402
 from ..mcap_log.files import McapFileError  # noqa: E402
 from ..mcap_log.reader import open_run  # noqa: E402
-from ..messages import cdr  # noqa: E402
+from ..messages.joint_trajectory import decode_joint_trajectory  # noqa: E402
+from ..messages.stamped_doubles import decode_pose_stamped  # noqa: E402
 from ..robot import VIB_NAMES  # noqa: E402
 from .scene import Scene, SceneBuilder, vibration_direction_from_window  # noqa: E402
 
@@ -83,7 +84,7 @@ def draw_scene(ax, scene: Scene) -> int:
 def _pose_at(reader, topic: str, t_abs_ns: int):
     """(stamp s, position, quaternion) of the recorded pose nearest ``t_abs_ns`` (publish time)."""
     best = min(reader.messages([topic]), key=lambda m: abs(m.publish_time - t_abs_ns))
-    stamp, _, position, quaternion = cdr.decode_pose_stamped(best.data)
+    stamp, _, position, quaternion = decode_pose_stamped(best.data)
     return stamp, position, quaternion
 
 
@@ -94,7 +95,7 @@ def _direction_at(reader, topic: str | None, robot, position, quaternion, t_abs_
     windows = [m for m in reader.messages([topic]) if m.log_time <= t_abs_ns]
     if not windows:
         return None
-    w = cdr.decode_joint_trajectory(windows[-1].data)
+    w = decode_joint_trajectory(windows[-1].data)
     index = {n: i for i, n in enumerate(w.names)}
     if w.positions is None or any(n not in index for n in VIB_NAMES):
         return None
