@@ -36,7 +36,7 @@ from stewart_vibration.calibration.geometry_parameters import robot_with_paramet
 from stewart_vibration.calibration.identification import identify
 from stewart_vibration.calibration.measurement_model import TrackerNoise
 from stewart_vibration.calibration.pose_plan import plan_calibration_poses
-from stewart_vibration.dynamics.tissue import load_tissue
+from stewart_vibration.dynamics.tissue_config import load_tissue
 from stewart_vibration.emulation import control_bench as bench
 from stewart_vibration.emulation.calibration_bench import measure_poses
 from stewart_vibration.emulation.emulator import HardwareEmulator

@@ -14,17 +14,15 @@ import pytest
 import yaml
 
 from stewart_vibration import inverse_kinematics, load_robot
-from stewart_vibration.dynamics.tissue import (
+from stewart_vibration.dynamics.tissue import TissueModel, tissue_wrench
+from stewart_vibration.dynamics.tissue_bounds import (
     CHECK_ROTATION_RAD,
     CHECK_TRANSLATION_M,
     WRENCH_FACTOR,
-    TissueModel,
     check_tissue_wrench,
-    load_tissue,
-    tissue_from_dict,
-    tissue_wrench,
     tissue_wrench_bound,
 )
+from stewart_vibration.dynamics.tissue_config import load_tissue, tissue_from_dict
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.errors import ConfigError
 from stewart_vibration.kinematics.rotations import rpy_from_rotation, so3_exp

@@ -13,7 +13,7 @@ import pytest
 from rclpy.serialization import serialize_message
 
 from stewart_vibration import inverse_kinematics
-from stewart_vibration.dynamics.tissue import load_tissue
+from stewart_vibration.dynamics.tissue_config import load_tissue
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory, checked_command
 from stewart_vibration.errors import PhysicsFaultError

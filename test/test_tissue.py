@@ -11,13 +11,8 @@ import pytest
 from stewart_vibration import inverse_kinematics
 from stewart_vibration.dynamics.mujoco_validation import run_scenario
 from stewart_vibration.dynamics.newton_euler import leg_forces
-from stewart_vibration.dynamics.tissue import (
-    load_tissue,
-    tissue_from_dict,
-    tissue_wrench,
-    tissue_wrench_single,
-    wrench_about_point,
-)
+from stewart_vibration.dynamics.tissue import tissue_wrench, tissue_wrench_single, wrench_about_point
+from stewart_vibration.dynamics.tissue_config import load_tissue, tissue_from_dict
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import TrajectoryFollower, build_trajectory, checked_command
 from stewart_vibration.errors import ActuatorLimitError, ConfigError

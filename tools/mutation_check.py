@@ -66,7 +66,7 @@ COVERAGE = [
     ("motion/paths.py", ["test_motion_profiles.py", "test_tissue.py"]),
     ("motion/profiles.py", ["test_motion_profiles.py"]),
     ("motion/force_guard.py", ["test_tissue.py"]),
-    ("dynamics/tissue.py", ["test_tissue.py"]),
+    ("dynamics/tissue*.py", ["test_tissue.py"]),
     ("emulation/vibration_buffer.py", ["test_emulation_vibration_buffer.py", "test_vibration_streaming.py"]),
     ("emulation/strut_trajectory.py", ["test_hostile_inputs.py", "test_emulation_emulator.py"]),
     ("estimation/session.py", ["test_estimation_session.py", "test_estimation.py"]),

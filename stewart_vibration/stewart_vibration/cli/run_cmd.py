@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..dynamics.tissue import load_tissue
+from ..dynamics.tissue_config import load_tissue
 from ..emulation.plant import load_plant_option
 from ..errors import InvalidInputError
 from ..kinematics.robot_config import load_drawing, load_robot

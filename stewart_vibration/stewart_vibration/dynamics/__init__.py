@@ -4,7 +4,8 @@
   the paper's simplified model (eqs 12-20) for comparison;
 - ``platform_trajectory``: analytic platform trajectories (pose, twist, acceleration), Euler-rate
   conversion;
-- ``tissue``: the soft-tissue load on the platform (a visco-elastic wrench);
+- ``tissue``: the soft-tissue load on the platform (a visco-elastic wrench); ``tissue_config`` reads its
+  YAML file, ``tissue_bounds`` bounds its worst-case wrench near the rest pose;
 - ``mujoco_validation``: Newton-Euler against a MuJoCo forward simulation (Figs. 11, 12), imported on
   its own (it loads MuJoCo).
 """

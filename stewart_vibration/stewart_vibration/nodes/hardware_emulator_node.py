@@ -48,7 +48,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from stewart_vibration_interfaces.msg import LegTrajectoryStatus, VibrationUnitsStatus
 
-from ..dynamics.tissue import load_tissue_option
+from ..dynamics.tissue_config import load_tissue_option
 from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW, raw_command_refusal
 from ..emulation.consumer_pace import ConsumerPace, paces_consumers
 from ..emulation.emulator import HardwareEmulator

@@ -63,7 +63,7 @@ from stewart_vibration_interfaces.action import MoveToPose
 from stewart_vibration_interfaces.msg import ForceGuardStatus, LegTrajectoryStatus, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import PlanPath
 
-from ..dynamics.tissue import load_tissue_option
+from ..dynamics.tissue_config import load_tissue_option
 from ..emulation.command_size import MAX_TRAJECTORY_POINTS
 from ..emulation.vibration_status import STRUT_STOP_CAUSES
 from ..errors import InvalidInputError, MalformedMessageError, RefusedError, StewartError

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from ..config_values import Plausible, as_choice, as_number, as_vector, check_keys
-from ..dynamics.tissue import load_tissue
+from ..dynamics.tissue_config import load_tissue
 from ..errors import ConfigError, StewartError
 from ..install import default_config_dir
 from ..kinematics import check_pose
