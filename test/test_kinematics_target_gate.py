@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from stewart_vibration.kinematics import inverse_kinematics
-from stewart_vibration.motion.force_guard import RECEIPT_DELAY_S, ForceGuard
+from stewart_vibration.motion.force_guard import ForceGuard
 from stewart_vibration.motion.profiles import minimum_jerk_duration
+from stewart_vibration.motion.stop_planning import RECEIPT_DELAY_S
 from stewart_vibration.motion.target_gate import TargetGate
 
 

@@ -15,7 +15,6 @@ OVER_LIMIT = {
     "nodes/planning_ui_node.py": 798,
     "messages/cdr.py": 769,
     "nodes/kinematics_node.py": 745,
-    "motion/force_guard.py": 738,
     "nodes/vibration_planner_node.py": 650,
     "nodes/hardware_emulator_node.py": 648,
     "dynamics/tissue.py": 564,

@@ -19,18 +19,12 @@ from stewart_vibration.errors import ActuatorLimitError, ConfigError
 from stewart_vibration.estimation import ForceEstimator
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
-from stewart_vibration.motion.force_guard import (
-    LAG_MEMORY_S,
-    MAX_STOP_RETRIES,
-    ON_MOVE_SETTLE_S,
-    RECEIPT_DELAY_S,
-    RECEIPT_WINDOW_S,
-    RESUME_FRESH_S,
-    ForceGuard,
-    _predict,
-)
+from stewart_vibration.motion.estimate_watch import LAG_MEMORY_S, RESUME_FRESH_S
+from stewart_vibration.motion.force_guard import MAX_STOP_RETRIES, ON_MOVE_SETTLE_S, ForceGuard
+from stewart_vibration.motion.load_prediction import predict_load
 from stewart_vibration.motion.paths import check_path_forces, checked_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
+from stewart_vibration.motion.stop_planning import RECEIPT_DELAY_S, RECEIPT_WINDOW_S
 from stewart_vibration.robot import LEG_NAMES, VIB_NAMES
 from stewart_vibration.runtime.scenario import load_scenario
 from stewart_vibration.sim.mjcf import load_simulation_settings
@@ -446,14 +440,14 @@ def test_prediction_follows_an_exponential_load_and_never_undercuts_the_quadrati
     load = 30.0 + 60.0 * np.expm1(sigma / 0.2)
     rows = np.column_stack([np.linspace(0.0, 0.15, 40), sigma, load, np.zeros(40)])
     for ahead in (0.5, 0.6):
-        now, predicted = _predict(rows, 2, ahead)
+        now, predicted = predict_load(rows, 2, ahead)
         exact = 30.0 + 60.0 * np.expm1(ahead / 0.2)
         quadratic = np.polyval(np.polyfit(sigma, load, 2), ahead)
         assert now == load[-1] and abs(predicted - exact) <= 0.1 * (exact - now)
         assert quadratic <= predicted and exact - predicted <= 0.6 * (exact - quadratic)
     falling = rows.copy()
     falling[:, 2] = load[::-1]
-    assert _predict(falling, 2, 0.6)[1] <= falling[-1, 2]  # a load that eases is not predicted to rise
+    assert predict_load(falling, 2, 0.6)[1] <= falling[-1, 2]  # a load that eases is not predicted to rise
 
 
 def test_prediction_on_noise_or_a_sliver_of_progress_stays_small():
@@ -465,13 +459,13 @@ def test_prediction_on_noise_or_a_sliver_of_progress_stays_small():
     for _ in range(200):
         rows = np.column_stack([np.linspace(0.0, 0.15, 40), np.linspace(0.30, 0.36, 40),
                                 2.0 + 0.5 * rng.standard_normal(40), np.zeros(40)])
-        worst = max(worst, _predict(rows, 2, 0.61)[1])
+        worst = max(worst, predict_load(rows, 2, 0.61)[1])
     assert worst < 100.0, worst
     # a real trend seen over a sliver of progress (a fast move's first estimates: 5 N of model error over 0.002)
     # is not extrapolated 250 spans ahead (1.5 kN predicted from 6.6 N tripped the guard in test_hostile_dds)
     sliver = np.column_stack([np.linspace(0.0, 0.15, 40), np.linspace(0.100, 0.102, 40), np.linspace(1.6, 6.6, 40),
                               np.zeros(40)])
-    assert _predict(sliver, 2, 0.6)[1] < 100.0
+    assert predict_load(sliver, 2, 0.6)[1] < 100.0
 
 
 @pytest.mark.parametrize("load, resumes", [(120.0, True), (250.0, False)])

@@ -78,11 +78,13 @@ from ..messages.stamped import MAX_JOINT_POSITION_M, rows_within, wrenches_from_
 from ..messages.stamped_doubles import PoseStampedEncoder
 from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
-from ..motion.force_guard import RECEIPT_DELAY_S, ForceGuard, StopPlan
+from ..motion.force_guard import ForceGuard
 from ..motion.guard_status import GUARD_STATES
+from ..motion.guarded_move import StopPlan
 from ..motion.move_goal import MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
 from ..motion.profiles import minimum_jerk, minimum_jerk_duration
+from ..motion.stop_planning import RECEIPT_DELAY_S
 from ..motion.strut_rest import StrutRest
 from ..motion.target_gate import TargetGate
 from ..parameters.tables import KINEMATICS
@@ -428,9 +430,9 @@ class KinematicsNode(Node):
         if not values:
             return
         if "guard_blind_travel_m" in values:
-            self.guard.blind_travel = values["guard_blind_travel_m"]
+            self.guard.estimates.blind_travel = values["guard_blind_travel_m"]
         if "guard_max_estimate_age_s" in values:
-            self.guard.max_estimate_age = values["guard_max_estimate_age_s"]
+            self.guard.estimates.max_estimate_age = values["guard_max_estimate_age_s"]
         if "guard_deceleration_scale" in values:
             self.guard.deceleration_scale = values["guard_deceleration_scale"]
         cleared = self.guard.set_limits(values.get("guard_force_n"), values.get("guard_moment_nm"))
@@ -625,7 +627,7 @@ class KinematicsNode(Node):
         start_time = self.emulator_now() + RECEIPT_DELAY_S
         self.guard.begin_move(start_time, final, self.lengths, goal_lengths, self.pose, target,
                               request.force_limit, request.moment_limit)
-        if not np.isfinite(self.guard.newest_estimate) and (request.force_limit > 0 or request.moment_limit > 0):
+        if not self.guard.estimates.heard and (request.force_limit > 0 or request.moment_limit > 0):
             self.diagnostics.set(WARN, "trajectory sent UNGUARDED: no platform/external_wrench_estimate received yet "
                                  "(is leg_force_estimator running?)", last_target=np.round(target, 6).tolist(),
                                  last_duration_s=final)
@@ -647,7 +649,7 @@ class KinematicsNode(Node):
         if guarded < speed:
             self.get_logger().warning(f"force guard: the wrench estimates lag {self.guard.estimate_lag:.3f} s behind "
                                       f"the states; this move runs at {guarded * 1e3:.2f} mm/s (speed_scale gives "
-                                      f"{speed * 1e3:.2f}; guard_blind_travel_m {self.guard.blind_travel:g})")
+                                      f"{speed * 1e3:.2f}; guard_blind_travel_m {self.guard.estimates.blind_travel:g})")
             speed = guarded
         duration = minimum_jerk_duration(start_lengths, goal_lengths, speed, self.get_parameter(
             "trajectory_min_duration_s").value)

@@ -27,7 +27,7 @@ from stewart_vibration_interfaces.srv import StopRecording
 
 from ..messages.stamped import pose_from_cdr
 from ..messages.status_values import guard_status_from_cdr, statuses_from_cdr, vibration_report_from_cdr
-from ..motion.force_guard import LAG_MEMORY_S
+from ..motion.estimate_watch import LAG_MEMORY_S
 from ..motion.guard_status import GuardStatus
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment

@@ -9,7 +9,7 @@ it is unconfigured.
 from __future__ import annotations
 
 from ..emulation.consumer_pace import MAX_WAIT_S
-from ..motion.force_guard import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S
+from ..motion.estimate_watch import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S
 from ..motion.move_goal import MIN_SPEED_SCALE
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
 from ..vibration.closed_loop import DEFAULT_IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN
