@@ -80,6 +80,7 @@ from ..messages.status_values import vibration_report_from_cdr
 from ..messages.stream_health import StreamHealth
 from ..motion.force_guard import ForceGuard
 from ..motion.guard_status import GUARD_STATES
+from ..motion.guard_supervisor import GuardSupervisor, PublishStatus, ResumeTarget, SendStop, Tripped
 from ..motion.guarded_move import StopPlan
 from ..motion.move_goal import MoveEnd, MoveRequest, MoveWatch, move_request, pose_errors
 from ..motion.paths import check_path_forces, checked_path, interpolate_poses
@@ -132,7 +133,7 @@ class KinematicsNode(Node):
         self.guard = ForceGuard(self.robot, param("guard_force_n").value, param("guard_moment_nm").value,
                                 param("guard_deceleration_scale").value, param("guard_max_estimate_age_s").value,
                                 param("guard_blind_travel_m").value)
-        self.batch_period = period
+        self.supervisor = GuardSupervisor(self.guard, period)
         self.unit_latency = float(self.get_parameter("unit_sensor_latency_s").value)
         self.state_time = None  # stamp of the newest joint state (the emulator's clock), s
         self.diagnostics = GuardedDiagnostics(self, "kinematics")
@@ -247,20 +248,11 @@ class KinematicsNode(Node):
         self.rest.observe(stamps[ok], legs[ok])
         self.settle_rest_wait()
         self.calibration.on_states(stamps[ok], lengths[ok])
-        self.guard.observe_states(stamps, legs)
+        self.supervisor.states_read(stamps, legs)
         # estimates already queued here are newer news than their absence: after a stall of this node the
         # states are taken first, and judging the guard blind before reading them would stop for nothing
         self.wrench_batcher.flush()
-        now = self.emulator_now()
-        # blind = estimates behind the states this node has read (not /clock: a stall of this node delays both)
-        trip = self.guard.assess(now, self.batch_period) or self.guard.check_estimates(self.state_time)
-        if trip is not None:
-            self.on_trip(trip)
-        retry = self.guard.missed_stop(now)
-        if retry is not None:
-            self.get_logger().error("force guard: the struts ran past the commanded stop still on the move (it did "
-                                    f"not take); stopping again over {retry.duration:.2f} s")
-            self.send_stop(retry, "guard")
+        self.carry_out(self.supervisor.on_states(self.emulator_now(), self.state_time))
         if self.waiting_for_states:
             self.waiting_for_states = False
             if self.diagnostics.level == OK:
@@ -290,45 +282,54 @@ class KinematicsNode(Node):
             peak = self.goal["peak"]
             peak[0] = max(peak[0], float(np.linalg.norm(wrenches[:, :3], axis=1).max()))
             peak[1] = max(peak[1], float(np.linalg.norm(wrenches[:, 3:], axis=1).max()))
-        was_watching = self.guard.move is not None
-        trip = self.guard.observe(stamps, wrenches, self.emulator_now(stamps[-1]), self.batch_period)
-        if trip is not None:
-            self.on_trip(trip)
-        elif self.guard.tripped and was_watching and self.guard.move is None:
-            self.publish_guard_status()  # the stop is over: its peak load
-        if self.state_time is not None and self.guard.blind_stop_over(self.state_time) and self.last_target is not None:
-            if self.guard.resume_after_blind():
-                request = self.last_target
-                self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the "
-                                          f"move to {np.round(request.target, 5).tolist()}")
-                self.publish_guard_status()
-                try:
-                    end = self.move_to(request)
-                    if self.goal is not None:
-                        self.goal["watch"].moving(end)
-                except StewartError as exc:  # the goal ends with why it cannot go on
-                    self.last_target = None
-                    if self.goal is not None:
-                        self.goal["watch"].end(exc.outcome, f"the move could not resume after a pause: {exc}")
-            else:  # the load passed a limit while the guard could not see it: latched, held by the blind stop
-                self.on_trip(self.guard.trip, send_stop=False)
+        self.carry_out(self.supervisor.on_wrenches(stamps, wrenches, self.emulator_now(stamps[-1]), self.state_time,
+                                                   self.last_target is not None))
+
+    def carry_out(self, actions: list) -> None:
+        """Do what the guard's supervisor decided: send stops, report trips, publish its status, resume."""
+        for action in actions:
+            if isinstance(action, SendStop):
+                if action.why:
+                    self.get_logger().error(f"{action.why}; stopping again over {action.stop.duration:.2f} s")
+                self.send_stop(action.stop, action.by, action.attempt)
+            elif isinstance(action, Tripped):
+                self.on_trip(action.trip, held=action.held)
+            elif isinstance(action, PublishStatus):
+                self.publish_guard_status()  # the stop is over: its peak load
+            elif isinstance(action, ResumeTarget):
+                self.resume_target()
+
+    def resume_target(self) -> None:
+        """Send the target a blind pause interrupted again; the goal ends if it cannot go on."""
+        request = self.last_target
+        if request is None:  # the supervisor resumes only while there is one
+            return
+        self.get_logger().warning("force guard: external-wrench estimates are fresh again; resuming the "
+                                  f"move to {np.round(request.target, 5).tolist()}")
+        self.publish_guard_status()
+        try:
+            end = self.move_to(request)
+            if self.goal is not None:
+                self.goal["watch"].moving(end)
+        except StewartError as exc:  # the goal ends with why it cannot go on
+            self.last_target = None
+            if self.goal is not None:
+                self.goal["watch"].end(exc.outcome, f"the move could not resume after a pause: {exc}")
 
     def emulator_now(self, fallback: float = 0.0) -> float:
         """The emulator's time as best known here (s): see nodes.message_conversions.emulator_now."""
         return emulator_now(self, self.state_time, fallback)
 
-    def on_trip(self, trip, send_stop: bool = True) -> None:
-        """Report a trip (ERROR, guard status), send its stop (unless the struts are held already) and tell the
-        move goal: a force or moment trip ends it GUARD_STOPPED once the struts are at rest, a trip for late
-        estimates pauses it."""
-        if send_stop and trip.stop is not None:
-            self.send_stop(trip.stop, "guard")
+    def on_trip(self, trip, held: bool = False) -> None:
+        """Report a trip (ERROR, guard status; its stop was sent) and tell the move goal: a force or moment trip
+        ends it GUARD_STOPPED once the struts are at rest (now, when an earlier stop ``held`` them already), a
+        trip for late estimates pauses it."""
         message = self.guard.message()
         if self.goal is not None:
             now = self.emulator_now()
             end = trip.stop.receipt_time + trip.stop.duration if trip.stop is not None else \
                 (self.guard.move.end if self.guard.move is not None else now)
-            if not send_stop:  # held by the earlier stop already
+            if held:
                 end = now
             why = "PAUSED" if trip.which == "estimates" else "GUARD_STOPPED"
             self.goal["watch"].stopping(why, end, now, f"force guard {message}")
@@ -346,15 +347,13 @@ class KinematicsNode(Node):
         if stop is not None and np.array_equal(final, stop[0]):
             if msg.accepted:
                 return
-            lengths, by, attempt = stop
+            _lengths, by, attempt = stop
             now = self.emulator_now()
-            retry = self.guard.missed_stop(now, refused=True) if by == "guard" else self.guard.cancel(now, attempt + 1)
-            if retry is not None:
-                self.get_logger().error(f"the robot refused the stop ({msg.outcome.message}); stopping again over "
-                                        f"{retry.duration:.2f} s")
-                self.send_stop(retry, by, attempt + 1)
-                if goal is not None and by == "cancel":
-                    goal["watch"].stopping("CANCELED", retry.receipt_time + retry.duration, now,
+            actions = self.supervisor.on_stop_refused(by, attempt, now, msg.outcome.message)
+            self.carry_out(actions)
+            for retry in actions:
+                if isinstance(retry, SendStop) and goal is not None and by == "cancel":
+                    goal["watch"].stopping("CANCELED", retry.stop.receipt_time + retry.stop.duration, now,
                                            "cancelled: the struts stopped")
             return
         if move is None or not np.array_equal(final, move) or goal is None:
