@@ -58,11 +58,8 @@ from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..errors import RefusedError, StewartError
 from ..kinematics.robot_config import load_drawing
 from ..kinematics.rotations import rotation_from_quaternion
-from ..messages import cdr
+from ..messages import cdr, joint_states, joint_trajectory, stamped_doubles
 from ..messages.fields import BASE_FRAME, PLATFORM_FRAME
-from ..messages.joint_states import JointStateEncoder
-from ..messages.joint_trajectory import decode_joint_trajectory
-from ..messages.stamped_doubles import ImuEncoder, PoseStampedEncoder, WrenchStampedEncoder
 from ..parameters.tables import HARDWARE_EMULATOR
 from ..robot import LEG_NAMES, VIB_NAMES
 from ..sim.mjcf import load_simulation_settings
@@ -131,10 +128,10 @@ class HardwareEmulatorNode(LifecycleNode):
         self.diagnostics.set(WARN, "unconfigured (lifecycle: configure, then activate)")
         self.rejections = RejectionLog(self)
         self.malformed = MalformedInputs(self, self.diagnostics)  # e.g. a /clock that is no time (run_node)
-        self.state_encoder = JointStateEncoder(LEG_NAMES + VIB_NAMES)
-        self.pose_encoder = PoseStampedEncoder(BASE_FRAME)
-        self.wrench_encoder = WrenchStampedEncoder(BASE_FRAME)
-        self.imu_encoder = ImuEncoder(PLATFORM_FRAME)
+        self.state_encoder = joint_states.JointStateEncoder(LEG_NAMES + VIB_NAMES)
+        self.pose_encoder = stamped_doubles.PoseStampedEncoder(BASE_FRAME)
+        self.wrench_encoder = stamped_doubles.WrenchStampedEncoder(BASE_FRAME)
+        self.imu_encoder = stamped_doubles.ImuEncoder(PLATFORM_FRAME)
         self.tissue_pub = None
         self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
         self.trajectory_seq = 0
@@ -345,7 +342,7 @@ class HardwareEmulatorNode(LifecycleNode):
             return
         traj = None
         try:
-            traj = decode_joint_trajectory(data)
+            traj = joint_trajectory.decode_joint_trajectory(data)
             # not refused: the emulator exists; it takes the lock only around its snapshot and its commit
             taken = cast(HardwareEmulator, self.emulator).command_struts(traj.names, traj.stamp, traj.times,
                                                                          traj.positions, traj.velocities,
@@ -380,7 +377,7 @@ class HardwareEmulatorNode(LifecycleNode):
             self.rejections.add("vibration command", refusal)
             return
         try:
-            traj = decode_joint_trajectory(data)
+            traj = joint_trajectory.decode_joint_trajectory(data)
         except StewartError as exc:
             self.rejections.add("vibration command", str(exc))
             return
