@@ -14,12 +14,9 @@ from stewart_vibration.errors import JointLimitError, SingularPoseError, StrokeL
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics import condition_number, forward_kinematics, joint_angles
 from stewart_vibration.kinematics.fk import _newton_rows
-from stewart_vibration.kinematics.workspace import (
-    MAX_PATH_SAMPLES,
-    PATH_SPACING_M,
-    _PoseState,
-    check_strut_path,
-)
+from stewart_vibration.kinematics.path_sampling import MAX_PATH_SAMPLES, PATH_SPACING_M
+from stewart_vibration.kinematics.pose_margins import PoseState
+from stewart_vibration.kinematics.workspace import check_strut_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.robot import robot_from_dict
 
@@ -165,7 +162,7 @@ def test_the_struts_leave_room_for_the_vibration_units(robot):
     +-100 um at the peak pose takes the joint over the limit; a path further inside is taken."""
     amp = robot.vibration_unit.amplitude_max
     peak_pose = robot.home_pose + np.array([0, 0, 0, roll_with_peak_excess(robot, 0.0), 0, 0])
-    state = _PoseState.at(robot, peak_pose[None, :])
+    state = PoseState.at(robot, peak_pose[None, :])
     room = float(max(state.margins(robot, np.array([amp]))[1].max(), state.margins(robot, np.array([amp]))[2].max()))
     for inside, refused in ((0.3 * room, True), (1.5 * room, False)):
         sample, poses = bumped_roll(robot, roll_with_peak_excess(robot, -inside))
@@ -191,7 +188,7 @@ def test_the_first_order_margins_bound_the_real_change(robot):
     keep = (lengths.min(1) > robot.limits.stroke_min) & (lengths.max(1) < robot.limits.stroke_max)
     poses, lengths = poses[keep], lengths[keep]
     h = 0.5 * PATH_SPACING_M
-    state = _PoseState.at(robot, poses)
+    state = PoseState.at(robot, poses)
     dz, mu, ms, mc = state.margins(robot, np.full(len(poses), h))
     signs = np.array([[(k >> i) & 1 for i in range(6)] for k in range(64)]) * 2.0 - 1.0
     steps = np.concatenate([signs, rng.uniform(-1, 1, (64, 6))]) * h
@@ -199,7 +196,7 @@ def test_the_first_order_margins_bound_the_real_change(robot):
     for step in steps:
         fk = forward_kinematics(robot, lengths + step, guess=poses, check_limits=False)
         assert fk.converged.all()
-        moved = _PoseState.at(robot, fk.pose)
+        moved = PoseState.at(robot, fk.pose)
         for change, margin in ((np.abs(moved.d[..., 2] - state.d[..., 2]), dz),
                                (np.abs(moved.universal - state.universal), mu),
                                (np.abs(moved.spherical - state.spherical), ms),
