@@ -1,6 +1,7 @@
 """The emulated robot (no rclpy): MuJoCo model + strut servos + the robot's safety layer (``safety_controller``:
-strut trajectory follower, vibration command buffer, every command check and stop) + the divergence detector
-(``physics_guard``). The hardware_emulator node only converts messages.
+strut trajectory follower, vibration command buffer, every command check and stop; its commands at the
+emulator's time: ``emulator_commands``) + the divergence detector (``physics_guard``). The hardware_emulator
+node only converts messages.
 
 Each leg is strut + vibration unit in series: the simulated slide is the total hinge-to-hinge
 length; the joint state reports leg_i = total - vib_i (strut) and vib_i (the unit's displacement),
@@ -9,15 +10,13 @@ both with the same axial force.
 Stepping: ``advance(duration)`` runs one block of physics steps (the state period, e.g. 2 ms = 4
 steps at 2 kHz) with controls planned for the whole block (``servo_drive``); the references of the
 strut trajectory and the vibration buffer are sampled for ``reference_horizon_s`` at a time in one
-vectorised call and reused until a command changes them.
+vectorised call and reused until a command changes them (``servo_references``).
 
-Soft tissue (optional ``tissue``, a ``stewart_vibration.dynamics.tissue.TissueModel``): its wrench is evaluated
-from the platform's state at the start of every block and applied over the block as MuJoCo's
-``xfrc_applied`` on the platform body (force at the body's centre of mass and the moment about it,
-world frame: the tissue's moment about the platform origin minus (R c_m) x F). ``tissue_wrench``
-holds the wrench applied from the current time (about the platform origin, base frame). The struts are
-leadscrew actuators, stiff position sources: the servos' feedforward takes the applied load in exactly
-(servo_drive ``load_body``), so the tissue changes the strut forces, not the motion.
+Soft tissue (optional ``tissue``, a ``stewart_vibration.dynamics.tissue.TissueModel``): its wrench is applied
+to the platform over every block (``tissue_load``); ``tissue_wrench`` holds the wrench applied from the
+current time (about the platform origin, base frame). The struts are leadscrew actuators, stiff position
+sources: the servos' feedforward takes the applied load in exactly (servo_drive ``load_body``), so the tissue
+changes the strut forces, not the motion.
 
 The robot as built (``plant``, an ``emulation.plant.Plant`` of kind "realistic"): MuJoCo runs the plant's
 true geometry and payload with each vibration unit as a body of its own (mjcf ``UnitSliders``), and the
@@ -35,36 +34,38 @@ from dataclasses import replace
 import mujoco
 import numpy as np
 
-from ..dynamics.tissue import TissueModel, tissue_wrench_single
+from ..dynamics.tissue import TissueModel
 from ..errors import ConfigError
-from ..kinematics import check_pose, forward_kinematics
+from ..kinematics import check_pose
 from ..kinematics.rotations import rotation_from_quaternion
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..sim.mjcf import SimulationSettings, UnitSliders
 from ..sim.mujoco_sim import StewartSim
-from .physics_guard import PhysicsFault, PhysicsGuard
+from .emulator_commands import EmulatorCommands
+from .physics_guard import PhysicsGuard
 from .plant import Plant
 from .plant_drive import PlantDrive
+from .plant_readings import sensed_joint_state, true_joint_state, true_pose
 from .platform_sensors import ImuSample, PlatformImu, PlatformTracker, TrackerFrame, specific_force
 from .safety_controller import SafetyController
 from .servo_drive import ServoDrive
-from .strut_trajectory import MAX_START_DELAY_S, JointTrajectory, TrajectoryFollower
+from .servo_references import ServoReferences
+from .strut_trajectory import MAX_START_DELAY_S
+from .tissue_load import apply_tissue_wrench
 from .unit_travel import UnitTravelGuard
-from .vibration_buffer import VibrationBuffer
-from .vibration_status import VibrationReport, VibrationStatusTracker
 from .vibration_unit import unit_hardware
 
 
-class HardwareEmulator:
+class HardwareEmulator(EmulatorCommands):
     """Step the robot in MuJoCo while following strut and vibration commands safely.
 
     The commands and every safety rule live in ``safety``, a ``SafetyController`` (the robot's own safety
-    layer); this class adds the physics: the MuJoCo model, the strut servos and the divergence detector
-    (``physics_guard``). Time is simulation time (s, starts at ``start_time``, 0 unless the robot is built
-    again within a run, and never goes back). Commands take effect from the next block.
+    layer; its commands and state: ``EmulatorCommands``); this class adds the physics: the MuJoCo model, the
+    strut servos and the divergence detector (``physics_guard``). Time is simulation time (s, starts at
+    ``start_time``, 0 unless the robot is built again within a run, and never goes back). Commands take effect
+    from the next block.
     """
 
-    _refs: tuple[int, float, tuple[np.ndarray, ...]] | None
     _planned: tuple[int, float, np.ndarray] | None
 
     def __init__(self, robot: Robot, settings: SimulationSettings, watchdog_s: float = 0.5,
@@ -99,7 +100,7 @@ class HardwareEmulator:
         self.travel = UnitTravelGuard(robot.vibration_unit.amplitude_max)
         self.forces = np.zeros(6)
         self.reference_horizon_s = float(reference_horizon_s)
-        self._refs = None  # (version, first step time, arrays) of the sampled references
+        self.servo_references = ServoReferences(self.safety)
         self._planned = None  # (version, time, controls) for the block starting at ``time``
         self._build_platform_sensors(plant, sensor_rate_hz)
 
@@ -128,20 +129,13 @@ class HardwareEmulator:
         sliders = UnitSliders(units.moving_mass_kg, tuple(units.stiffness_n_m))
         self.sim = StewartSim(plant.robot, physics, units=sliders)
         self._platform_body = self.sim.model.body("platform").id
-        self.sim.reset(self._true_pose(check_pose(self.robot, self.robot.home_pose), self.robot.home_pose))
+        self.sim.reset(true_pose(plant, check_pose(self.robot, self.robot.home_pose), self.robot.home_pose))
         self._apply_tissue()
         rigid = StewartSim(plant.robot, physics)
         rigid.reset(self.sim.platform_pose())
         self.drive = PlantDrive(self.sim, plant, units, plant.struts.bandwidth_hz, physics.drive_damping_ratio,
                                 seed=plant.seed, rigid=rigid)
         self.drive.restart()
-
-    def _true_pose(self, lengths: np.ndarray, guess) -> np.ndarray:
-        """The plant's true pose (6,) where its struts read ``lengths`` (6,) m on their encoders (the controller's
-        frame): FK of the robot as built at the true lengths (encoder + zero offset)."""
-        assert self.plant is not None
-        result = forward_kinematics(self.plant.robot, lengths + self.plant.strut_zero_offsets, guess=guess)
-        return np.asarray(result.pose, float).reshape(6)
 
     @property
     def time(self) -> float:
@@ -153,83 +147,7 @@ class HardwareEmulator:
         """The physics step (s)."""
         return float(self.sim.model.opt.timestep)
 
-    # the safety controller's state, as the node and the tests read it
-    @property
-    def struts(self) -> TrajectoryFollower:
-        """The strut trajectory follower (the commanded strut lengths)."""
-        return self.safety.struts
-
-    @property
-    def vibration(self) -> VibrationBuffer:
-        """The vibration command buffer (the commanded unit displacements)."""
-        return self.safety.vibration
-
-    @property
-    def status(self) -> VibrationStatusTracker:
-        """The vibration status tracker."""
-        return self.safety.status
-
-    @property
-    def estopped(self) -> bool:
-        """True while the e-stop (or a physics fault) is latched."""
-        return self.safety.estopped
-
-    @property
-    def fault(self) -> PhysicsFault | None:
-        """The latched physics fault, or None."""
-        return self.safety.fault
-
-    @property
-    def home_lengths(self) -> np.ndarray:
-        """The strut lengths at the home pose (6,) (m)."""
-        return self.safety.home_lengths
-
-    # -- commands (``SafetyController``, at the emulator's time) -----------------------------------
-    def command_struts(self, names, start, times, positions, velocities=None, accelerations=None,
-                       lock=None) -> JointTrajectory:
-        """Validate and run a leg_* trajectory (``SafetyController.command_struts``); returns it as it runs.
-
-        joint_trajectory_controller rules with the limits enforced on what will actually be followed:
-        start 0 = now; points already in the past are dropped and the motion departs from the state
-        commanded now toward the first future point; a trajectory with positions only gets
-        finite-difference velocities (zero at its first and last point) and cubic segments instead of
-        linear ones (a linear one steps the velocity at every point). The spline from the departure
-        state through every point must stay within the stroke, strut_velocity_max and
-        strut_acceleration_max and end at rest (the last point is held), keep the six struts together inside
-        the workspace and leave room for a controlled stop (``strut_acceptance``); a start more than
-        ``max_start_delay_s`` ahead, or one in the future while another still waits for its start, is refused.
-        Until a future start the running command goes on. At most MAX_TRAJECTORY_POINTS points.
-
-        ``lock``: the lock the caller shares with the physics thread (``advance``); the checks then run outside
-        it and only the commit takes it. Raises the typed reason (InvalidInputError, StrokeLimitError,
-        ActuatorLimitError, UnreachablePoseError, JointLimitError, SingularPoseError, PhysicsFaultError);
-        nothing moves then.
-        """
-        return self.safety.command_struts(self.time, names, start, times, positions, velocities, accelerations,
-                                          pose=self.platform_pose, clock=lambda: self.time, lock=lock)
-
-    def command_vibration(self, names, start, times, positions, velocities=None, accelerations=None) -> float:
-        """Validate and splice a vib_* window (``SafetyController.command_vibration``); returns the splice time."""
-        return self.safety.command_vibration(self.time, names, start, times, positions, velocities, accelerations)
-
-    def emergency_stop(self) -> None:
-        """Ramp the vibration to zero and bring the struts to rest along their commanded path within
-        strut_acceleration_max (``TrajectoryFollower.brake``), then hold; latched until reset()."""
-        self.safety.emergency_stop(self.time)
-
-    def halt(self, reason: str) -> None:
-        """A safety stop that does not latch (lifecycle deactivate, shutdown; ``SafetyController.halt``)."""
-        self.safety.halt(self.time, reason)
-
-    def at_rest(self) -> bool:
-        """True when the commanded struts and vibration units are at rest from now on."""
-        return self.safety.at_rest(self.time)
-
-    def reset(self) -> float:
-        """Clear a latched e-stop and move home from where its stop comes to rest (``SafetyController.reset``);
-        returns the time until home (s)."""
-        return self.safety.reset(self.time, self.platform_pose())
-
+    # -- the state set from outside (a fresh start, a fault) -----------------------------------
     def place_at_rest(self, pose=None) -> None:
         """Put the robot at rest at ``pose`` (m, rad; default home) now, a fresh start state for a bench or a test
         (not a command: nothing moves there, the state is set): the struts hold its lengths, the vibration
@@ -248,7 +166,7 @@ class HardwareEmulator:
         assert isinstance(self.drive, PlantDrive)
         data = self.sim.data
         data.qpos[self.drive.vib_q], data.qvel[self.drive.vib_v] = 0.0, 0.0
-        self.sim.set_state(self._true_pose(lengths, pose))
+        self.sim.set_state(true_pose(self.plant, lengths, pose))
         self._apply_tissue()
         self.drive.restart()
         self.guard.check(lengths + self.plant.strut_zero_offsets)
@@ -264,58 +182,15 @@ class HardwareEmulator:
         self.drive.restart()  # at rest: no acceleration in the reported rates
         self.safety.latch_physics_fault(now, reason, self.drive.lengths())
 
-    @property
-    def _version(self) -> int:
-        return self.safety.version
-
-    def _changed(self) -> None:
-        self.safety.changed()
-
     def _apply_tissue(self) -> None:
         """Evaluate the tissue wrench at the current state and apply it until the next call (xfrc_applied)."""
-        if self.tissue is None:
-            return
-        sim, data = self.sim, self.sim.data
-        q = data.qpos[sim.free_qpos:sim.free_qpos + 7]
-        qv = data.qvel[sim.free_dof:sim.free_dof + 6]
-        mujoco.mju_quat2Mat(self._rot, q[3:7])
-        rot = self._rot.reshape(3, 3)
-        omega = (rot @ qv[3:6]).tolist()  # MuJoCo keeps the free joint's angular velocity in the body frame
-        w = tissue_wrench_single(self.tissue, q[:3].tolist(), rot, qv[:3].tolist(), omega)
-        cx, cy, cz = self._com
-        (r00, r01, r02), (r10, r11, r12), (r20, r21, r22) = rot.tolist()
-        ax, ay, az = r00 * cx + r01 * cy + r02 * cz, r10 * cx + r11 * cy + r12 * cz, r20 * cx + r21 * cy + r22 * cz
-        fx, fy, fz = w[0], w[1], w[2]
-        # xfrc_applied: force at the centre of mass, moment about it (world frame)
-        data.xfrc_applied[self._platform_body] = (fx, fy, fz, w[3] - (ay * fz - az * fy), w[4] - (az * fx - ax * fz),
-                                                  w[5] - (ax * fy - ay * fx))
-        self.tissue_wrench = np.array(w)
+        if self.tissue is not None:
+            self.tissue_wrench = apply_tissue_wrench(self.sim, self.tissue, self._platform_body, self._com, self._rot)
 
     # -- stepping ----------------------------------------------------------------
     def _references(self, time: float, steps: int):
-        """(lengths, rates at t - dt/2, accelerations, vib positions, vib velocities) [steps + 1, 6] at the
-        step times time + k dt, k = 0..steps (the last row is the block's end), from the cache.
-
-        The servos' references come from the commanded hinge lengths L (strut + vibration) on the step
-        grid: the acceleration of step k is the second difference (L[k+1] - 2 L[k] + L[k-1]) / dt^2 and
-        the rate (L[k] - L[k-1]) / dt, the values with which semi-implicit Euler reproduces L at every
-        step (its velocities live half a step back)."""
-        dt = self.dt
-        cache = self._refs
-        if cache is not None and cache[0] == self._version:
-            first = int(round((time - cache[1]) / dt))
-            if 0 <= first and first + steps < len(cache[2][0]):
-                return tuple(a[first:first + steps + 1] for a in cache[2])
-        count = max(steps, int(round(self.reference_horizon_s / dt))) + 1
-        t = time + dt * np.arange(-1, count + 1)  # one step before and after for the differences
-        strut = self.struts.sample(t)[0]
-        vib, vib_rate, _ = self.vibration.sample(t)
-        length = strut + vib
-        accel = (length[2:] - 2.0 * length[1:-1] + length[:-2]) / dt**2
-        rates_half = (length[1:-1] - length[:-2]) / dt
-        arrays = (length[1:-1], rates_half, accel, vib[1:-1], vib_rate[1:-1])
-        self._refs = (self._version, time, arrays)
-        return tuple(a[:steps + 1] for a in arrays)
+        """The servos' references over the block of ``steps`` steps from ``time`` (``ServoReferences.sample``)."""
+        return self.servo_references.sample(time, steps, self.dt, self.reference_horizon_s)
 
     def _controls(self, time: float, steps: int, references=None) -> np.ndarray:
         planned = self._planned
@@ -380,7 +255,8 @@ class HardwareEmulator:
         """(names, positions, velocities, efforts) for leg_1..6, vib_1..6 at the current time (after a physics
         fault: the held lengths at rest, the vibration units at zero, the last good forces)."""
         if self.plant is not None and self.fault is None:
-            return self._sensor_state()
+            assert isinstance(self.drive, PlantDrive)
+            return sensed_joint_state(self.drive, self.plant.sensors, self.forces)
         total, rate = self.drive.lengths(), self.drive.rates()
         if self.fault is not None:
             zeros = np.zeros(6)
@@ -393,18 +269,6 @@ class HardwareEmulator:
         efforts = np.concatenate([self.forces, self.forces])
         return LEG_NAMES + VIB_NAMES, positions, velocities, efforts
 
-    def _sensor_state(self):
-        """The plant's joint states: encoders and unit sensors (their readings and rates over the last step)
-        and the load cells (the strut forces with the plant's noise and offsets)."""
-        assert self.plant is not None and isinstance(self.drive, PlantDrive)
-        drive, sensors = self.drive, self.plant.sensors
-        (strut, unit), (strut_rate, unit_rate) = drive.readings(), drive.reading_rates()
-        cells = self.forces + sensors.load_cell_offsets_n
-        if sensors.load_cell_noise_n > 0:
-            cells = cells + drive.rng.normal(0.0, sensors.load_cell_noise_n, 6)
-        return (LEG_NAMES + VIB_NAMES, np.concatenate([strut, unit]), np.concatenate([strut_rate, unit_rate]),
-                np.concatenate([cells, cells]))
-
     def true_joint_state(self, sensed=None):
         """The ground truth of ``joint_state`` (names, positions, velocities, efforts): leg_* the struts' true
         lengths (m, the plant's frame, no encoder offset) and rates, vib_* the units' true displacements and
@@ -413,10 +277,7 @@ class HardwareEmulator:
         if self.plant is None or self.fault is not None:
             return self.joint_state() if sensed is None else sensed
         assert isinstance(self.drive, PlantDrive)
-        d, drive = self.sim.data, self.drive
-        positions = np.concatenate([d.qpos[drive.slide_q], d.qpos[drive.vib_q]])
-        velocities = np.concatenate([d.qvel[drive.slide_v], d.qvel[drive.vib_v]])
-        return LEG_NAMES + VIB_NAMES, positions, velocities, np.concatenate([self.forces, self.forces])
+        return true_joint_state(self.drive, self.forces)
 
     def imu_sample(self, quaternion=None) -> ImuSample:
         """The platform IMU's sample now (platform frame, at its origin; see platform_sensors). The
@@ -444,7 +305,3 @@ class HardwareEmulator:
     def platform_pose(self) -> np.ndarray:
         """The platform's ground-truth pose (6,) [x, y, z, roll, pitch, yaw] (m, rad) in the base frame."""
         return self.sim.platform_pose()
-
-    def vibration_report(self) -> tuple[VibrationReport, bool]:
-        """(report, state changed) of what the vibration units do now (see vibration_status)."""
-        return self.safety.vibration_report(self.time)
