@@ -41,7 +41,7 @@ def test_the_robot_reaches_every_node_that_reads_one(tmp_path):
 
     from stewart_vibration.parameters.tables import NODE_PARAMETERS
     from stewart_vibration.runtime.bringup import node_arguments
-    from stewart_vibration.runtime.steps import RunOptions
+    from stewart_vibration.runtime.run_options import RunOptions
     from stewart_vibration.runtime.suite import OPTIONAL_NODES, SUITE_NODES
 
     def declared_table(module: str) -> str:
@@ -92,7 +92,7 @@ def test_a_hardware_parameter_file_comes_after_the_suites_and_reaches_every_node
     (rcl applies them in order: the hardware's values win), as an absolute path."""
     from stewart_vibration.install import default_config_dir
     from stewart_vibration.runtime.bringup import SUITE_PARAMS_FILE, node_arguments
-    from stewart_vibration.runtime.steps import RunOptions
+    from stewart_vibration.runtime.run_options import RunOptions
 
     args = node_arguments(RunOptions(out_dir=tmp_path, hardware_params_file=Path("datasheet.yaml")))
     suite = str(default_config_dir() / SUITE_PARAMS_FILE)

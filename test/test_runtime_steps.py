@@ -9,13 +9,12 @@ import numpy as np
 import pytest
 
 from stewart_vibration.motion.guard_status import GuardStatus
+from stewart_vibration.runtime.run_options import RunOptions, RunRecord
 from stewart_vibration.runtime.scenario import MoveStep, Scenario, VibrateStep
-from stewart_vibration.runtime.steps import (
+from stewart_vibration.runtime.steps import ScenarioSteps
+from stewart_vibration.runtime.suite_interface import (
     IdentificationEnd,
     MoveResult,
-    RunOptions,
-    RunRecord,
-    ScenarioSteps,
     StepFailed,
     VibrationEnd,
     VibrationStart,

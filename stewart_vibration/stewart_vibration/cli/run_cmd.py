@@ -25,9 +25,9 @@ from ..kinematics.robot_config import load_drawing, load_robot
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DOMAIN_RANGE, claim_ros_domain
 from ..runtime.run_folders import new_run_folder, reserve_file, write_reserved
+from ..runtime.run_options import VIBRATION_CONTROL
 from ..runtime.scenario import load_scenario, resolve_tissue_path
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
-from ..runtime.steps import VIBRATION_CONTROL
 from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
 from ..safe_yaml import load_yaml
 from ..vibration.unit_identification import load_identification

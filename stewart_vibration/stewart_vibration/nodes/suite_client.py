@@ -1,6 +1,6 @@
 """The main job's ROS client (its own rclpy Context, in the suite's namespace and domain): readiness and
-the emulator's lifecycle, the topics and services the scenario's steps use (``runtime.steps.SuiteClient``),
-and the recorder's stop.
+the emulator's lifecycle, the topics and services the scenario's steps use
+(``runtime.suite_interface.SuiteClient``), and the recorder's stop.
 """
 
 from __future__ import annotations
@@ -32,7 +32,7 @@ from ..motion.guard_status import GuardStatus
 from ..runtime.interrupts import INTERRUPTS
 from ..runtime.processes import DDS_PROFILE_ENV, apply_environment, dds_environment
 from ..runtime.sim_clock import HeldFor
-from ..runtime.steps import IdentificationEnd, MoveResult, StepFailed, VibrationEnd, VibrationStart
+from ..runtime.suite_interface import IdentificationEnd, MoveResult, StepFailed, VibrationEnd, VibrationStart
 from . import ensure_ament_prefix_path
 from .diagnostics import MalformedInputs
 from .message_conversions import stamp_seconds
@@ -264,7 +264,7 @@ class SuiteClient:
             progress(f"WARNING: the force estimates did not keep within {ESTIMATES_CURRENT_S} s of /clock for "
                      f"{ESTIMATES_CURRENT_WAIT_S:.0f} s (busy machine?); going on: the force guard slows the moves")
 
-    # -- what the scenario's steps use (runtime.steps.SuiteClient) ------------------------------------------
+    # -- what the scenario's steps use (runtime.suite_interface.SuiteClient) --------------------------------
     def send_move(self, pose) -> None:
         """Send the move_to_pose goal to ``pose`` (6,) once kinematics' action server is there, and wait until
         it was taken; its result arrives later (``move_result``)."""

@@ -15,8 +15,10 @@ from typing import cast
 
 from ..runtime.bringup import SuiteProcesses
 from ..runtime.rest_check import RestCheck
+from ..runtime.run_options import RunOptions, RunRecord
 from ..runtime.scenario import Scenario
-from ..runtime.steps import SETTLE_HOLD_S, RunOptions, RunRecord, ScenarioSteps, StepFailed
+from ..runtime.steps import SETTLE_HOLD_S, ScenarioSteps
+from ..runtime.suite_interface import StepFailed
 from .suite_client import SuiteClient
 
 __all__ = ["RunOptions", "RunRecord", "StepFailed", "SuiteRunner"]

@@ -14,7 +14,7 @@ from pathlib import Path
 from ..install import default_config_dir
 from ..safe_yaml import load_yaml
 from .processes import NodeProcess, ros_environment, start_python_module
-from .steps import RunOptions, RunRecord
+from .run_options import RunOptions, RunRecord
 from .suite import OPTIONAL_NODES, SUITE_NODES, SUITE_PARAMS_FILE
 
 CLEAN_EXITS = (0, -2, 130)  # normal exit, SIGINT

@@ -1,180 +1,30 @@
 """The scenario's steps as the main job runs them (no rclpy): move, guarded move, vibrate.
 
-The steps drive the suite through a client (``SuiteClient``: the ROS side, ``nodes.suite_client``) and
-record what happened in a ``RunRecord``. Every wait is on something observable (an action's result, the
-emulator's ground truth, vibration/status, kinematics/guard_status, the sim clock), never a fixed sleep.
+The steps drive the suite through a client (``suite_interface.SuiteClient``: the ROS side,
+``nodes.suite_client``) and record what happened in a ``RunRecord`` (``run_options``). Every wait is on
+something observable (an action's result, the emulator's ground truth, vibration/status,
+kinematics/guard_status, the sim clock), never a fixed sleep.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Protocol, cast
+from typing import Any, cast
 
 import numpy as np
 
 from ..analysis.reduction_accuracy import fracture_residual
-from ..motion.guard_status import GuardStatus
 from ..vibration.compensation import identification_misses
 from ..vibration.sine_control import SineControlLimits, stale_identification
 from ..vibration.unit_identification import load_identification
+from .run_options import RunOptions, RunRecord
 from .scenario import DEFAULT_FRACTURE_SITE_M, MoveStep, Scenario, VibrateStep
 from .sim_clock import HeldFor, StillFor
-from .suite import DEFAULT_NAMESPACE
+from .suite_interface import MoveResult, StepFailed, SuiteClient, VibrationEnd
 
-# how the main job controls a vibration: "closed_loop" (identify the units at the vibration's pose and
-# frequency, plan with the identification's feed-forward, correct from the platform IMU), "feedforward" (the
-# same without the loop), "off" (the drawing's decomposition, uncompensated)
-VIBRATION_CONTROL = ("closed_loop", "feedforward", "off")
 IDENTIFICATION_TIMEOUT_S = 120.0  # wall s for one identification at one frequency (~6 s of sim time)
 SETTLE_AFTER_VIBRATION_S = 0.5  # sim s between a vibration's end and the next step (a move)
 SETTLE_HOLD_S = 0.5  # a move is done when the ground truth held within tolerance this long (sim s)
-
-
-class StepFailed(RuntimeError):
-    """A scenario step did not complete (with the reason)."""
-
-
-@dataclass
-class RunOptions:
-    """How the main job runs: namespace, ROS domain, sim speed, output, extra nodes, tolerances."""
-
-    namespace: str = DEFAULT_NAMESPACE
-    domain_id: int = 42
-    real_time_factor: float = 1.0
-    lockstep: bool = False  # the emulator waits for late estimates: sim time slows instead of moves pausing
-    out_dir: Path = Path("runs")
-    params_file: Path | None = None
-    hardware_params_file: Path | None = None  # node parameters applied after the suite's (--params-file)
-    extra_nodes: tuple = ()  # runtime.suite.OPTIONAL_NODES keys to start as well ("foxglove", "ui")
-    tissue_config: str | None = None  # soft-tissue YAML for the emulator (applied) and kinematics (checked)
-    robot_config: str | None = None  # robot YAML for every node that reads one (None: config/robot.yaml)
-    plant_config: str | None = None  # the emulator's robot as built (None: the drawing)
-    plant_seed: int | None = None  # its seed (None: the plant file's)
-    vibration_control: str = "closed_loop"  # VIBRATION_CONTROL: identify the units before each vibration, and how
-    identification_file: Path | None = None  # an identification to reuse where it holds (else the run identifies)
-    settle_tolerance_m: float = 1e-5
-    settle_tolerance_rad: float = np.radians(0.01)
-    step_timeout_s: float = 120.0  # wall clock, per step
-    progress: Any = print
-
-
-@dataclass
-class RunRecord:
-    """What happened: MCAP path, per-step results and event times (sim s)."""
-
-    mcap_path: Path | None = None
-    log_dir: Path | None = None
-    # dicts: name, target, time, pose_error_m / _deg (ground truth), estimate_error_m / _deg (the controller's view)
-    moves: list = field(default_factory=list)
-    vibrations: list = field(default_factory=list)  # dicts: parameters (what ran), start_time, t0, stop_time, ...
-    interrupted: bool = False
-    failures: list = field(default_factory=list)  # what went wrong outside the steps (exits, recorder)
-    recorder_stats: dict | None = None  # the recorder's counts of its last file (received, written, dropped)
-    restarts: list = field(default_factory=list)  # dicts: node, exit_code, sim_time_s (restarted, --keep-running)
-    recording_span: list = field(default_factory=lambda: [None, None])  # sim s: recorder ready .. its stop
-    guard_stops: list = field(default_factory=list)  # dicts: target, time, guard (status values), stopped_pose
-    identifications: list = field(default_factory=list)  # dicts: label, frequency_hz, outcome, message, path, problems
-
-
-@dataclass(frozen=True)
-class VibrationStart:
-    """How a vibrate goal began: started (with the plan the planner runs: messages' plan record with t0_s and
-    pose) or refused (no plan; the outcome name of the one table and the planner's reason)."""
-
-    outcome: str
-    message: str
-    plan: dict | None
-
-    @property
-    def ok(self) -> bool:
-        """Whether the vibration started (its plan came)."""
-        return self.plan is not None
-
-
-@dataclass(frozen=True)
-class VibrationEnd:
-    """How a vibrate goal ended: its outcome name, the planner's message, the active time (s), the cycles
-    delivered (the commanded envelope's), the closed loop's corrections and how far they moved the demands
-    (SineController.correction)."""
-
-    outcome: str
-    message: str
-    active_s: float
-    cycles_delivered: float
-    loop_corrections: int = 0
-    demand_correction: float = 0.0
-
-
-@dataclass(frozen=True)
-class MoveResult:
-    """How a move_to_pose goal ended: its outcome name and kinematics' message, the residual error of its pose
-    estimate (m, rad), the peak external load measured during it (N, N m) and its duration (s)."""
-
-    outcome: str
-    message: str
-    position_error_m: float
-    angle_error_rad: float
-    peak_force_n: float
-    peak_moment_nm: float
-    duration_s: float
-
-
-@dataclass(frozen=True)
-class IdentificationEnd:
-    """How an identification of the vibration units ended: the outcome name, the planner's message, the file
-    written ("" if none) and the problems of a rejected one."""
-
-    outcome: str
-    message: str
-    path: str
-    problems: list
-
-
-class SuiteClient(Protocol):
-    """What the steps need from the running suite (``nodes.suite_client.SuiteClient`` over ROS)."""
-
-    clock: float | None  # latest /clock (sim s)
-    vibration_status: Any  # latest emulation.vibration_status.VibrationReport, or None
-    status_history: list  # (state, since, reason) of every vibration/status state change seen
-
-    def spin_until(self, predicate, timeout: float, what: str) -> None:
-        """Spin until ``predicate()``; StepFailed after ``timeout`` (wall s) waiting for ``what``, or if a node died."""
-
-    def wait_sim(self, seconds: float, what: str) -> None:
-        """Wait ``seconds`` of sim time; StepFailed if the clock stops or a node dies meanwhile."""
-
-    def send_move(self, pose) -> None:
-        """Send kinematics' move_to_pose goal to ``pose`` (6,) [x, y, z, roll, pitch, yaw] (m, rad; base) and wait
-        until it was taken (StepFailed if not)."""
-
-    def move_result(self) -> MoveResult | None:
-        """The latest move goal's result; None while it runs."""
-
-    def ground_truth(self) -> np.ndarray | None:
-        """The latest ground-truth platform pose (6,) (m, rad, base frame); None if not followed or none yet."""
-
-    def pose_estimate(self) -> np.ndarray | None:
-        """The controller's latest pose estimate (6,) (kinematics' platform/pose_estimate); None before one."""
-
-    def follow_poses(self, on: bool) -> None:
-        """Subscribe to the 500 Hz ground truth and pose estimates (``on``; only while a move settles) or stop."""
-
-    def guard_status(self) -> GuardStatus | None:
-        """The latest well-formed kinematics/guard_status (motion.guard_status.GuardStatus); None before one."""
-
-    def start_vibration(self, vibration: dict) -> VibrationStart:
-        """Send the planner's vibrate goal of ``vibration`` (every key of VIBRATION_KEYS) and wait until it began
-        (its plan) or was refused."""
-
-    def identify_units(self, frequencies_hz, output_path: str, timeout_s: float) -> IdentificationEnd:
-        """Run the planner's identification of the vibration units at the current pose and return how it ended."""
-
-    def vibration_result(self) -> VibrationEnd | None:
-        """The latest vibrate goal's result; None while it runs."""
-
-    def stop_vibration(self) -> bool:
-        """Cancel the latest vibrate goal if it runs (a ramp-out); whether a cancel was sent."""
 
 
 class ScenarioSteps:
