@@ -11,12 +11,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import subprocess
-import sys
-import time
 from pathlib import Path
-
-import numpy as np
 
 from ..dynamics.tissue_config import load_tissue
 from ..emulation.plant import load_plant_option
@@ -28,11 +23,13 @@ from ..runtime.run_folders import new_run_folder, reserve_file, write_reserved
 from ..runtime.run_options import VIBRATION_CONTROL
 from ..runtime.scenario import load_scenario, resolve_tissue_path
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX, REAL_TIME_FACTOR_MIN
-from ..runtime.suite import DEFAULT_NAMESPACE, OPTIONAL_NODES, SUITE_NODES
+from ..runtime.suite import DEFAULT_NAMESPACE, SUITE_NODES
 from ..safe_yaml import load_yaml
 from ..vibration.unit_identification import load_identification
 from .arguments import nonnegative_float, positive_float, ros_namespace
 from .output import to_jsonable
+from .run_analysis import summarize
+from .run_console import log, print_summary, print_ui_help, print_views
 
 SUMMARY_RESERVE_BYTES = 1 << 20  # summary.json of a 60 s run: ~30 kB; a recording's gaps are listed up to 100
 
@@ -145,10 +142,6 @@ def _output_folder(given: str | None) -> Path:
     return out
 
 
-def _log(message: str) -> None:
-    print(f"[{time.strftime('%H:%M:%S')}] {message}", flush=True)
-
-
 def _given_domain(given: int | None) -> tuple[int | None, str]:
     """(domain or None, where it came from): --domain-id, else $ROS_DOMAIN_ID (checked), else None."""
     if given is not None:
@@ -202,12 +195,12 @@ def run(args) -> int:
     try:  # the summary's room on disk, taken before the recording can fill it
         reserve_file(out / "summary.json", SUMMARY_RESERVE_BYTES)
     except OSError as exc:
-        _log(f"cannot reserve room for summary.json in {out}: {exc}")
+        log(f"cannot reserve room for summary.json in {out}: {exc}")
     extra = tuple(key for key, wanted in (("foxglove", args.foxglove), ("ui", args.ui)) if wanted)
     from ..nodes.suite_runner import RunOptions, StepFailed, SuiteRunner  # rclpy only once the inputs are good
 
     options = RunOptions(namespace=args.namespace, domain_id=domain, real_time_factor=args.real_time_factor,
-                         lockstep=args.lockstep, out_dir=out, progress=_log, extra_nodes=extra, tissue_config=tissue,
+                         lockstep=args.lockstep, out_dir=out, progress=log, extra_nodes=extra, tissue_config=tissue,
                          robot_config=robot_config, plant_config=plant_config,
                          plant_seed=built.seed if built is not None else None,
                          vibration_control=args.vibration_control,
@@ -217,29 +210,29 @@ def run(args) -> int:
     runner = SuiteRunner(options)
     status, failure = 0, None
     lockstep = " (lockstep)" if args.lockstep else ""
-    _log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
+    log(f"scenario '{scenario.name}' ({scenario.source}); ROS_DOMAIN_ID={domain} ({source}), namespace "
          f"{args.namespace}, real-time factor {args.real_time_factor or 'max'}{lockstep}; output {out.resolve()}; "
          f"robot {robot.source}; soft tissue: {tissue or 'none'}; plant: {plant_summary['kind']}"
          f"{f' seed {built.seed} ({plant_config})' if built is not None else ''}")
-    _log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
+    log(f"to attach ros2 tools or a viewer from another shell: export ROS_DOMAIN_ID={domain} "
          "ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST")
     try:
         runner.start()
         runner.wait_ready()
-        _print_views(runner, extra)
+        print_views(runner, extra)
         runner.run(scenario)
         if args.keep_running:
-            _print_ui_help(args.namespace, domain)
+            print_ui_help(args.namespace, domain)
             runner.supervise(respawn)
     except KeyboardInterrupt:
         runner.record.interrupted = True
         status = 130
-        _log("interrupted: stopping the recorder and every node")
+        log("interrupted: stopping the recorder and every node")
     except StepFailed as exc:
         status, failure = 2, str(exc)
-        _log(f"FAILED: {exc}")
+        log(f"FAILED: {exc}")
         for line in runner.recent_problems():
-            _log(f"  {line}")
+            log(f"  {line}")
         try:
             runner.bring_to_rest()
         except KeyboardInterrupt:
@@ -247,7 +240,7 @@ def run(args) -> int:
     finally:
         runner.stop()
     record = runner.record
-    _log(f"all nodes stopped; MCAP: {record.mcap_path}")
+    log(f"all nodes stopped; MCAP: {record.mcap_path}")
     summary = {"scenario": scenario.name, "mcap": str(record.mcap_path) if record.mcap_path else None,
                "moves": record.moves, "vibrations": [], "failure": failure, "interrupted": record.interrupted,
                "problems": list(record.failures), "recorder": record.recorder_stats,
@@ -256,10 +249,10 @@ def run(args) -> int:
                "identification_file": str(Path(args.identification).resolve()) if args.identification else None,
                "identifications": record.identifications, "guard_stops": record.guard_stops}
     if not list(out.glob("*.mcap")):
-        _log("no MCAP was written")
+        log("no MCAP was written")
         summary["problems"].append("no MCAP was written")
     else:
-        _summarize(robot, record, summary, scenario, out, robot_config)
+        summarize(robot, record, summary, scenario, out, robot_config)
     summary["problems"] = list(dict.fromkeys(summary["problems"]))  # one line per problem, however it was seen
     if summary["problems"] and status == 0:
         status = 2
@@ -273,183 +266,5 @@ def run(args) -> int:
     if args.json:
         print(json.dumps(to_jsonable(summary), indent=2))
     else:
-        _print_summary(summary, scenario.bounds)
+        print_summary(summary, scenario.bounds)
     return status
-
-
-def _summarize(robot, record, summary: dict, scenario, out: Path, robot_config: str | None) -> None:
-    """Analyse what ran (also after a failure or an interruption) from every file of the run folder: every
-    vibration that started, the streams, what the recording covers (gaps, cut files, restarts), the limits
-    over the recorded states, the bounds; write the report. Problems change the verdict."""
-    from ..analysis.run_coverage import recording_coverage, recording_problems, restart_gaps, stream_summary
-    from ..analysis.run_signals import load_signals
-    from ..analysis.run_verdict import check_bounds, limit_summary
-    from ..analysis.tissue_figures import summarize_tissue
-    from ..analysis.vibration_figures import summarize_vibration
-
-    try:
-        signals = load_signals(out)
-    except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
-        summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
-        return
-    # the recording ends where the recorder stopped (its own clock: a recorder that lags behind the runner has
-    # not yet received what the runner's clock says), or, without its word, at the runner's clock then
-    stopped = (record.recorder_stats or {}).get("stopped_at_s")
-    end = stopped if isinstance(stopped, (int, float)) and stopped > 0 else record.recording_span[1]
-    span = (record.recording_span[0], end) if None not in (record.recording_span[0], end) else None
-    summary["recording"] = recording_coverage(signals, span)
-    summary["restarts"] = restart_gaps(signals, record.restarts)
-    summary["problems"] += recording_problems(summary["recording"], summary["restarts"])
-    nominal = robot.home_pose
-    for step_move, vib in _pair_vibrations(record):
-        nominal = np.asarray(step_move["target"]) if step_move else nominal
-        try:
-            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
-        except Exception as exc:  # noqa: BLE001 - e.g. interrupted before it vibrated
-            summary["problems"].append(f"vibration starting at {vib['start_time']:.3f} s cannot be analysed: "
-                                       f"{type(exc).__name__}: {exc}")
-            continue
-        result["failure"] = vib.get("failure")
-        result["closed_loop"] = {key: vib[key] for key in ("loop_corrections", "demand_correction",
-                                                           "stale_identification") if key in vib}
-        summary["vibrations"].append(result)
-    summary["tissue"] = summarize_tissue(signals, [(v["t0"], float(v["parameters"]["duration_s"]))
-                                                   for v in record.vibrations if "t0" in v])
-    summary["streams"] = stream_summary(signals)
-    summary["limits"] = limit_summary(robot, signals)
-    summary["bound_failures"] = check_bounds(summary, scenario.bounds)
-    cut = any(not f["complete"] for f in summary["recording"]["files"])
-    summary["report_dir"] = _write_report(out, out / "report", robot_config, allow_truncated=cut)
-    if summary["report_dir"] is None:
-        summary["problems"].append("the report could not be written (see the log above)")
-
-
-def _pair_vibrations(record):
-    """Each vibration with the last move that preceded it (its nominal pose)."""
-    pairs = []
-    for vib in record.vibrations:
-        before = [m for m in record.moves if m["time"] <= vib["start_time"]]
-        pairs.append((before[-1] if before else None, vib))
-    return pairs
-
-
-def _write_report(run: Path, report_dir: Path, robot_config: str | None, allow_truncated: bool = False) -> str | None:
-    """Run ``stewart-vibration report`` on the run folder with the run's robot (every file; cut ones too when
-    ``allow_truncated``: the summary already names them); returns the directory, or None if it failed."""
-    robot = ["--robot", robot_config] if robot_config else []
-    result = subprocess.run([sys.executable, "-m", "stewart_vibration", *robot, "report", str(run), "--out",
-                             str(report_dir), *(["--allow-truncated"] if allow_truncated else [])],
-                            capture_output=True, text=True, timeout=600)
-    if result.returncode != 0:
-        _log(f"report failed: {result.stderr.strip()[-500:]}")
-        return None
-    return str(report_dir)
-
-
-def _print_views(runner, extra) -> None:
-    """The addresses the optional nodes print in their logs (lines with 'http://' or 'ws://')."""
-    for key in extra:
-        node = OPTIONAL_NODES[key].name
-        deadline = time.monotonic() + 20
-        lines: list[str] = []
-        while time.monotonic() < deadline and not lines:
-            lines = runner.log_lines(node, "://")
-            time.sleep(0.2)
-        for line in lines[-2:]:
-            _log(f"{node}: {line.split('] ')[-1]}")
-        if not lines:
-            _log(f"{node}: no address in its log yet (see {runner.record.log_dir}/{node}.log)")
-
-
-def _print_ui_help(namespace: str, domain: int) -> None:
-    ns = namespace.rstrip("/")
-    print(f"""
-Nodes are running (Ctrl-C stops them and finishes the MCAP). In another shell:
-  export ROS_DOMAIN_ID={domain} ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST
-  ros2 action send_goal --feedback {ns}/kinematics/move_to_pose stewart_vibration_interfaces/action/MoveToPose \\
-    "{{target: {{header: {{frame_id: base}}, pose: {{position: {{z: 0.165}}, orientation: {{w: 1.0}}}}}}}}"
-  ros2 action send_goal --feedback {ns}/vibration_planner/vibrate stewart_vibration_interfaces/action/Vibrate \\
-    "{{direction: [0.0, 0.0, 1.0], frame: platform, acceleration_g: 0.3, frequency_hz: 35.0, \\
-      duration_s: 2.0, ramp_s: 0.2}}"
-  ros2 service call {ns}/vibration_planner/vibrate/_action/cancel_goal action_msgs/srv/CancelGoal
-  ros2 service call {ns}/hardware_emulator/emergency_stop std_srvs/srv/Trigger
-""", flush=True)
-
-
-def _print_summary(summary: dict, bounds: dict) -> None:
-    print("\n=== run summary ===")
-    print(f"scenario: {summary['scenario']}")
-    for move in summary["moves"]:
-        print(f"move to {move['name']}: ground-truth error {move['pose_error_m'] * 1e6:.3f} um, "
-              f"{move['pose_error_deg']:.5f} deg; the controller's estimate {move['estimate_error_m'] * 1e6:.3f} um, "
-              f"{move['estimate_error_deg']:.5f} deg (bounds {bounds['pose_error_m'] * 1e6:g} um, "
-              f"{bounds['pose_error_deg']:g} deg, both)")
-        if "fracture_displacement_mm" in move:
-            print(f"  at the fracture site (reduction accuracy): displacement {move['fracture_displacement_mm']:.3f} "
-                  f"mm, angulation {move['fracture_angulation_deg']:.4f} deg, rotation "
-                  f"{move['fracture_rotation_deg']:.4f} deg")
-    for i, vib in enumerate(summary["vibrations"], start=1):
-        print(f"vibration {i}: {vib['frequency_hz']:g} Hz, planned {vib['planned_amplitude_m'] * 1e6:.2f} um along "
-              f"{np.round(vib['planned_direction'], 4).tolist()} (base frame)")
-        print(f"  platform (ground truth): amplitude {vib['measured_amplitude_m'] * 1e6:.3f} um "
-              f"(error {vib['amplitude_error'] * 100:.3f} %), direction error {vib['direction_error_deg']:.4f} deg, "
-              f"off-axis ratio {vib['off_axis_ratio']:.2e}")
-        view = vib.get("controller_view")
-        if view is not None:
-            legs = view.get("leg_amplitude_error")
-            worst = f"; worst leg amplitude error {float(np.max(legs)) * 100:.3f} %" if legs is not None else ""
-            print(f"  platform (the controller's view: its pose estimate and sensors): amplitude "
-                  f"{view['measured_amplitude_m'] * 1e6:.3f} um (error {view['amplitude_error'] * 100:.3f} %), "
-                  f"direction error {view['direction_error_deg']:.4f} deg, off-axis ratio "
-                  f"{view['off_axis_ratio']:.2e}{worst}")
-        print("  leg   amplitude_um  expected_um  phase_deg  expected_deg  freq_Hz")
-        for k in range(6):
-            amp, expected = vib["leg_amplitude_m"][k] * 1e6, vib["leg_amplitude_expected_m"][k] * 1e6
-            print(f"  {k + 1}     {amp:10.3f}  {expected:10.3f}"
-                  f"  {vib['leg_phase_deg'][k]:9.3f}  {vib['leg_phase_expected_deg'][k]:12.3f}"
-                  f"  {vib['leg_frequency_hz'][k]:.5f}")
-        if vib["force"] is not None:
-            f = vib["force"]
-            print(f"  leg forces, model vs emulator: RMS error {np.round(f['rms_error_n'], 4).tolist()} N; "
-                  f"worst leg {f['worst_leg_relative'] * 100:.3f} % of the force amplitude")
-        print(f"  active (>= half amplitude) {vib['active_duration_s']:.3f} s of the planned "
-              f"{vib['planned_active_duration_s']:.3f} s")
-        loop = vib.get("closed_loop") or {}
-        if loop.get("loop_corrections"):
-            stale = f"; stale: {loop['stale_identification']}" if loop.get("stale_identification") else ""
-            print(f"  closed loop: {loop['loop_corrections']} corrections, the demands moved "
-                  f"{loop['demand_correction']:.1%} from the identification's feed-forward{stale}")
-        if vib.get("failure"):
-            print(f"  this vibration failed: {vib['failure']}")
-    from ..analysis.run_coverage import recording_lines
-    from ..analysis.tissue_figures import tissue_lines
-
-    for line in tissue_lines(summary) + recording_lines(summary):
-        print(line)
-    streams = summary.get("streams")
-    if streams:
-        counts = ", ".join(f"{t} {row['count']} ({row['ratio'] * 100:.2f} %)" for t, row in streams["topics"].items())
-        print(f"samples: {counts}")
-        for node, row in streams["nodes"].items():
-            print(f"  {node}: {row['received']} states received, {row['lost']} lost, lag p50 {row['lag_p50_ms']:.1f} "
-                  f"ms / p99 {row['lag_p99_ms']:.1f} ms")
-    if summary.get("recorder"):
-        r = summary["recorder"]
-        lost = ", ".join(f"{t} {n}" for t, n in sorted((r.get("lost_per_topic") or {}).items()))
-        print(f"recorder (its last file): {r.get('written')} messages written, {r.get('dropped')} dropped, "
-              f"{r.get('lost', 0)} lost before they reached it" + (f" ({lost})" if lost else ""))
-    print(f"MCAP: {summary['mcap']}")
-    print(f"report: {summary.get('report_dir')}")
-    for problem in summary.get("problems", []):
-        print(f"PROBLEM: {problem}")
-    if summary.get("failure"):
-        print(f"FAILED: {summary['failure']}")
-    elif summary.get("interrupted"):
-        print("INTERRUPTED (the summary above covers what ran)")
-    elif summary.get("problems"):
-        print("FAILED: see the problems above")
-    elif summary.get("bound_failures"):
-        print("MISSED BOUNDS:\n  " + "\n  ".join(summary["bound_failures"]))
-    else:
-        print("all figures within their bounds")
-
