@@ -1,6 +1,6 @@
 """The main job's ROS client (its own rclpy Context, in the suite's namespace and domain): readiness and
-the emulator's lifecycle, the topics and services the scenario's steps use
-(``runtime.suite_interface.SuiteClient``), and the recorder's stop.
+the emulator's lifecycle, the topics, services and goals the scenario's steps use
+(``runtime.suite_interface.SuiteClient``; the goals: ``suite_goals``), and the recorder's stop.
 """
 
 from __future__ import annotations
@@ -15,13 +15,11 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from lifecycle_msgs.msg import Transition
 from lifecycle_msgs.srv import ChangeState, GetState
-from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.node import Node
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from stewart_vibration_interfaces.action import IdentifyVibrationUnits, MoveToPose, Vibrate
 from stewart_vibration_interfaces.msg import ForceGuardStatus, VibrationUnitsStatus
 from stewart_vibration_interfaces.srv import StopRecording
 
@@ -36,17 +34,10 @@ from ..runtime.suite_interface import IdentificationEnd, MoveResult, StepFailed,
 from . import ensure_ament_prefix_path
 from .diagnostics import MalformedInputs
 from .message_conversions import stamp_seconds
-from .move_messages import MOVE_ACTION, move_goal, move_result_record
 from .outcomes import outcome_name
 from .run_loop import STATUS_QOS, make_executor
-from .service_calls import (
-    GoalAcceptances,
-    ServiceClients,
-    answer_with_resend,
-    send_goal_recovering,
-    transition_lifecycle,
-)
-from .vibration_goal import goal_message, plan_record
+from .service_calls import ServiceClients, answer_with_resend, transition_lifecycle
+from .suite_goals import SuiteGoals
 
 if TYPE_CHECKING:
     from rclpy.subscription import Subscription
@@ -55,8 +46,6 @@ if TYPE_CHECKING:
 
 # the 500 Hz poses a settling move follows (raw, checked and decoded only when asked): topic -> what it is
 FOLLOWED_POSES = {"ground_truth/platform_pose": "ground-truth pose", "platform/pose_estimate": "pose estimate"}
-# planner refusals that only mean "not yet" (its clock or pose input has not arrived): the goal is sent again
-NOT_READY_YET = ("NOT_READY", "CLOCK_NOT_RUNNING")
 # before the first move the force estimates must have kept within ESTIMATES_CURRENT_S (sim s) of /clock for longer
 # than the force guard remembers a lag (it slows moves by the largest lag of the last LAG_MEMORY_S; 0.15 s still
 # allows 10 mm/s); at most ESTIMATES_CURRENT_WAIT_S of wall time, then the run goes on and says so
@@ -90,9 +79,7 @@ class SuiteClient:
             self.node.create_subscription(kind, topic,
                                           lambda m, t=topic: self.latest.__setitem__(t, m), 1)  # type: ignore[misc]
             for topic, kind in (("platform/pose_estimate", PoseStamped), ("legs/force_estimate", JointState))]
-        self.move_client = ActionClient(self.node, MoveToPose, MOVE_ACTION)
-        self.move_acceptances = GoalAcceptances(self.node, MOVE_ACTION)
-        self._move: dict = {}  # the latest move goal: handle, result (MoveResult)
+        self.goals = SuiteGoals(self.node, self.spin_until, self._wait_answer, self.dead)  # move, vibrate, identify
         self.vibration_status: VibrationReport | None = None  # latest VibrationReport of the emulator
         self.status_history: list = []  # (state, since, reason) transitions seen
         self.recorder_fault: str | None = None  # the recorder's write failure (its /diagnostics fault_reason)
@@ -108,12 +95,6 @@ class SuiteClient:
         self._raw_poses: dict[str, bytes] = {}  # topic -> its newest raw message while followed
         # topic -> (the raw message last decoded, its pose or the last good one)
         self._decoded: dict[str, tuple] = {topic: (None, None) for topic in FOLLOWED_POSES}
-        self.vibrate_client = ActionClient(self.node, Vibrate, "vibration_planner/vibrate")
-        self.vibrate_acceptances = GoalAcceptances(self.node, "vibration_planner/vibrate")
-        self.identify_client = ActionClient(self.node, IdentifyVibrationUnits,
-                                            "vibration_planner/identify_vibration_units")
-        self.identify_acceptances = GoalAcceptances(self.node, "vibration_planner/identify_vibration_units")
-        self._vibration: dict = {}  # the latest vibrate goal: handle, plan (record), result (VibrationEnd)
 
     # -- callbacks --------------------------------------------------------------------------------------
     def _on_clock(self, msg: Clock) -> None:
@@ -228,7 +209,7 @@ class SuiteClient:
         self.spin_until(lambda: "legs/force_estimate" in self.latest, 60, "legs/force_estimate")
         progress("ready: leg_force_estimator (force estimates)")
         self._ready_client(StopRecording, "mcap_recorder/stop", 60)
-        self.spin_until(self.vibrate_client.server_is_ready, 60, "the vibration_planner/vibrate action")
+        self.spin_until(self.goals.vibrate_client.server_is_ready, 60, "the vibration_planner/vibrate action")
         progress("ready: vibration_planner (action), mcap_recorder (services)")
 
         def recorder_subscribed():  # the states, and the commands: a short vibration is one window
@@ -266,30 +247,13 @@ class SuiteClient:
 
     # -- what the scenario's steps use (runtime.suite_interface.SuiteClient) --------------------------------
     def send_move(self, pose) -> None:
-        """Send the move_to_pose goal to ``pose`` (6,) once kinematics' action server is there, and wait until
-        it was taken; its result arrives later (``move_result``)."""
-        self.spin_until(self.move_client.server_is_ready, 30.0, f"kinematics' {MOVE_ACTION} action")
-        self._move = {"result": None}
-        handle = send_goal_recovering(self.move_client, move_goal(pose), self.move_acceptances, 30.0,
-                                      self._wait_answer(MOVE_ACTION))
-        if handle is None:
-            raise StepFailed("kinematics did not take the move goal within 30 s")
-        if not handle.accepted:
-            raise StepFailed("kinematics rejected the move goal")
-        self._move["handle"] = handle
-        handle.get_result_async().add_done_callback(self._on_move_result)
-
-    def _on_move_result(self, future) -> None:
-        answer = future.result()
-        if answer is not None:
-            r = move_result_record(answer.result)
-            self._move["result"] = MoveResult(r["outcome"], r["message"], r["position_error_m"],
-                                              r["angle_error_rad"], r["peak_force_n"], r["peak_moment_nm"],
-                                              r["duration_s"])
+        """Send the move_to_pose goal to ``pose`` and wait until it was taken (``SuiteGoals.send_move``)."""
+        self.goals.send_move(pose)
 
     def move_result(self) -> MoveResult | None:
         """The latest move goal's result, None while it runs (or before any)."""
-        return self._move.get("result")
+        return self.goals.move_result()
+
 
     def follow_poses(self, on: bool) -> None:
         """Subscribe to the 500 Hz ground truth (ground_truth/platform_pose) and the controller's pose estimates
@@ -327,94 +291,25 @@ class SuiteClient:
         return self._guard
 
     def start_vibration(self, vibration: dict) -> VibrationStart:
-        """Send the vibrate goal of ``vibration`` (the VIBRATION_KEYS) and wait for its plan (the first feedback)
-        or its refusal (the result); sent again for up to 10 s while the planner only says "not yet"
-        (NOT_READY_YET: its clock or pose estimate has not arrived)."""
-        deadline = time.monotonic() + 10.0
-        while True:
-            self._vibration = {"plan": None, "result": None}
-            handle = send_goal_recovering(self.vibrate_client, goal_message(vibration), self.vibrate_acceptances,
-                                          30.0, self._wait_answer("vibration_planner/vibrate"),
-                                          feedback_callback=self._on_feedback)
-            if handle is None:
-                raise StepFailed("the planner did not take the vibrate goal within 30 s")
-            if not handle.accepted:
-                return VibrationStart("INTERNAL_ERROR", "the planner rejected the goal", None)
-            self._vibration["handle"] = handle
-            handle.get_result_async().add_done_callback(self._on_result)
-            self.spin_until(lambda: self._vibration["plan"] is not None or self._vibration["result"] is not None,
-                            30.0, "the planner to start the vibration")
-            result = self._vibration["result"]
-            if self._vibration["plan"] is not None or result is None:
-                return VibrationStart("SUCCEEDED", "started", self._vibration["plan"])
-            if result.outcome not in NOT_READY_YET or time.monotonic() >= deadline:
-                return VibrationStart(result.outcome, result.message, None)
-            end = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
-            self.spin_until(lambda e=end: time.monotonic() >= e, 1.0, "a moment")
-
-    def _on_feedback(self, msg) -> None:
-        if self._vibration.get("plan") is None:
-            self._vibration["plan"] = plan_record(msg.feedback.plan)
-
-    def _on_result(self, future) -> None:
-        answer = future.result()
-        if answer is None:
-            return
-        r = answer.result
-        self._vibration["result"] = VibrationEnd(outcome_name(r.outcome.code), r.outcome.message, r.active_s,
-                                                 r.cycles_delivered, int(r.loop_corrections), r.demand_correction)
-        if self._vibration.get("plan") is None and r.plan.frequency_hz > 0:
-            self._vibration["plan"] = plan_record(r.plan)
+        """Send the vibrate goal of ``vibration`` and wait for its plan or refusal (``SuiteGoals``)."""
+        return self.goals.start_vibration(vibration)
 
     def identify_units(self, frequencies_hz, output_path: str, timeout_s: float) -> IdentificationEnd:
-        """Run the planner's identify_vibration_units at the current pose (``frequencies_hz``, the file
-        ``output_path``) and wait for its result (sent again for up to 10 s while the planner only says "not
-        yet"); StepFailed if it does not end within ``timeout_s`` (wall s)."""
-        name = "vibration_planner/identify_vibration_units"
-        self.spin_until(self.identify_client.server_is_ready, 30.0, f"the planner's {name} action")
-        goal = IdentifyVibrationUnits.Goal(frequencies_hz=[float(f) for f in frequencies_hz], output_path=output_path)
-        deadline = time.monotonic() + 10.0
-        while True:
-            handle = send_goal_recovering(self.identify_client, goal, self.identify_acceptances, 30.0,
-                                          self._wait_answer(name))
-            if handle is None or not handle.accepted:
-                raise StepFailed("the planner did not take the identification goal")
-            answer = handle.get_result_async()
-            self.spin_until(answer.done, timeout_s, "the identification of the vibration units")
-            r = answer.result().result
-            end = IdentificationEnd(outcome_name(r.outcome.code), r.outcome.message, r.path, list(r.problems))
-            if end.outcome not in NOT_READY_YET or time.monotonic() >= deadline:
-                return end
-            wait = time.monotonic() + 0.5  # a busy machine: no /clock or pose estimate there yet
-            self.spin_until(lambda w=wait: time.monotonic() >= w, 1.0, "a moment")
+        """Run the planner's identify_vibration_units here and wait for its result (``SuiteGoals``)."""
+        return self.goals.identify_units(frequencies_hz, output_path, timeout_s)
 
     def vibration_result(self) -> VibrationEnd | None:
         """The latest vibrate goal's result, None while it runs (or before any)."""
-        return self._vibration.get("result")
+        return self.goals.vibration_result()
 
     def vibration_goal_open(self) -> bool:
         """Whether the latest vibrate goal was accepted and its result has not come (pending or running)."""
-        return self._vibration.get("handle") is not None and self._vibration.get("result") is None
+        return self.goals.vibration_goal_open()
 
     def stop_vibration(self) -> bool:
-        """Cancel the latest vibrate goal if it is open, waiting for its t0 or running (the units ramp out, or
-        never move); whether a cancel was sent. StepFailed when the planner does not take it (a cancel lost on
-        the way is sent again; a goal that ended meanwhile needs none)."""
-        if not self.vibration_goal_open():
-            return False
-        for _ in range(3):
-            future = self._vibration["handle"].cancel_goal_async()
-            try:
-                self.spin_until(lambda f=future: f.done() or not self.vibration_goal_open(), 5.0,
-                                "the planner to take the cancel")
-            except StepFailed:
-                if self.dead():
-                    raise
-                continue
-            answer = future.result() if future.done() else None
-            if not self.vibration_goal_open() or (answer is not None and len(answer.goals_canceling) > 0):
-                return True
-        raise StepFailed("the planner did not take the cancel of the vibration (3 tries)")
+        """Cancel the latest vibrate goal if it is open; whether a cancel was sent (``SuiteGoals``)."""
+        return self.goals.stop_vibration()
+
 
     # -- the end --------------------------------------------------------------------------------------------
     def stop_recorder(self, progress):
