@@ -9,9 +9,16 @@ import numpy as np
 import pytest
 
 from stewart_vibration import inverse_kinematics
-from stewart_vibration.motion.estimate_watch import RESUME_FRESH_S
+from stewart_vibration.motion.estimate_watch import (
+    CHECK_MEMORY_S,
+    LAG_MEMORY_S,
+    RESUME_FRESH_S,
+    CheckGaps,
+    EstimateWatch,
+)
 from stewart_vibration.motion.force_guard import MAX_STOP_RETRIES, WATCH_AFTER_S, ForceGuard
 from stewart_vibration.motion.guard_supervisor import GuardSupervisor, PublishStatus, ResumeTarget, SendStop, Tripped
+from stewart_vibration.motion.stop_planning import MAX_WINDOW_S
 
 LIFT_M, DURATION_S, BATCH_S, STATE_HZ = 0.01, 2.0, 0.02, 500
 BASE_N, LIMIT_N = 50.0, 200.0
@@ -168,3 +175,53 @@ def test_a_refused_stop_is_sent_again_over_a_doubled_window_until_the_retries_ar
         assert send.stop.progress > progress
         attempt, progress, now = send.attempt, send.stop.progress, now + 0.02
     assert lift.supervisor.on_stop_refused(by, attempt, now, "late again") == []
+
+
+def test_the_estimate_watch_keeps_the_largest_lag_of_its_memory_and_the_speed_it_allows():
+    """Lag = newest state stamp - newest estimate stamp, the largest over LAG_MEMORY_S; speed = blind_travel /
+    lag (1 ms floor); none before an estimate; the age of the load since a move's start if that is later."""
+    watch = EstimateWatch(max_estimate_age=0.25, blind_travel=1.5e-3)
+    assert watch.lag == 0.0 and watch.speed_limit() == np.inf and not watch.heard
+    watch.checked(1.0)  # no estimate yet: nothing remembered
+    assert watch.lag == 0.0
+    watch.arrived([0.5, 0.7])
+    watch.checked(1.0)
+    assert watch.heard and watch.newest == 0.7 and watch.lag == pytest.approx(0.3)
+    assert watch.speed_limit() == pytest.approx(1.5e-3 / 0.3)
+    assert watch.age(1.0, since=0.9) == pytest.approx(0.1) and watch.age(1.0, since=0.0) == pytest.approx(0.3)
+    watch.arrived([1.0])
+    watch.checked(1.0 + LAG_MEMORY_S - 0.01)  # the 0.3 s lag at 1.0 s is still remembered
+    assert watch.lag == pytest.approx(LAG_MEMORY_S - 0.01)
+    last = 1.0 + 2 * LAG_MEMORY_S  # more than LAG_MEMORY_S after both earlier checks: they leave the memory
+    watch.arrived([last])
+    watch.checked(last)
+    assert watch.lag == 0.0 and watch.speed_limit() == pytest.approx(1.5e-3 / 1e-3)
+
+
+def test_the_estimates_keep_up_only_without_a_break():
+    """kept_up: fresh (within half of max_estimate_age) for RESUME_FRESH_S without a break; a stale check or a
+    reset starts the count again."""
+    watch = EstimateWatch(max_estimate_age=0.2)
+    for t in np.arange(0.0, RESUME_FRESH_S, 0.05):
+        watch.arrived([t])
+        assert not watch.kept_up(t + 0.09)  # 90 ms behind: fresh, not yet long enough
+    watch.arrived([RESUME_FRESH_S])
+    assert watch.kept_up(RESUME_FRESH_S + 0.09)
+    assert not watch.kept_up(RESUME_FRESH_S + 0.2)  # 0.2 s behind: stale, the count restarts
+    watch.arrived([RESUME_FRESH_S + 0.2])
+    assert not watch.kept_up(RESUME_FRESH_S + 0.2)
+    watch.reset_freshness()
+    watch.arrived([2 * RESUME_FRESH_S + 0.3])
+    assert not watch.kept_up(2 * RESUME_FRESH_S + 0.3)
+
+
+def test_check_gaps_are_the_largest_recent_gap_capped_at_the_longest_window():
+    gaps = CheckGaps()
+    assert gaps.gap == 0.0
+    for t in (0.0, 0.02, 0.04, 0.24, 0.26):
+        gaps.checked(t)
+    assert gaps.gap == pytest.approx(0.2)
+    gaps.checked(0.26 + CHECK_MEMORY_S)  # 0.0 .. 0.24 have left the memory; the gap since 0.26 counts, capped
+    assert gaps.gap == pytest.approx(MAX_WINDOW_S)
+    gaps.checked(0.28 + CHECK_MEMORY_S)  # now 0.26 has left too: only the last 20 ms gap remains
+    assert gaps.gap == pytest.approx(0.02)

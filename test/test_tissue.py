@@ -21,6 +21,7 @@ from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.motion.estimate_watch import LAG_MEMORY_S, RESUME_FRESH_S
 from stewart_vibration.motion.force_guard import MAX_STOP_RETRIES, ON_MOVE_SETTLE_S, ForceGuard
+from stewart_vibration.motion.guard_supervisor import GuardSupervisor, SendStop, Tripped
 from stewart_vibration.motion.load_prediction import predict_load
 from stewart_vibration.motion.paths import check_path_forces, checked_path
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
@@ -289,15 +290,16 @@ STARVED_CASES = [(200.0, 0.04, None, gap) for gap in (0.1, 0.2, 0.3)]
 def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, limit, lag, silent_after, gap):
     """Emulator (tissue) -> estimator -> guard with the node's view ``lag`` s behind the emulator, the node
     reading its inputs every ``gap`` s (0.02: its batch period; longer: a node starved of CPU, whose checks
-    come late: CI beside a hog reached 229.7 N against 200); the stop goes to the emulator (which checks it)
-    5 ms after the trip. Peak estimated and applied force <= limit + 10 %.
-    As in the node, the guard is asked after every batch of states as well as of estimates. With the estimates
-    silent from ``silent_after`` of the move on (the estimator stalled while the load is still far below the
-    limit), the applied force stays within the same bound either way: the states carry the prediction on (a
-    force trip) or, from too early a fit, the guard trips blind (default max_estimate_age) in time.
-    (MAX_ESTIMATE_AGE_S 0.5 let it reach 288 N at silent_after 0.3.)"""
+    come late and must look further ahead); the stop goes to the emulator (which checks it) 5 ms after the trip.
+    Peak estimated and applied force <= limit + 10 %. The guard is driven through its supervisor, as the node
+    drives it (states read, estimates, then the judgement after the states). With the estimates silent from
+    ``silent_after`` of the move on (the estimator stalled while the load is still far below the limit), the
+    applied force stays within the same bound either way: the states carry the prediction on (a force trip) or,
+    from too early a fit, the guard trips blind (default max_estimate_age) in time (an age limit twice as long
+    lets the load run 40 % past the limit at silent_after 0.3)."""
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), tissue=tissue)
     est, guard = ForceEstimator(robot), ForceGuard(robot, limit, 0.0)
+    supervisor = GuardSupervisor(guard, 0.02)
     target = robot.home_pose + [0, 0, 0.010, 0, 0, 0]
     start, goal = inverse_kinematics(robot, robot.home_pose), inverse_kinematics(robot, target)
     duration = minimum_jerk_duration(start, goal, 0.01, 0.5)
@@ -330,16 +332,18 @@ def test_guard_stops_the_move_near_the_limit_in_a_closed_loop(robot, tissue, lim
             continue
         seen += len(new)
         t, p, v, e, _ = (np.array(c) for c in zip(*new))
-        guard.observe_states(t, p[:, :6])
-        got = None
+        supervisor.states_read(t, p[:, :6])
+        actions = []
         if silent_after is None or t[-1] < 0.02 + silent_after * duration:
             res = est.estimate(t, p[:, :6], p[:, 6:], v[:, :6], v[:, 6:], e)
-            got = guard.observe(res.stamps, res.wrench, emu.time - lag, 0.02)
-        got = got or guard.assess(emu.time - lag, 0.02) or guard.check_estimates(emu.time - lag)
-        if got is not None:
-            trip = got
-            assert trip.stop is not None
-            pending = (emu.time + 0.005, trip.stop)
+            actions += supervisor.on_wrenches(res.stamps, res.wrench, emu.time - lag, float(t[-1]), False)
+        actions += supervisor.on_states(emu.time - lag, float(t[-1]))
+        for action in actions:  # as the kinematics node carries them out: the stop goes out, the trip is noted
+            if isinstance(action, SendStop):
+                pending = (emu.time + 0.005, action.stop)
+            elif isinstance(action, Tripped):
+                trip = action.trip
+                assert trip.stop is not None and pending is not None and pending[1] is trip.stop
     assert trip is not None and guard.tripped
     applied = np.array([s[4] for s in states])
     peak = np.linalg.norm(applied[:, :3], axis=1).max()
