@@ -12,11 +12,9 @@ import numpy as np
 import pytest
 
 from stewart_vibration import inverse_kinematics
-from stewart_vibration.emulation.consumer_pace import ConsumerPace
 from stewart_vibration.emulation.emulator import HardwareEmulator
-from stewart_vibration.emulation.physics_thread import BlockSchedule, PhysicsThread
+from stewart_vibration.emulation.physics_thread import PACE_PARAMETERS, BlockSchedule, PhysicsPacing, PhysicsThread
 from stewart_vibration.emulation.vibration_status import SHUTDOWN
-from stewart_vibration.emulation.wall_pace import WallPace
 from stewart_vibration.robot import LEG_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
 
@@ -62,7 +60,7 @@ class Outputs:
         if self.stop(self):
             self.physics.running = False
 
-    def report_pace(self, sim_time):
+    def report_pace(self, sim_time, pacing):
         self.pace_reports.append(sim_time)
 
 
@@ -72,17 +70,19 @@ def emulator(robot, tmp_path, monkeypatch):
     return HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000))
 
 
-def physics_on(emulator, wall, rtf=1.0, consumers=None, schedule=SCHEDULE) -> PhysicsThread:
-    return PhysicsThread(emulator, threading.Lock(), schedule, WallPace(rtf, clock=wall, sleep=wall.sleep),
-                         consumers or ConsumerPace(0.0), paced_by_consumers=lambda: consumers is not None,
-                         clock=wall, sleep=wall.sleep)
+def physics_on(emulator, wall, rtf=1.0, max_consumer_lag_s=None, schedule=SCHEDULE) -> PhysicsThread:
+    """Physics at ``rtf`` on ``wall``, waiting for consumers more than ``max_consumer_lag_s`` (s) behind (None:
+    no consumers heard)."""
+    pacing = PhysicsPacing(rtf, max_consumer_lag_s or 0.0, lockstep=False, clock=wall, sleep=wall.sleep)
+    return PhysicsThread(emulator, threading.Lock(), schedule, pacing,
+                         paced_by_consumers=lambda: max_consumer_lag_s is not None, clock=wall, sleep=wall.sleep)
 
 
 def run(physics, wall, stop) -> Outputs:
     """``PhysicsThread.run`` on this thread until ``stop(outputs)``."""
     outputs = Outputs(physics, wall, stop)
     physics.running = True
-    physics.run(outputs)
+    physics.run(outputs.publish_block, outputs)
     return outputs
 
 
@@ -119,7 +119,7 @@ def test_at_real_time_one_wall_second_holds_500_periods_and_each_output_when_due
     assert [b.report is not None for b in periods] == [n % 50 == 1 for n in done]  # the first period, then 0.1 s
     assert within[0].clock_due and not within[0].markers_due and within[0].report is None
     assert out.pace_reports == pytest.approx([t0 + 1.0])  # after 500 periods
-    assert physics.pace.achieved_rtf == pytest.approx(1.0, abs=0.03)
+    assert physics.pacing.wall.achieved_rtf == pytest.approx(1.0, abs=0.03)
 
 
 def test_as_fast_as_possible_never_sleeps_without_consumers_to_wait_for(emulator):
@@ -135,12 +135,12 @@ def test_as_fast_as_possible_sim_time_stays_within_the_lag_of_a_slow_consumer(em
     block is at most 0.1 s + one pace period (20 ms) ahead of it, and after 1 s of wall time it is at
     t0 + 0.5 + 0.1 s (half real time plus the lag), never run past."""
     wall = SteppedWall()
-    consumers = ConsumerPace(max_lag_s=0.1)
+    physics = physics_on(emulator, wall, rtf=0.0, max_consumer_lag_s=0.1)
+    consumers = physics.pacing.consumers
     t0 = emulator.time
     consumer_stamp = lambda t: t0 + 0.5 * t  # noqa: E731 - the consumer's output (s of sim time) at wall t
     consumers.heard("platform/pose_estimate", consumer_stamp(0.0))
     wall.on_sleep = lambda t: consumers.heard("platform/pose_estimate", consumer_stamp(t))
-    physics = physics_on(emulator, wall, rtf=0.0, consumers=consumers)
     out = run(physics, wall, lambda o: o.wall.t >= 1.0)
     ahead = [block.time - consumer_stamp(t) for t, block in out.blocks]
     assert max(ahead) <= 0.1 + 0.02 + 1e-9
@@ -274,3 +274,26 @@ def test_no_brake_without_a_running_physics_thread(robot, emulator):
     assert physics.brake_to_rest(SHUTDOWN, timeout_s=3.0)
     assert wall.t == 0.0 and not emulator.at_rest()  # still moving: no stop was commanded
     physics.stop()
+
+
+def test_the_pacing_parameters_are_live_node_parameters_and_a_new_rate_counts_from_the_next_wakeup():
+    from stewart_vibration.parameters.tables import HARDWARE_EMULATOR
+
+    live = {spec.name for spec in HARDWARE_EMULATOR if not spec.at_configure and not spec.read_only}
+    assert set(PACE_PARAMETERS) <= live
+    wall = SteppedWall()
+    pacing = PhysicsPacing(1.0, 0.1, lockstep=False, clock=wall, sleep=wall.sleep)
+    pacing.wall.start(0.0)
+    assert not pacing.waits_for_consumers()  # real time: the hardware does not wait for its software
+    pacing.set("max_consumer_lag_s", 0.25)
+    assert pacing.consumers.max_lag_s == 0.25
+    assert pacing.wall.wake_up(0.02, 0.0) == pytest.approx(0.02)  # no restart: still paced from 0
+    pacing.set("real_time_factor", 2.0)
+    assert pacing.wall.wake_up(0.04, 0.0) == 0.0  # the restart: from here at 2x
+    assert pacing.wall.wake_up(0.06, pacing.wall.measure(0.06)) == pytest.approx(0.01)
+    assert pacing.waits_for_consumers()  # above real time
+    pacing.set("real_time_factor", 1.0)
+    pacing.set("lockstep", True)
+    assert pacing.waits_for_consumers()
+    with pytest.raises(KeyError):
+        pacing.set("watchdog_s", 1.0)

@@ -5,18 +5,19 @@ brake to rest before it stops.
 
 It never dies on an exception in a block: the block fails, a physics fault is latched (the robot is held at
 its last good state, the vibration dropped) and time goes on, so the held state and /clock are still
-published. The node supplies the outputs (``PhysicsOutputs``); commands reach the emulator on other threads
-under the same lock.
+published. The node publishes each block and reports the rest (``PhysicsReports``); commands reach the
+emulator on other threads under the same lock.
 """
 
 from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import TYPE_CHECKING, Protocol
 
-from .consumer_pace import ConsumerPace
+from .consumer_pace import ConsumerPace, paces_consumers
 from .emulator_reports import thinned
 from .physics_guard import PhysicsFault
 from .vibration_status import VibrationReport
@@ -25,6 +26,7 @@ from .wall_pace import WallPace, state_periods
 if TYPE_CHECKING:
     from .emulator import HardwareEmulator
 
+PACE_PARAMETERS = ("real_time_factor", "max_consumer_lag_s", "lockstep")  # the node's live pacing parameters
 PACE_REPORT_EVERY = 500  # state periods between reports of the pace figures (1 s of sim time at 500 Hz)
 FAILURES_LOGGED_FIRST, FAILURES_LOGGED_EVERY = 3, 1000  # failed blocks that get a log line (emulator_reports.thinned)
 BRAKE_POLL_S = 0.01  # wall time between checks whether the robot is at rest while braking (s)
@@ -59,6 +61,41 @@ class BlockSchedule:
                    wakeup_every=state_periods(pace_period_s, state_rate_hz))
 
 
+class PhysicsPacing:
+    """How physics is paced, as the live parameters ``PACE_PARAMETERS`` set it: on the wall clock at
+    ``real_time_factor`` (``wall``), and waiting for consumers that trail sim time by more than
+    ``max_consumer_lag_s`` (``consumers``) above real time or in ``lockstep``. Outlives the emulators built at
+    configure: a figure set while unconfigured applies to the next one.
+
+    Args:
+        clock, sleep: the wall clock (s, monotonic) and its sleep, for ``wall`` (injectable for tests).
+    """
+
+    def __init__(self, real_time_factor: float, max_consumer_lag_s: float, lockstep: bool, clock=time.monotonic,
+                 sleep=time.sleep):
+        self.wall = WallPace(real_time_factor, clock=clock, sleep=sleep)
+        self.consumers = ConsumerPace(max_consumer_lag_s)
+        self.lockstep = bool(lockstep)
+
+    def set(self, name: str, value) -> None:
+        """A live parameter ``name`` (of PACE_PARAMETERS) set to ``value``; a new rate counts from the next
+        wake-up."""
+        if name == "max_consumer_lag_s":
+            self.consumers.max_lag_s = float(value)
+            return
+        if name == "lockstep":
+            self.lockstep = bool(value)
+        elif name == "real_time_factor":
+            self.wall.real_time_factor = float(value)
+        else:
+            raise KeyError(f"{name} is no pacing parameter ({', '.join(PACE_PARAMETERS)})")
+        self.wall.restart()
+
+    def waits_for_consumers(self) -> bool:
+        """Whether physics waits for late consumers at these settings (``consumer_pace.paces_consumers``)."""
+        return paces_consumers(self.wall.real_time_factor, self.lockstep)
+
+
 @dataclass(frozen=True)
 class Block:
     """One state period's output, read under the lock at sim time ``time`` (s).
@@ -89,17 +126,14 @@ class BlockFailure:
     latch_error: Exception | None = None
 
 
-class PhysicsOutputs(Protocol):
-    """Where the physics thread's results go (the node publishes them)."""
-
-    def publish_block(self, block: Block) -> None:
-        """One state period's output (the thread goes on with the next at once)."""
+class PhysicsReports(Protocol):
+    """Where the physics thread reports how it runs (the node's /diagnostics and log)."""
 
     def block_failed(self, failure: BlockFailure) -> None:
         """A block raised; its physics fault is latched already."""
 
-    def report_pace(self, sim_time: float) -> None:
-        """Every PACE_REPORT_EVERY state periods, after a wake-up: time to report the pace figures."""
+    def report_pace(self, sim_time: float, pacing: PhysicsPacing) -> None:
+        """Every PACE_REPORT_EVERY state periods, after a wake-up: the pace figures at ``sim_time`` (s)."""
 
 
 class PhysicsThread:
@@ -109,16 +143,15 @@ class PhysicsThread:
         emulator: the robot; read and stepped only under ``lock``.
         lock: shared with whoever commands the emulator.
         schedule: the periods (``BlockSchedule``).
-        pace: the wall-clock pacing (shared with who sets the real-time factor).
-        consumers: the consumers' newest stamps (waited for while ``paced_by_consumers()`` is true).
+        pacing: the wall clock's pace and the consumers' (shared with who sets the live parameters); the
+            consumers are waited for while ``paced_by_consumers()`` is true (the node hears them then).
         clock, sleep: the wall clock (s, monotonic) and its sleep (injectable for tests).
     """
 
-    def __init__(self, emulator: HardwareEmulator, lock, schedule: BlockSchedule, pace: WallPace,
-                 consumers: ConsumerPace, paced_by_consumers=lambda: False, clock=time.monotonic,
-                 sleep=time.sleep):
+    def __init__(self, emulator: HardwareEmulator, lock, schedule: BlockSchedule, pacing: PhysicsPacing,
+                 paced_by_consumers=lambda: False, clock=time.monotonic, sleep=time.sleep):
         self.emulator, self.lock, self.schedule = emulator, lock, schedule
-        self.pace, self.consumers, self.paced_by_consumers = pace, consumers, paced_by_consumers
+        self.pacing, self.paced_by_consumers = pacing, paced_by_consumers
         self.clock, self.sleep = clock, sleep
         self.running = False  # cleared to stop the loop (any thread)
         self.thread: threading.Thread | None = None
@@ -142,14 +175,14 @@ class PhysicsThread:
             self.thread.join(timeout=join_s)
             self.thread = None
 
-    def run(self, outputs: PhysicsOutputs) -> None:
+    def run(self, publish_block: Callable[[Block], None], reports: PhysicsReports) -> None:
         """The loop, while ``running``: the state now, then per state period a block of physics steps handed to
-        ``outputs``; at each wake-up the consumers waited for (if paced by them) and the wall clock."""
-        emulator, schedule = self.emulator, self.schedule
+        ``publish_block``; at each wake-up the consumers waited for (if paced by them) and the wall clock."""
+        emulator, schedule, pace, consumers = self.emulator, self.schedule, self.pacing.wall, self.pacing.consumers
         with self.lock:
             sensors, truth, now = self.read()
-        self.pace.start(now)
-        outputs.publish_block(Block(sensors, truth, now))
+        pace.start(now)
+        publish_block(Block(sensors, truth, now))
         done = 0  # state periods run
         while self.running:
             try:
@@ -162,27 +195,26 @@ class PhysicsThread:
                     if done % schedule.status_every == 0 or new_fault is not None:
                         report, changed = emulator.vibration_report()
             except Exception as exc:  # noqa: BLE001 - a failed block: latch a fault, hold the robot, go on
-                self._failed(exc, outputs)
+                self._failed(exc, reports)
                 self.sleep(schedule.period_s)
                 continue
             done += 1
             if not self.running:
-                break  # stopping: the outputs may already be gone
+                break  # stopping: the publishers may already be gone
             if new_fault is not None:
                 self._fault_seen = new_fault
-            outputs.publish_block(Block(
+            publish_block(Block(
                 sensors, truth, now, clock_due=done % schedule.clock_every == 0,
                 markers_due=bool(schedule.marker_every) and done % schedule.marker_every == 0,
                 report=report, report_changed=changed, new_fault=new_fault))
-            wall = self.pace.measure(now)
+            wall = pace.measure(now)
             if done % schedule.wakeup_every:
                 continue  # the next state period at once: one wake-up per pace period
-            if self.paced_by_consumers() and self.consumers.wait(now, lambda: self.running, self.sleep,
-                                                                 self.clock) > 0:
-                self.pace.restart()  # waited for the estimates: keep the pace from here, do not race
-            self.pace.wake_up(now, wall)
+            if self.paced_by_consumers() and consumers.wait(now, lambda: self.running, self.sleep, self.clock) > 0:
+                pace.restart()  # waited for the estimates: keep the pace from here, do not race
+            pace.wake_up(now, wall)
             if done % PACE_REPORT_EVERY == 0:
-                outputs.report_pace(now)
+                reports.report_pace(now, self.pacing)
 
     def read(self):
         """(sensors, truth, sim time s) as ``Block`` holds them; call under the lock."""
@@ -192,7 +224,7 @@ class PhysicsThread:
         sensors = (state, emulator.imu_sample(quaternion), emulator.tracker_frames(position, quaternion))
         return sensors, (emulator.true_joint_state(state), position, quaternion, emulator.tissue_wrench), emulator.time
 
-    def _failed(self, error: Exception, outputs: PhysicsOutputs) -> None:
+    def _failed(self, error: Exception, reports: PhysicsReports) -> None:
         """A block raised ``error``: latch a physics fault (the robot is held, time goes on) and say so."""
         self.failures += 1
         latch_error = None
@@ -201,7 +233,7 @@ class PhysicsThread:
                 self.emulator.latch_fault(f"{type(error).__name__} in the physics thread: {error}")
         except Exception as again:  # noqa: BLE001 - the failure is reported whatever happens
             latch_error = again
-        outputs.block_failed(BlockFailure(error, self.failures,
+        reports.block_failed(BlockFailure(error, self.failures,
                                           thinned(self.failures, FAILURES_LOGGED_FIRST, FAILURES_LOGGED_EVERY),
                                           latch_error))
 
