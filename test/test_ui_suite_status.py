@@ -36,6 +36,7 @@ def test_a_status_is_an_event_when_it_is_new_or_changed_and_at_warn_or_worse():
                              status("leg_force_estimator: estimator", "ok", 0),
                              status(OWN, "no planner", 2)], now=1.0) == []
     s.on_diagnostics([status("kinematics: kinematics", "pose estimate stale", 1)], now=2.0)  # unchanged
+    s.on_diagnostics([status("kinematics: kinematics", "pose estimate stale", 2)], now=2.5)  # the same words
     s.on_diagnostics([status("kinematics: kinematics", "no joint states", 3)], now=3.0)
     assert [(e["source"], e["level"], e["text"]) for e in s.events.view()] == [
         ("kinematics", "WARN", "pose estimate stale"), ("kinematics", "STALE", "no joint states")]

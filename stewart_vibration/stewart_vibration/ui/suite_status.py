@@ -120,9 +120,11 @@ class SuiteStatus:
                     kind="length"))
                 continue
             before = self.nodes.get(status.name)
+            said_before = None if before is None else before.message
             self.nodes[status.name] = NodeStatus(status.level, status.message, dict(status.values), now)
-            changed = before is None or before.message != status.message
-            if changed and status.level >= 1 and status.name != self.own_name:
+            # news for the log when the status says something else than last time: the text is compared whole
+            # with its own previous one, never searched for a meaning
+            if said_before != status.message and status.level >= 1 and status.name != self.own_name:
                 self.events.add(Event(status.node, status.message, LEVELS.get(status.level, "ERROR")))
             try:
                 if status.node == RECORDER_NODE:  # the file being written (also for a page opened after it started)
