@@ -32,6 +32,11 @@ class MoveRequest:
     force_limit: float
     moment_limit: float
 
+    @property
+    def guarded(self) -> bool:
+        """Whether the force guard watches this move (a force or a moment limit is on)."""
+        return self.force_limit > 0 or self.moment_limit > 0
+
 
 def move_request(target, speed_scale: float, force_limit: float, moment_limit: float, default_speed_scale: float,
                  guard_force: float, guard_moment: float) -> MoveRequest:
