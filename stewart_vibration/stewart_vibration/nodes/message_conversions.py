@@ -1,7 +1,7 @@
 """Conversions between ROS messages and the core's arrays: poses (geometry_msgs Pose / PoseStamped and
 [x, y, z, roll, pitch, yaw] in m and rad, base frame unless told), durations and stamps (builtin_interfaces
-and s), named values and the leg_* / vib_* columns of a JointState; and the batching of raw 500 Hz messages
-and the emulator's time as a node knows it (sim s)."""
+and s), named values and the leg_* / vib_* columns of a JointState, the struts' JointTrajectory; and the
+batching of raw 500 Hz messages and the emulator's time as a node knows it (sim s)."""
 
 from __future__ import annotations
 
@@ -12,6 +12,7 @@ from builtin_interfaces.msg import Duration as DurationMsg
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
+from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from ..kinematics.rotations import (
     MESSAGE_QUATERNION_TOLERANCE,
@@ -121,6 +122,21 @@ def duration_msg(seconds: float) -> DurationMsg:
     return DurationMsg(sec=sec, nanosec=nanosec)
 
 
+def leg_trajectory_msg(times, positions, velocities, accelerations) -> JointTrajectory:
+    """trajectory_msgs/JointTrajectory of the struts (leg_1..6) from its points: times [n] (s from the start),
+    positions [n, 6] (m), velocities [n, 6] (m/s), accelerations [n, 6] (m/s^2). Stamp 0: the robot starts it
+    when it arrives (the joint_trajectory_controller rule)."""
+    msg = JointTrajectory()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
+    msg.joint_names = list(LEG_NAMES)
+    for t, position, velocity, acceleration in zip(times, positions, velocities, accelerations, strict=True):
+        msg.points.append(JointTrajectoryPoint(positions=np.asarray(position, float).tolist(),
+                                               velocities=np.asarray(velocity, float).tolist(),
+                                               accelerations=np.asarray(acceleration, float).tolist(),
+                                               time_from_start=duration_msg(float(t))))
+    return msg
+
+
 def duration_seconds(msg) -> float:
     """Seconds of a builtin_interfaces/Duration."""
     return msg.sec + msg.nanosec * 1e-9
@@ -145,6 +161,7 @@ __all__ = [
     "RawBatcher",
     "JointColumns",
     "duration_msg",
+    "leg_trajectory_msg",
     "duration_seconds",
     "stamp_seconds",
     "time_message",
