@@ -12,7 +12,6 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_v
 MODULE_LIMIT, NODE_LIMIT = 400, 300
 # still to split (lines today): each may only shrink
 OVER_LIMIT = {
-    "nodes/planning_ui_node.py": 798,
     "nodes/kinematics_node.py": 745,
     "nodes/vibration_planner_node.py": 650,
     "nodes/hardware_emulator_node.py": 369,
