@@ -7,12 +7,13 @@ start_lead_s, max_lookahead_s, pose_timeout_s). Feedback at 10 Hz: the units' st
 since t0 and what the sensors show delivered (analysis.delivered_from_poses). Result: the outcome (a code of
 the one table), the plan, the active time and the cycles delivered. Cancel = a ramp-out over ramp_s. One
 vibration at a time: a goal while one runs ends at once with BUSY. Action
-vibration_planner/identify_vibration_units: the units' identification (vibration.identification_runner),
-written to a file the planner then plans with.
+vibration_planner/identify_vibration_units: the units' identification, written to a file the planner then plans
+with (nodes.identification_server).
 
 Topics (relative): sub platform/pose_estimate (PoseStamped, base; while a vibration runs its last 128 are kept
 for the delivered figures), vibration/status (VibrationUnitsStatus from the hardware emulator: what the units
-really do; a malformed one is counted on /diagnostics and ignored, see messages.status_values); pub
+really do; a malformed one is counted on /diagnostics and ignored, see messages.status_values), platform/imu
+and legs/joint_states (only while a closed loop or an identification needs them); pub
 vibration/joint_trajectory (JointTrajectory vib_1..vib_6: positions m, velocities m/s, accelerations m/s^2;
 header.stamp = the vibration's common start time t0, time_from_start relative to t0). Diagnostics on
 /diagnostics.
@@ -79,7 +80,8 @@ DELIVERED_WINDOW = 128  # the last samples (~0.25 s at 500 Hz) the delivered fig
 
 
 class VibrationPlannerNode(Node):
-    """Thin adapter over vibration.delivery_run and vibration.identification_runner behind the two actions."""
+    """Thin adapter over vibration.delivery_run behind the vibrate action; the inputs, parameters and start gate
+    the identify action (nodes.identification_server) shares."""
 
     def __init__(self):
         super().__init__("vibration_planner")
