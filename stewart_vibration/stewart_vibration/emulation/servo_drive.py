@@ -16,8 +16,8 @@ Integration is MuJoCo's semi-implicit Euler (v' = v + a dt, L' = L + v' dt): it 
 reference lengths at every step when the step's acceleration is their second difference
 (L_ref[k+1] - 2 L_ref[k] + L_ref[k-1]) / dt^2; its velocities then live half a step back, so the
 rate reference is (L_ref[k] - L_ref[k-1]) / dt and the reported rate is v + a dt/2 (the caller
-builds these references, see emulation.servo_references). Gains: per leg kp = m_i w^2, kv = 2 zeta m_i w with m_i = 1/G_ii at
-the start pose (the leg's effective mass) and w = 2 pi bandwidth.
+builds these references, see emulation.servo_references). Gains: per leg kp = m_i w^2, kv = 2 zeta m_i w
+with m_i = 1/G_ii at the start pose (the leg's effective mass) and w = 2 pi bandwidth.
 
 External load (``load_body``, e.g. the soft tissue on the platform): the caller sets that body's
 ``xfrc_applied`` before planning a block and keeps it over the block. Its part of b is S W (S: the leg

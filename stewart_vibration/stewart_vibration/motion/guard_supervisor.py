@@ -38,7 +38,8 @@ class Tripped:
 
 @dataclass(frozen=True)
 class PublishStatus:
-    """Publish the guard's status: a stop is over (its peak load is final)."""
+    """Publish the guard's status: a stop is over (its peak load is final), or the move it watched has ended
+    otherwise (the robot refused it)."""
 
 
 @dataclass(frozen=True)
