@@ -127,14 +127,14 @@ def hostile_leg_trajectories(robot, rng) -> list[tuple[JointTrajectory, bool]]:
     home = inverse_kinematics(robot, robot.home_pose)
     lim = robot.limits
     out = []
-    for i in range(90):
+    for i in range(96):
         n = int(rng.integers(1, 5))
         times = np.cumsum(rng.uniform(0.2, 2.0, n))
         pos = home + rng.uniform(-0.004, 0.004, (n, 6))
         vel = np.zeros((n, 6))
         names = list(LEG_NAMES)
         stamp = 0.0
-        kind = i % 15
+        kind = i % 16
         if kind == 0:
             names = names[::-1][:5] + ["vib_1"]
         elif kind == 1:
@@ -165,6 +165,9 @@ def hostile_leg_trajectories(robot, rng) -> list[tuple[JointTrajectory, bool]]:
             continue
         elif kind == 13:
             stamp = -float(rng.uniform(0.05, 0.5))
+        elif kind == 15:  # points that have velocities but no positions at all
+            out.append((trajectory(names, 0.0, times, [], vel), False))
+            continue
         out.append((trajectory(names, stamp, times, pos, vel), kind in (1, 2, 11, 13)))
     return out
 
