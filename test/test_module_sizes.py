@@ -12,7 +12,6 @@ PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_v
 MODULE_LIMIT, NODE_LIMIT = 400, 300
 # still to split (lines today): each may only shrink
 OVER_LIMIT = {
-    "nodes/vibration_planner_node.py": 374,
     "nodes/hardware_emulator_node.py": 369,
 }
 
