@@ -11,9 +11,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "stewart_vibration" / "stewart_vibration"
 MODULE_LIMIT, NODE_LIMIT = 400, 300
 # still to split (lines today): each may only shrink
-OVER_LIMIT = {
-    "nodes/hardware_emulator_node.py": 369,
-}
+OVER_LIMIT: dict[str, int] = {}
 
 
 def limit_of(relative: str) -> int:

@@ -19,7 +19,7 @@ DOC = REPO / "docs" / "interfaces.md"
 
 # the table's names for the suite's processes -> the node modules that make up each one
 MODULES = {
-    "emulator": ("hardware_emulator_node",),
+    "emulator": ("hardware_emulator_node", "emulator_command_server"),
     "kinematics": ("kinematics_node", "calibration_server"),
     "planner": ("vibration_planner_node",),
     "estimator": ("leg_force_estimator_node",),

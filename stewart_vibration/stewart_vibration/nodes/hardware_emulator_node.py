@@ -1,19 +1,9 @@
-"""hardware_emulator node: the robot in MuJoCo, owning /clock (sim time).
+"""hardware_emulator node: the robot in MuJoCo, owning /clock (sim time), as a managed (lifecycle) node.
 
-Topics (relative): sub legs/joint_trajectory (leg_*, absolute strut lengths), vibration/joint_trajectory (vib_*,
-header stamp = common start time); pub legs/joint_states (leg_*, vib_*: position m, velocity m/s, effort = axial
-force N: the sensors -- encoders, unit sensors, load cells), platform/imu (sensor_msgs/Imu in `platform`, one per
-state: specific force and rates, see emulation.platform_sensors), platform/tracker_pose (PoseStamped in `base`,
-the optical tracker's frames, stamped at capture), the truth for judging runs (no controller reads it):
-ground_truth/joint_states (as legs/joint_states, true strut lengths, unit displacements and axial forces),
-ground_truth/platform_pose (PoseStamped in `base`), vibration/status (stewart_vibration_interfaces/
-VibrationUnitsStatus, reliable + transient local: what the vibration units really do, see
-emulation.vibration_status), legs/trajectory_status (LegTrajectoryStatus: the answer to each leg trajectory),
-robot_markers (visualization_msgs/MarkerArray), /clock, /diagnostics; with a ``tissue_config`` also
-ground_truth/tissue_wrench (WrenchStamped in `base`, one per state: the soft-tissue wrench the emulator applies
-from that instant, force N and moment N m about the platform origin -- the convention of
-platform/external_wrench_estimate).
-Services: hardware_emulator/reset, hardware_emulator/emergency_stop (Trigger).
+It publishes what the robot's sensors read (legs/joint_states: encoders, unit sensors and load cells;
+platform/imu; platform/tracker_pose), vibration/status (what the units really do), robot_markers, /clock and
+/diagnostics, and the truth for judging runs (ground_truth/...: no controller reads it); its commands and
+services are nodes.emulator_command_server's. Every topic, its type and QoS: docs/interfaces.md ("ROS graph").
 
 Physics runs in its own thread (emulation.physics_thread), one block of steps per state period, paced by
 ``real_time_factor`` (0 = as fast as possible; emulation.wall_pace); above real time (or at any rate with
@@ -25,7 +15,6 @@ serialized CDR (messages.cdr), the commands are decoded from raw bytes.
 from __future__ import annotations
 
 import functools
-import math
 import threading
 from typing import cast
 
@@ -37,26 +26,24 @@ from rclpy.clock import ClockType
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import Imu, JointState
-from std_srvs.srv import Trigger
-from trajectory_msgs.msg import JointTrajectory
 from visualization_msgs.msg import MarkerArray
 
-from stewart_vibration_interfaces.msg import LegTrajectoryStatus, VibrationUnitsStatus
+from stewart_vibration_interfaces.msg import VibrationUnitsStatus
 
 from ..emulation import command_intake
-from ..emulation.command_size import LEG_TRAJECTORY, VIBRATION_WINDOW
 from ..emulation.emulator import HardwareEmulator
 from ..emulation.emulator_reports import StatusRepeats
 from ..emulation.emulator_setup import LIVE_PARAMETERS, SETUP_PARAMETERS, build_emulator, set_live_parameter
 from ..emulation.physics_thread import PACE_PARAMETERS, Block, BlockSchedule, PhysicsPacing, PhysicsThread
 from ..emulation.vibration_status import DEACTIVATED, SHUTDOWN
 from ..errors import StewartError
-from ..messages import cdr, joint_trajectory
+from ..messages import cdr
 from ..parameters.tables import HARDWARE_EMULATOR
 from ..visualization.robot_outline import robot_outline
 from .diagnostics import ERROR, OK, WARN, MalformedInputs
+from .emulator_command_server import EmulatorCommandServer
 from .emulator_health import EmulatorHealth
-from .emulator_messages import StateStreams, leg_trajectory_status_msg, robot_markers_msg
+from .emulator_messages import StateStreams, robot_markers_msg
 from .node_parameters import declare_table
 from .run_loop import STATUS_QOS, STREAM_DEPTH, run_node
 from .status_messages import vibration_status_msg
@@ -110,12 +97,7 @@ class HardwareEmulatorNode(LifecycleNode):
         self.status_repeats = StatusRepeats(STATUS_REPEAT_S)
         self.health.set(WARN, "unconfigured (lifecycle: configure, then activate)")
         self.malformed = MalformedInputs(self, self.health.diagnostics)  # e.g. a /clock that is no time (run_node)
-        self.create_subscription(JointTrajectory, "legs/joint_trajectory", self.on_leg_trajectory, 10, raw=True)
-        self.leg_answers = command_intake.LegTrajectoryAnswers()
-        self.trajectory_status_pub = self.create_publisher(LegTrajectoryStatus, "legs/trajectory_status", 50)
-        self.create_subscription(JointTrajectory, "vibration/joint_trajectory", self.on_vibration, 50, raw=True)
-        self.create_service(Trigger, "hardware_emulator/reset", self.on_reset)
-        self.create_service(Trigger, "hardware_emulator/emergency_stop", self.on_emergency_stop)
+        self.commands = EmulatorCommandServer(self)
         self.add_post_set_parameters_callback(self.on_parameters_set)
         self.create_timer(STATUS_REPEAT_S, self.repeat_status, clock=RosClock(clock_type=ClockType.STEADY_TIME))
         if self.get_parameter("autostart").value:
@@ -206,7 +188,7 @@ class HardwareEmulatorNode(LifecycleNode):
         if physics is not None:
             physics.stop()
 
-    def _refusal(self) -> str | None:
+    def refusal(self) -> str | None:
         """Why commands cannot be taken now, or None."""
         return command_intake.lifecycle_refusal(self.emulator is not None, self.active)
 
@@ -250,69 +232,6 @@ class HardwareEmulatorNode(LifecycleNode):
         stamp = cdr.header_stamp_ns(data)
         if stamp is not None:
             self.pacing.consumers.heard(topic, stamp * 1e-9)
-
-    # -- commands (executor thread) ------------------------------------------------------
-    def on_leg_trajectory(self, data: bytes) -> None:
-        """A leg trajectory: taken or refused; the typed answer goes to legs/trajectory_status either way."""
-        traj, error, end_time = None, None, math.nan
-        try:
-            command_intake.refuse_unread(self._refusal(), data, LEG_TRAJECTORY)
-            traj = joint_trajectory.decode_joint_trajectory(data)
-            end_time = command_intake.take_leg_trajectory(cast(HardwareEmulator, self.emulator), traj, self.lock)
-        except StewartError as exc:
-            error = exc
-            self.health.reject("leg trajectory", str(exc))
-        now = self.emulator.time if self.emulator is not None else 0.0
-        answer = self.leg_answers.answer(traj, error, end_time, now)
-        self.trajectory_status_pub.publish(leg_trajectory_status_msg(answer))
-        if error is None:
-            self.health.report(OK, "following leg trajectory", last_leg_trajectory_points=answer.points)
-
-    def on_vibration(self, data: bytes) -> None:
-        try:
-            command_intake.refuse_unread(self._refusal(), data, VIBRATION_WINDOW)
-            traj = joint_trajectory.decode_joint_trajectory(data)
-        except StewartError as exc:
-            self.health.reject("vibration command", str(exc))
-            return
-        report, error = command_intake.take_vibration_window(cast(HardwareEmulator, self.emulator), traj, self.lock)
-        if error is not None:
-            self.health.reject("vibration command", str(error))
-        self.publish_status(report)
-
-    def on_emergency_stop(self, request, response):
-        if self.emulator is None:
-            response.success, response.message = False, self._refusal()
-            return response
-        with self.lock:
-            self.emulator.emergency_stop()
-            report = self.emulator.vibration_report()[0]
-        self.publish_status(report)
-        self.get_logger().warning("emergency stop: vibration ramping to zero, struts braking to rest (within "
-                                  "their acceleration limit), then held")
-        self.health.set(ERROR, "emergency stop latched (call hardware_emulator/reset to clear)")
-        response.success, response.message = True, ("vibration ramping to zero, struts braking to rest and held; "
-                                                     "reset to clear")
-        return response
-
-    def on_reset(self, request, response):
-        refusal = self._refusal()
-        if refusal:
-            response.success, response.message = False, refusal
-            return response
-        try:
-            with self.lock:
-                duration = self.emulator.reset()
-                report = self.emulator.vibration_report()[0]
-        except StewartError as exc:
-            response.success, response.message = False, str(exc)
-            self.health.reject("reset", str(exc))
-            return response
-        self.publish_status(report)
-        self.health.set(OK, "reset: e-stop cleared, returning home")
-        response.success = True
-        response.message = f"e-stop cleared; returning home over {duration:.2f} s (sim time)"
-        return response
 
     # -- vibration status -------------------------------------------------------------------
     def publish_status(self, report) -> None:
