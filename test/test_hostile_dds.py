@@ -73,6 +73,9 @@ def duration_msg(seconds: float) -> Duration:
 
 
 def trajectory(names, stamp: float, times, positions, velocities=None, accelerations=None) -> JointTrajectory:
+    """A JointTrajectory as a hostile sender builds it: any names and stamp, points that may lack positions,
+    velocities or accelerations (the nodes' own builder, nodes.message_conversions.leg_trajectory_msg, makes only
+    well-formed leg moves)."""
     msg = JointTrajectory()
     msg.header.stamp = stamp_msg(stamp)
     msg.joint_names = list(names)

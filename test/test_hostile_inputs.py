@@ -26,7 +26,6 @@ from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.emulation.vibration_buffer import VibrationBuffer
 from stewart_vibration.errors import (
     InvalidInputError,
-    RefusedError,
     StewartError,
     VibrationLimitError,
 )
@@ -40,8 +39,10 @@ from stewart_vibration.kinematics.rotations import (
 from stewart_vibration.messages.joint_states import JointStateDecoder, JointStateEncoder, decode_joint_states
 from stewart_vibration.messages.joint_trajectory import decode_joint_trajectory, encode_joint_trajectory
 from stewart_vibration.messages.stamped_doubles import PoseStampedEncoder, decode_pose_stamped
+from stewart_vibration.motion.force_guard import ForceGuard
 from stewart_vibration.motion.move_goal import move_request
-from stewart_vibration.motion.paths import checked_path
+from stewart_vibration.motion.path_plan import path_waypoints
+from stewart_vibration.motion.path_plan import plan_path as path_plan
 from stewart_vibration.motion.profiles import minimum_jerk, minimum_jerk_duration
 from stewart_vibration.nodes.move_messages import base_pose
 from stewart_vibration.nodes.outcomes import NAMES, outcome_of
@@ -273,18 +274,14 @@ def plan_requests(draw):
 
 
 def plan_path(request, estimate):
-    """What the kinematics node's plan_path does: the waypoints' frames and poses (one: from the estimate),
-    the speed scale, each segment's checked path."""
-    if not request.waypoints:
-        raise InvalidInputError("no waypoint")
-    poses = [base_pose(msg, f"waypoint {i}") for i, msg in enumerate(request.waypoints)]
-    if len(poses) == 1:
-        if estimate is None:
-            raise RefusedError("NOT_READY", "one waypoint and no pose estimate yet")
-        poses.insert(0, estimate)
-    move_request(poses[-1], request.speed_scale, 0.0, 0.0, NODE_SPEED_SCALE, 0.0, 0.0)
-    segments = [checked_path(ROBOT, a, b) for a, b in zip(poses[:-1], poses[1:])]
-    return poses, np.concatenate(segments)
+    """The kinematics node's plan_path service for ``request`` with the pose estimate ``estimate`` (None: none
+    yet): the waypoints' frames and poses (nodes.move_messages.base_pose), then motion.path_plan as the node calls
+    it, its guard untripped."""
+    poses, offset = path_waypoints([base_pose(msg, f"plan_path waypoint {i}")
+                                    for i, msg in enumerate(request.waypoints)], estimate)
+    guard = ForceGuard(ROBOT, NODE_FORCE_N, NODE_MOMENT_NM)
+    plan = path_plan(ROBOT, poses, offset, request.speed_scale, NODE_SPEED_SCALE, 0.5, guard)
+    return poses, plan.samples
 
 
 @examples("plan_path")
