@@ -110,17 +110,23 @@ def _uniform_steps(t: np.ndarray) -> tuple[np.ndarray, float]:
     return dt, period
 
 
-def rates(t: np.ndarray, x: np.ndarray, baseline: int = 1) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def rates(t: np.ndarray, x: np.ndarray, baseline: int = 1,
+          first: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Velocity and acceleration of ``x`` [n, k] sampled at ``t`` [n] (s), never across a gap.
+
+    ``first``: the samples before it only complete the differences of the ones from it on (the end of the
+    previous slab of a run read slab after slab): rows whose samples all lie before it are left out.
 
     Returns:
         (velocity times [n-1], |velocity| [n-1, k], acceleration times [m], |acceleration| [m, k]); the
         acceleration is the second difference over ``baseline`` samples on each side (NaN rows where a gap
-        lies inside the stencil are dropped).
+        lies inside the stencil are dropped). Fewer than 2 samples: empty.
     """
+    if t.size < 2:
+        return t[:0], x[:0], t[:0], x[:0]
     dt, _period = _uniform_steps(t)
     velocity = np.diff(x, axis=0) / dt[:, None]
-    keep = np.isfinite(dt)
+    keep = np.isfinite(dt) & (np.arange(1, t.size) >= first)  # the velocity between samples i and i + 1
     tv, v = 0.5 * (t[1:] + t[:-1]), np.abs(velocity)
     h = int(baseline)
     if t.size < 2 * h + 1:
@@ -132,7 +138,7 @@ def rates(t: np.ndarray, x: np.ndarray, baseline: int = 1) -> tuple[np.ndarray, 
     ahead = (x[2 * h:] - x[h:-h]) / (t[2 * h:] - t[h:-h])[:, None]
     behind = (x[h:-h] - x[:-2 * h]) / (t[h:-h] - t[:-2 * h])[:, None]
     acc = (ahead - behind) / (0.5 * (t[2 * h:] - t[:-2 * h]))[:, None]
-    good = left & right
+    good = left & right & (np.arange(2 * h, t.size) >= first)  # the stencil's last sample is from ``first`` on
     return tv[keep], v[keep], t[mid][good], np.abs(acc[good])
 
 
@@ -147,7 +153,7 @@ def joint_angles_at(robot: Robot, poses: np.ndarray) -> tuple[np.ndarray, np.nda
     return universal, spherical
 
 
-def _pose_figures(robot: Robot, times: np.ndarray, poses: np.ndarray) -> list[LimitFigure]:
+def pose_figures(robot: Robot, times: np.ndarray, poses: np.ndarray) -> list[LimitFigure]:
     """The universal and spherical joint angles and the condition number at finite poses [n, 6] (times [n] s),
     computed POSE_SLAB poses at a time (the per-pose matrices of an hour of poses would take gigabytes)."""
     lim = robot.limits
@@ -165,11 +171,49 @@ def _pose_figures(robot: Robot, times: np.ndarray, poses: np.ndarray) -> list[Li
 
 
 def combined_worst(parts: list[LimitFigure]) -> LimitFigure:
-    """One figure of consecutive slabs' ``_worst`` figures: the first largest worst (NaN the largest, as in
-    ``_worst``), the violations summed."""
-    key = [np.inf if np.isnan(f.worst) else f.worst for f in parts]
+    """One figure of consecutive slabs' ``_worst`` figures: the first largest worst (a value that is not finite
+    the largest, as in ``_worst``), the violations summed."""
+    key = [f.worst if np.isfinite(f.worst) else np.inf for f in parts]
     best = parts[int(np.argmax(key))]
     return replace(best, violations=sum(f.violations for f in parts))
+
+
+def state_figures(robot: Robot, jt: np.ndarray, positions: np.ndarray, first: int = 0) -> list[LimitFigure]:
+    """The figures of the joint states (stamps ``jt`` [n] s, positions [n, 12] m: leg_1..6 then vib_1..6), in
+    check_limits' order: stroke, strut velocity and acceleration, unit displacement, velocity and acceleration.
+    ``first``: the states before it only complete the differences (``rates``) of the ones from it on."""
+    lim, unit = robot.limits, robot.vibration_unit
+    legs, vib = positions[:, :6], positions[:, 6:12]
+    new_t = jt[first:]
+    figures = [_stroke(legs[first:] + vib[first:], new_t, lim.stroke_min, lim.stroke_max)]
+    tv, v, ta, a = rates(jt, legs, STRUT_BASELINE, first)
+    figures.append(_worst(v, tv, lim.strut_velocity_max, "strut velocity", "m/s"))
+    figures.append(_worst(a, ta, lim.strut_acceleration_max, "strut acceleration", "m/s^2"))
+    figures.append(_worst(np.abs(vib[first:]), new_t, unit.amplitude_max, "vibration unit displacement", "m",
+                          MEASURED_TOLERANCE))
+    tv, v, ta, a = rates(jt, vib, 1, first)
+    figures.append(_worst(v, tv, unit.velocity_max, "vibration unit velocity", "m/s"))
+    figures.append(_worst(a, ta, unit.acceleration_max, "vibration unit acceleration", "m/s^2"))  # in m/s^2
+    return figures
+
+
+def count_figures(not_finite: int, backwards: int) -> list[LimitFigure]:
+    """The counted figures: non-finite values, and steps back in time (/clock and the state stamps)."""
+    return [LimitFigure("non-finite values", "", float(not_finite), 0.0, violations=not_finite),
+            LimitFigure("time going back (/clock, state stamps)", "steps", float(backwards), 0.0,
+                        violations=backwards)]
+
+
+def not_finite_count(columns: dict, first: int = 0) -> int:
+    """Non-finite entries of the "position", "velocity" and "effort" columns [n, k] there are, from row ``first``."""
+    return sum(int(np.count_nonzero(~np.isfinite(np.asarray(columns[k], float)[first:])))
+               for k in ("position", "velocity", "effort") if k in columns)
+
+
+def steps_back(times, strict: bool) -> int:
+    """Steps of ``times`` [n] that go back (``strict``: also the ones that stay)."""
+    steps = np.diff(np.asarray(times, float))
+    return int(np.count_nonzero(steps <= 0 if strict else steps < 0))
 
 
 def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigure]:
@@ -186,35 +230,17 @@ def check_limits(robot: Robot, joints, pose, clock_times=None) -> list[LimitFigu
         One LimitFigure per check, in a fixed order (stroke, strut velocity and acceleration, unit
         displacement, velocity and acceleration, joint angles, condition number, finiteness, time).
     """
-    lim, unit = robot.limits, robot.vibration_unit
     jt, cols = joints
     jt = np.asarray(jt, float)
     positions = np.asarray(cols["position"], float).reshape(-1, 12) if len(jt) else np.empty((0, 12))
-    legs, vib = positions[:, :6], positions[:, 6:12]
-    figures = []
-    hinge = legs + vib
-    figures.append(_stroke(hinge, jt, lim.stroke_min, lim.stroke_max))
-    tv, v, ta, a = rates(jt, legs, STRUT_BASELINE) if jt.size > 1 else (jt, legs, jt, legs)
-    figures.append(_worst(v, tv, lim.strut_velocity_max, "strut velocity", "m/s"))
-    figures.append(_worst(a, ta, lim.strut_acceleration_max, "strut acceleration", "m/s^2"))
-    figures.append(_worst(np.abs(vib), jt, unit.amplitude_max, "vibration unit displacement", "m", MEASURED_TOLERANCE))
-    tv, v, ta, a = rates(jt, vib, 1) if jt.size > 1 else (jt, vib, jt, vib)
-    figures.append(_worst(v, tv, unit.velocity_max, "vibration unit velocity", "m/s"))
-    figures.append(_worst(a, ta, unit.acceleration_max, "vibration unit acceleration", "m/s^2"))  # in m/s^2
+    figures = state_figures(robot, jt, positions)
     pt, poses = np.asarray(pose[0], float), np.asarray(pose[1], float).reshape(-1, 6)
     finite_pose = np.isfinite(poses).all(axis=1)
-    figures += _pose_figures(robot, pt[finite_pose], poses[finite_pose])
-    arrays = [np.asarray(cols[k], float) for k in ("position", "velocity", "effort") if k in cols and len(jt)]
-    not_finite = sum(int(np.count_nonzero(~np.isfinite(a))) for a in arrays) + int(np.count_nonzero(~finite_pose))
-    figures.append(LimitFigure("non-finite values", "", float(not_finite), 0.0, violations=not_finite))
-    backwards = 0
-    if clock_times is not None and len(clock_times) > 1:
-        backwards += int(np.count_nonzero(np.diff(np.asarray(clock_times, float)) < 0))
-    if jt.size > 1:
-        backwards += int(np.count_nonzero(np.diff(jt) <= 0))
-    figures.append(LimitFigure("time going back (/clock, state stamps)", "steps", float(backwards), 0.0,
-                               violations=backwards))
-    return figures
+    figures += pose_figures(robot, pt[finite_pose], poses[finite_pose])
+    not_finite = (not_finite_count(cols) if len(jt) else 0) + int(np.count_nonzero(~finite_pose))
+    backwards = steps_back(clock_times, strict=False) if clock_times is not None and len(clock_times) > 1 else 0
+    backwards += steps_back(jt, strict=True) if jt.size > 1 else 0
+    return figures + count_figures(not_finite, backwards)
 
 
 def limit_failures(figures: list[LimitFigure]) -> list[str]:
