@@ -1,14 +1,18 @@
-"""The force guard's supervisor driven by synthetic event streams (no ROS): joint states and wrench estimates
-of a 10 mm lift into a load that stiffens with the lift, batch after batch on a stepped clock, and the actions
-that come out (send this stop, report this trip, publish the status, resume the target) checked against the
-load's closed form and the order the robot needs them in."""
+"""The force guard's supervisor driven by event streams (no ROS): synthetic ones (joint states and wrench
+estimates of a 10 mm lift into a load that stiffens with the lift, batch after batch on a stepped clock, the
+actions that come out checked against the load's closed form and the order the robot needs them in), and one
+recorded from a real run of the tissue scenario (test/data/guard_trip_events.npz, written by
+tools/record_guard_events.py), replayed to check that the supervisor makes the decision the running node made."""
 
 from __future__ import annotations
+
+import json
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from stewart_vibration import inverse_kinematics
+from stewart_vibration import forward_kinematics, inverse_kinematics
 from stewart_vibration.motion.estimate_watch import (
     CHECK_MEMORY_S,
     LAG_MEMORY_S,
@@ -17,8 +21,9 @@ from stewart_vibration.motion.estimate_watch import (
     EstimateWatch,
 )
 from stewart_vibration.motion.force_guard import MAX_STOP_RETRIES, WATCH_AFTER_S, ForceGuard
+from stewart_vibration.motion.guard_parameters import guard_from_parameters
 from stewart_vibration.motion.guard_supervisor import GuardSupervisor, PublishStatus, ResumeTarget, SendStop, Tripped
-from stewart_vibration.motion.stop_planning import MAX_WINDOW_S
+from stewart_vibration.motion.stop_planning import MAX_WINDOW_S, RECEIPT_DELAY_S
 
 LIFT_M, DURATION_S, BATCH_S, STATE_HZ = 0.01, 2.0, 0.02, 500
 BASE_N, LIMIT_N = 50.0, 200.0
@@ -225,3 +230,188 @@ def test_check_gaps_are_the_largest_recent_gap_capped_at_the_longest_window():
     assert gaps.gap == pytest.approx(MAX_WINDOW_S)
     gaps.checked(0.28 + CHECK_MEMORY_S)  # now 0.26 has left too: only the last 20 ms gap remains
     assert gaps.gap == pytest.approx(0.02)
+
+
+# -- a recorded guarded move ----------------------------------------------------------------------------------
+RECORDED = Path(__file__).resolve().parent / "data" / "guard_trip_events.npz"
+TRIP_TIME_TOL_S = 0.01  # half the 20 ms between the estimator's bursts: the replay trips with the batch the node did
+TRIP_FORCE_REL = 0.02  # the load rises ~2.6 % per burst at the trip: the estimate the node tripped on, not the next
+PREDICTED_REL = 0.05  # each estimate's fitted progress hangs on how far the node had read the states then, which
+#                       the recorder's order gives to within one /clock period (10 ms)
+STOP_END_TOL_M = 5e-5  # a quarter of the ~0.2 mm the struts move in one burst at the move's peak rate
+PEAK_REL = 0.01  # the largest recorded estimate over a stop that ends within a few ms of the node's
+
+
+@pytest.fixture(scope="module")
+def recorded():
+    with np.load(RECORDED) as data:
+        return {name: data[name] for name in data.files}
+
+
+def _read_place(data: dict, splitting: np.ndarray, last_pose: int) -> int:
+    """Where the node read a timer batch whose last pose estimate is at ``last_pose`` (in the recorder's order):
+    there, or before the burst of estimates the recorder was taking then (the estimator publishes a burst back
+    to back, the recorder logs it with one time, the node takes it whole)."""
+    seq, log = data["wrench_seq"], data["wrench_log_ns"]
+    at = int(np.searchsorted(seq, last_pose))  # the first estimate after the pose estimates
+
+    def together(a: int, b: int) -> bool:  # estimates a < b of one burst: one log time, nothing but ours between
+        return log[a] == log[b] and np.searchsorted(splitting, seq[a]) == np.searchsorted(splitting, seq[b])
+
+    if not (0 < at < seq.size and seq[at] == last_pose + 1 and together(at - 1, at)):
+        return last_pose
+    while at > 0 and together(at - 1, at):
+        at -= 1
+    return int(seq[at]) - 1
+
+
+def state_reads(data: dict, batch_size: int) -> list[tuple[float, str, float]]:
+    """When the node read which states: (place in the recorder's order, "read", how many of the recorded states
+    it had read then). See NodeReplay."""
+    splitting = np.sort(np.concatenate([data["states_seq"], data["clock_seq"], [data["move_seq"], data["stop_seq"]]]))
+    poses = data["pose_seq"]
+    runs = np.split(np.arange(poses.size), np.flatnonzero(np.diff(np.searchsorted(splitting, poses))) + 1)
+    reads: list[tuple[float, str, float]] = []
+    for run in runs:
+        count = int(np.searchsorted(data["states_stamp"], data["pose_stamp"][run[-1]], side="right"))
+        if not count:  # states read before the recording's window
+            continue
+        if run.size >= batch_size:  # read as its newest state arrived
+            place = int(data["states_seq"][count - 1])
+        else:  # by the timer: where the node had published the pose estimates
+            place = _read_place(data, splitting, int(poses[run[-1]]))
+        reads.append((place + 0.5, "read", count))
+    return reads
+
+
+class NodeReplay:
+    """The kinematics node's side of the guard (nodes/kinematics_node.py) fed from a recording, in the order the
+    recorder received the messages (the fixture's ``*_seq``).
+
+    The node takes wrench estimates in batches of ``batch_size`` (judged on the 10th; the ones queued also
+    whenever it reads states) and reads states in batches (on the 10th, or on a wall-clock timer), and what it
+    predicts for a burst of estimates depends on which states it had read by then: an estimate newer than the
+    newest state read is fitted at that state's progress (a few ms make tens of N). The recorded states do not
+    say when the node read them; the node's own pose estimates do: one per state read, published as it read
+    them, so a run of them in the recorder's order is one batch (estimates the recorder got meanwhile do not
+    split it: the estimator's messages cross the node's on the way). A batch of ``batch_size`` was read as its
+    newest state arrived (the pose estimates' place is their transit from the node, often after the burst the
+    estimator computed from the same states); a smaller one, the wall-clock timer's, where the node published
+    its pose estimates (before a burst the recorder was getting then: the estimator publishes a burst back to
+    back, the node takes it whole). The node's "now" is ``emulator_now``: the newer of the newest state read and
+    the newest /clock heard, which is what its stop is planned from (a burst is often judged at a /clock past
+    the newest state read, so the stamps alone would plan another stop). The move is begun as
+    ``move_server.move_to`` began it: at the trajectory's place, from the newest state read and pose estimate,
+    to the trajectory's last point over its last point's time, estimated to start RECEIPT_DELAY_S after "now";
+    its goal pose is the nominal robot's FK of its goal lengths."""
+
+    def __init__(self, robot, data: dict, force_limit: float | None = None):
+        params = dict(zip(data["param_names"].tolist(), data["param_values"].tolist()))
+        if force_limit is not None:
+            params["guard_force_n"] = force_limit
+        self.robot, self.data, self.batch_size = robot, data, int(params["batch_size"])
+        self.guard = guard_from_parameters(robot, params)
+        self.supervisor = GuardSupervisor(self.guard, params["batch_period_s"])
+        self.clock, self.read = -np.inf, 0
+        self.state_time: float | None = None  # the newest state read (s)
+        self.pending: list[int] = []  # estimates queued, not yet judged (indices)
+        self.actions: list[tuple[float, object]] = []  # (the node's "now", action)
+
+    def now(self) -> float:
+        return self.clock if self.state_time is None else max(self.state_time, self.clock)
+
+    def run(self, until_seq: float = np.inf) -> list[tuple[float, object]]:
+        """Replay every event before ``until_seq`` (a place in the recorder's order); the actions."""
+        d = self.data
+        events: list[tuple[float, str, float]] = [(int(s), "clock", float(t))
+                                                  for s, t in zip(d["clock_seq"], d["clock_stamp"])]
+        events += [(int(s), "estimate", i) for i, s in enumerate(d["wrench_seq"])]
+        events += [(int(d["move_seq"]), "move", 0), *state_reads(d, self.batch_size)]
+        events.sort(key=lambda event: event[0])
+        for place, kind, what in events:
+            if place >= until_seq:
+                break
+            if kind == "clock":
+                self.clock = max(self.clock, what)
+            elif kind == "estimate":
+                self.pending.append(int(what))
+                if len(self.pending) >= self.batch_size:
+                    self.judge_estimates()
+            elif kind == "read":
+                self.read_states(int(what))
+            else:
+                self.begin_move()
+        return self.actions
+
+    def read_states(self, count: int) -> None:
+        """KinematicsNode._solve: the states up to ``count`` read, the estimates queued judged, then the states."""
+        d, first = self.data, self.read
+        if count <= first:
+            return
+        self.supervisor.states_read(d["states_stamp"][first:count], d["states_legs"][first:count])
+        self.state_time, self.read = float(d["states_stamp"][count - 1]), count
+        self.judge_estimates()
+        self.actions += [(self.now(), a) for a in self.supervisor.on_states(self.now(), self.state_time)]
+
+    def judge_estimates(self) -> None:
+        """KinematicsNode.process_wrenches for the estimates queued."""
+        if not self.pending:
+            return
+        d, batch, self.pending = self.data, np.array(self.pending), []
+        self.actions += [(self.now(), a) for a in self.supervisor.on_wrenches(
+            d["wrench_stamp"][batch], d["wrench_values"][batch], self.now(), self.state_time, False)]
+
+    def begin_move(self) -> None:
+        d = self.data
+        start, goal = d["states_legs"][self.read - 1], d["move_positions"][-1]
+        goal_pose = forward_kinematics(self.robot, goal, guess=d["start_pose"]).pose
+        self.guard.begin_move(self.now() + RECEIPT_DELAY_S, float(d["move_times"][-1]), start, goal, d["start_pose"],
+                              goal_pose)
+
+
+def test_the_recording_is_the_tissue_scenarios_guarded_move_with_its_parameters(recorded):
+    """What the fixture says it is: the tissue scenario's run, a force trip the node reported with the limit of
+    the parameters recorded beside it, predicting a load over that limit from a load under it."""
+    source = json.loads(str(recorded["source"]))
+    assert source["scenario"] == "tissue_distraction_vibration_guard" and source["mcap"].endswith(".mcap")
+    params = dict(zip(recorded["param_names"].tolist(), recorded["param_values"].tolist()))
+    assert set(recorded["status_trip_limit"]) == {"force"}
+    assert (recorded["status_force_limit_n"] == params["guard_force_n"]).all()
+    assert recorded["status_predicted_force_n"][0] > params["guard_force_n"] > recorded["status_trip_force_n"][0]
+
+
+def test_the_recorded_guarded_move_trips_on_force_as_the_node_did(robot, recorded):
+    """The 12 mm distraction of the tissue scenario, replayed through the supervisor: it trips on force with the
+    burst the node tripped on, predicting about the load the node predicted, sends its stop before it reports
+    the trip, and the stop ends where the node's ended; after the stop one status with the peak the node
+    published. Every reference is what the node recorded (kinematics/guard_status, legs/joint_trajectory)."""
+    node = NodeReplay(robot, recorded)
+    actions = [a for _now, a in node.run()]
+    assert [type(a) for a in actions] == [SendStop, Tripped, PublishStatus], actions
+    send, tripped = actions[0], actions[1]
+    trip, first = tripped.trip, 0  # the status the node published with its trip
+    assert send.stop is trip.stop and send.by == "guard" and send.attempt == 0 and not tripped.held
+    assert trip.which == "force" and trip.limit == recorded["status_force_limit_n"][first]
+    assert trip.time == pytest.approx(recorded["status_trip_time_s"][first], abs=TRIP_TIME_TOL_S)
+    assert trip.force == pytest.approx(recorded["status_trip_force_n"][first], rel=TRIP_FORCE_REL)
+    assert trip.predicted_force == pytest.approx(recorded["status_predicted_force_n"][first], rel=PREDICTED_REL)
+    np.testing.assert_allclose(send.stop.lengths, recorded["stop_positions"][-1], atol=STOP_END_TOL_M)
+    # the goal pose the replay derives (FK of the goal lengths, converged to 1e-12 m) is the node's target
+    np.testing.assert_allclose(trip.goal_pose, recorded["status_tripped_goal"][first], atol=1e-9)
+    assert node.guard.peak[0] == pytest.approx(recorded["status_peak_force_n"][-1], rel=PEAK_REL)
+
+
+@pytest.mark.parametrize("limit_of_recorded, trips", [(1.1, False), (0.5, True)])
+def test_the_replayed_decision_hinges_on_the_limit(robot, recorded, limit_of_recorded, trips):
+    """The test can tell: up to the stop the node sent, the same stream with a limit 10 % above the load the
+    node predicted (twice the tolerance on it) calls for nothing, and with half the node's limit it trips
+    earlier than the node did, beyond the tolerance on the trip's time (a prediction can jump past a limit
+    from one burst to the next, so a limit only a little lower may trip with the same burst)."""
+    limit = limit_of_recorded * (recorded["status_predicted_force_n"][0] if not trips else
+                                 recorded["status_force_limit_n"][0])
+    actions = NodeReplay(robot, recorded, force_limit=limit).run(until_seq=int(recorded["stop_seq"]))
+    trip_times = [a.trip.time for _now, a in actions if isinstance(a, Tripped)]
+    if not trips:
+        assert actions == []
+    else:
+        assert trip_times and trip_times[0] < recorded["status_trip_time_s"][0] - TRIP_TIME_TOL_S
