@@ -183,3 +183,32 @@ def test_a_few_topics_of_a_long_file_come_in_the_libraries_log_time_order(tmp_pa
             theirs = [(c.topic, m.log_time, m.data) for _s, c, m in make_reader(f).iter_messages(topics=topics,
                                                                                                   log_time_order=True)]
         assert len(ours) == len(theirs) > 1000 and ours == theirs
+
+
+@pytest.mark.parametrize("batch", [run_streams.BATCH_MESSAGES, 7, 97])
+def test_a_run_read_in_windows_keeps_their_rows_and_checks_every_state(tmp_path, monkeypatch, robot, batch):
+    """With windows and a robot, the 500 Hz streams keep only the rows inside the windows, the limit figures are
+    those of every state (check_limits over the whole run's arrays, read without windows), and everything else
+    (stamps, /clock, the wrenches of a run with tissue) is as without windows; batches cut the states anywhere."""
+    from stewart_vibration.analysis.limit_check import check_limits
+
+    monkeypatch.setattr(run_streams, "BATCH_MESSAGES", batch)
+    write_run(tmp_path / "run.mcap", 10.0, 600)
+    whole = load_signals(tmp_path / "run.mcap")
+    windows = [(10.2, 10.5), (10.9, 11.0)]
+    part = load_signals(tmp_path / "run.mcap", windows=windows, robot=robot)
+    assert part["limit_figures"] == check_limits(robot, whole["joints"], whole["pose"], whole["clock"])
+    for key in ("joints", "sensed_joints", "pose"):
+        t, values = whole[key]
+        inside = ((t >= 10.2) & (t <= 10.5)) | ((t >= 10.9) & (t <= 11.0))
+        assert 0 < inside.sum() < t.size
+        np.testing.assert_array_equal(part[key][0], t[inside])
+        rows = {k: v[inside] for k, v in values.items()} if isinstance(values, dict) else {"": values[inside]}
+        got = part[key][1] if isinstance(values, dict) else {"": part[key][1]}
+        for k, v in rows.items():
+            np.testing.assert_array_equal(got[k], v)
+    np.testing.assert_array_equal(part["tissue_wrench"][1], whole["tissue_wrench"][1])  # a tissue run: whole
+    np.testing.assert_array_equal(part["clock"], whole["clock"])
+    for key, stamps in whole["stream_stamps"].items():
+        np.testing.assert_array_equal(part["stream_stamps"][key], stamps)
+    assert part["files"] == whole["files"] and part["stream_counts"] == whole["stream_counts"]

@@ -12,8 +12,9 @@ from __future__ import annotations
 import numpy as np
 
 from ..mcap_log.reader import RunFiles, RunReader, open_run
-from ..robot import LEG_NAMES, VIB_NAMES
-from .run_streams import JOINTS, POSE, STAMP, WRENCH, StreamKind, decode_diagnostics, read_streams
+from ..robot import LEG_NAMES, VIB_NAMES, Robot
+from .limit_scan import LimitScan
+from .run_streams import JOINTS, POSE, STAMP, WRENCH, StreamKind, decode_diagnostics, read_streams, topic_key
 
 # topics a log recorded before the ground truth moved under ground_truth/ (old name -> new name)
 LEGACY_TRUTH = {"platform/pose": "ground_truth/platform_pose", "platform/tissue_wrench": "ground_truth/tissue_wrench"}
@@ -26,13 +27,22 @@ TYPED_STATUS = {"vibration/status": "stewart_vibration_interfaces/msg/VibrationU
                 "kinematics/guard_status": "stewart_vibration_interfaces/msg/ForceGuardStatus"}
 
 
-def load_signals(mcap_path) -> dict:
+def load_signals(mcap_path, windows=None, robot: Robot | None = None) -> dict:
     """Time series of a run (an MCAP file, a run folder: every file in it, in time order; or an open
     RunReader / RunFiles): ground-truth poses, joint states, force estimates (header-stamp times in s), the
     stream counts and the nodes' last diagnostics. Cut files are read as far as their chunks are whole.
 
+    A long run's 500 Hz streams need not be held whole: with ``windows`` they keep only the states in those
+    spans (what the vibration figures read), and with ``robot`` the limit check runs over every state as the run
+    is read (``limit_scan``). The wrench streams stay whole in a run with an applied tissue wrench (the tissue
+    figures read all of them).
+
     Args:
         mcap_path: an MCAP file or run folder path, or an open RunReader / RunFiles.
+        windows: None (every row of every stream), or [(t0, t1)] (s, header stamps): the 500 Hz streams keep
+            the rows inside one of them.
+        robot: the robot whose limits the states are checked against as they are read ("limit_figures"); None:
+            not checked here.
 
     Returns:
         {"pose": (times [n] (s), poses [n, 6] (m, rad)) the true poses, "joints": (times [n], {"position",
@@ -61,8 +71,17 @@ def load_signals(mcap_path) -> dict:
              "vibration/joint_trajectory": StreamKind(STAMP), "/clock": StreamKind(STAMP),
              "platform/pose": StreamKind(POSE), "platform/tissue_wrench": StreamKind(WRENCH)}  # LEGACY_TRUTH's
     parts = reader.files if isinstance(reader, RunFiles) else [reader]
+    recorded = _recorded_keys(parts, kinds)
+    keep = {} if windows is None else _window_keep(windows, recorded)
+    scan, sinks = None, {}
+    if robot is not None:
+        scan = LimitScan(robot)
+        truth_states = "ground_truth/joint_states" in recorded
+        truth_pose = "ground_truth/platform_pose" if "ground_truth/platform_pose" in recorded else "platform/pose"
+        sinks = {"ground_truth/joint_states" if truth_states else "legs/joint_states": scan.add_states,
+                 truth_pose: scan.add_poses}
     streams, per_file = read_streams(parts, kinds, raw=("vibration/status", "kinematics/guard_status", "/diagnostics"),
-                                     counted=STREAM_TOPICS)
+                                     counted=STREAM_TOPICS, sinks=sinks, keep=keep)
     got = streams.decoded
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         if not got[new][0].size:
@@ -99,7 +118,31 @@ def load_signals(mcap_path) -> dict:
         "clock": got["/clock"],
         "stream_stamps": stamps,
         "files": [_file_coverage(f) for f in per_file],
+        **({"limit_figures": scan.figures(got["/clock"])} if scan is not None else {}),
     }
+
+
+WINDOWED = ("ground_truth/joint_states", "legs/joint_states", "legs/force_estimate", "ground_truth/platform_pose",
+            "platform/pose_estimate", "platform/pose")  # the 500 Hz streams a long run need not hold whole
+WRENCHES = ("ground_truth/tissue_wrench", "platform/external_wrench_estimate", "platform/tissue_wrench")
+
+
+def _recorded_keys(parts, kinds: dict) -> set[str]:
+    """The keys of ``kinds`` that some file of the run holds messages of."""
+    return {key for part in parts for t in part.topics() if t.message_count
+            for key in [topic_key(t.topic, kinds)] if key is not None}
+
+
+def _window_keep(windows, recorded: set[str]) -> dict:
+    """{key: mask of the stamps inside one of ``windows``} for the streams held only there (the wrenches too in
+    a run without an applied tissue wrench)."""
+    spans = np.asarray(list(windows), float).reshape(-1, 2)
+
+    def inside(times: np.ndarray) -> np.ndarray:
+        return np.asarray(((times[:, None] >= spans[:, 0]) & (times[:, None] <= spans[:, 1])).any(axis=1), bool)
+
+    tissue = bool({"ground_truth/tissue_wrench", "platform/tissue_wrench"} & recorded)
+    return {key: inside for key in WINDOWED + (() if tissue else WRENCHES)}
 
 
 def _file_coverage(part: dict) -> dict:

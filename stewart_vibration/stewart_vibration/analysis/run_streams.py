@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from array import array
 from dataclasses import dataclass
+from typing import cast
 
 import numpy as np
 
@@ -80,10 +81,13 @@ class _Rows:
 
 
 class _Collector:
-    """One topic's pending raw messages (with their log times, ns), decoded a batch at a time into rows."""
+    """One topic's pending raw messages (with their log times, ns), decoded a batch at a time into rows; each
+    decoded batch goes to the ``sink`` too, if there is one (in log-time order), and only the rows ``keep``
+    selects (a mask of the stamps; None: all) are kept."""
 
-    def __init__(self, spec: StreamKind, capacity: int):
+    def __init__(self, spec: StreamKind, capacity: int, sink=None, keep=None):
         self.spec = spec
+        self.sink, self.keep = sink, keep
         self.pending: list = []
         self.pending_log: list = []
         self.undecodable = 0
@@ -114,7 +118,7 @@ class _Collector:
                 continue
             columns = [part.names.index(n) for n in self.spec.names]
             values = np.stack([getattr(part, name)[:, columns] for name in self.spec.fields], axis=1)
-            self.rows.append(log[rows], self.file_index, part.stamps, values)
+            self._store(log[rows], part.stamps, values)
 
     def _pose(self, batch: list, log: np.ndarray) -> None:
         stamps, values, kept = self._doubles(batch, 7, "PoseStamped")
@@ -123,11 +127,11 @@ class _Collector:
         poses = np.full((len(stamps), 6), np.nan)  # a pose that is not one stays NaN: the limit check reports it
         poses[good, :3] = values[good, :3]
         poses[good, 3:] = rpy_from_quaternion(values[good, 3:] / norms[good])
-        self.rows.append(log[kept], self.file_index, stamps, poses)
+        self._store(log[kept], stamps, poses)
 
     def _wrench(self, batch: list, log: np.ndarray) -> None:
         stamps, values, kept = self._doubles(batch, 6, "WrenchStamped")
-        self.rows.append(log[kept], self.file_index, stamps, values)
+        self._store(log[kept], stamps, values)
 
     def _doubles(self, batch: list, count: int, what: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         stamps, _frames, values, kept, errors = decode_stamped_doubles(batch, count, what)
@@ -138,7 +142,31 @@ class _Collector:
         ns = [cdr.header_stamp_ns(data) for data in batch]
         good = np.array([t is not None for t in ns], dtype=bool)
         self.undecodable += int((~good).sum())
-        self.rows.append(log[good], self.file_index, np.array([t for t in ns if t is not None], dtype=np.int64) / 1e9)
+        self._store(log[good], np.array([t for t in ns if t is not None], dtype=np.int64) / 1e9)
+
+    def _store(self, log: np.ndarray, times: np.ndarray, values: np.ndarray | None = None) -> None:
+        """A decoded batch: to the sink in log-time order, then its kept rows to the topic's rows."""
+        if self.sink is not None and times.size:
+            if (np.diff(log) < 0).any():
+                order = np.argsort(log, kind="stable")
+                self.sink(*self._as_result(times[order], values[order] if values is not None else None))
+            else:
+                self.sink(*self._as_result(times, values))
+        if self.keep is not None:
+            mask = self.keep(times)
+            log, times, values = log[mask], times[mask], values[mask] if values is not None else None
+        self.rows.append(log, self.file_index, times, values)
+
+    def _as_result(self, times: np.ndarray, values: np.ndarray | None) -> tuple:
+        """(times, values) as ``result`` gives them (JOINTS: the columns by field; STAMP: the times alone)."""
+        if self.spec.kind == STAMP:
+            return (times,)
+        if self.spec.kind == JOINTS:
+            columns = cast(np.ndarray, values)  # JOINTS rows always have values
+            missing = np.broadcast_to(np.nan, (times.size, len(self.spec.names)))  # read-only, no memory
+            return times, {name: columns[:, self.spec.fields.index(name)] if name in self.spec.fields else missing
+                           for name in JOINT_FIELDS}
+        return times, values
 
     def _count(self, _reason: str) -> None:
         self.undecodable += 1
@@ -148,14 +176,8 @@ class _Collector:
         values [n, 6]); STAMP: times [n] s. Rows file after file, each file's in log-time order (the order in which
         the recorder writes a topic; sorted here when a file holds it otherwise)."""
         self.flush()
-        times, values = self.rows.in_order()
-        if self.spec.kind == STAMP:
-            return times
-        if self.spec.kind == JOINTS:
-            missing = np.broadcast_to(np.nan, (times.size, len(self.spec.names)))  # read-only, no memory
-            return times, {name: values[:, self.spec.fields.index(name)] if name in self.spec.fields else missing
-                           for name in JOINT_FIELDS}
-        return times, values
+        out = self._as_result(*self.rows.in_order())
+        return out[0] if self.spec.kind == STAMP else out
 
 
 @dataclass
@@ -169,7 +191,7 @@ class StreamSet:
     undecodable: dict
 
 
-def _topic_key(topic: str, keys) -> str | None:
+def topic_key(topic: str, keys) -> str | None:
     """The key (a topic name without namespace) that ``topic`` is, or ends with after a '/'."""
     for key in keys:
         if topic == key or topic.endswith("/" + key):
@@ -177,7 +199,7 @@ def _topic_key(topic: str, keys) -> str | None:
     return None
 
 
-def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, list]:
+def read_streams(parts, decoded: dict, raw=(), counted=(), sinks=None, keep=None) -> tuple[StreamSet, list]:
     """Read every wanted topic of a run's files in one pass each.
 
     Args:
@@ -186,6 +208,11 @@ def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, l
             (namespaced runs).
         raw: topic keys whose messages are kept as raw bytes (with their type name).
         counted: topic keys whose publish times are collected (ns), file after file.
+        sinks: {decoded key: callable} called with every decoded batch of the topic, in order, as ``result``
+            returns the whole topic (JOINTS: times, columns; POSE, WRENCH: times, values; STAMP: times): a
+            whole-run figure computed as the run is read. Batches are each in log-time order, file after file.
+        keep: {decoded key: callable(times [n] s) -> mask [n]}: only these rows of the topic are kept (e.g. the
+            windows a figure needs); a key not in it keeps every row.
 
     Returns:
         (StreamSet, per file {"file", "complete", "publish_ns": {key: publish times [n] (ns) in that file}}).
@@ -193,15 +220,17 @@ def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, l
     expected = {key: 0 for key in decoded}
     for part in parts:
         for t in part.topics():
-            key = _topic_key(t.topic, decoded)
+            key = topic_key(t.topic, decoded)
             if key is not None:
                 expected[key] += t.message_count
-    collectors = {key: _Collector(spec, expected[key]) for key, spec in decoded.items()}
+    sinks, keep = sinks or {}, keep or {}
+    collectors = {key: _Collector(spec, 0 if key in keep else expected[key], sinks.get(key), keep.get(key))
+                  for key, spec in decoded.items()}
     raw_out: dict = {key: [] for key in raw}
     publish: dict = {key: [] for key in counted}
     files: list[dict] = []
     for part in parts:
-        routes = {t.topic: (_topic_key(t.topic, decoded), _topic_key(t.topic, raw), _topic_key(t.topic, counted))
+        routes = {t.topic: (topic_key(t.topic, decoded), topic_key(t.topic, raw), topic_key(t.topic, counted))
                   for t in part.topics()}
         routes = {topic: keys for topic, keys in routes.items() if any(k is not None for k in keys)}
         for collector in collectors.values():
@@ -214,10 +243,14 @@ def read_streams(parts, decoded: dict, raw=(), counted=()) -> tuple[StreamSet, l
         files.append({"file": part.path.name, "complete": part.complete, "publish_ns": mine})
     streams = StreamSet(
         decoded={key: c.result() for key, c in collectors.items()}, raw=raw_out,
-        publish_ns={key: np.concatenate(parts_ns) if parts_ns else np.empty(0, np.int64)
-                    for key, parts_ns in publish.items()},
+        publish_ns={key: _joined(parts_ns) for key, parts_ns in publish.items()},
         undecodable={key: c.undecodable for key, c in collectors.items() if c.undecodable})
     return streams, files
+
+
+def _joined(parts: list) -> np.ndarray:
+    """Per-file int64 arrays as one (a single file's as it is: an hour of stamps is not copied)."""
+    return parts[0] if len(parts) == 1 else np.concatenate(parts) if parts else np.empty(0, np.int64)
 
 
 def _read_part(part, routes: dict, collectors: dict, raw_out: dict, counted) -> dict:

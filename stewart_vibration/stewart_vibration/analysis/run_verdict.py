@@ -121,7 +121,8 @@ def limit_summary(robot: Robot, signals: dict) -> list[dict]:
 
     Args:
         robot: the robot (limits and geometry from config/robot.yaml).
-        signals: from ``load_signals`` (joints, pose, clock).
+        signals: from ``load_signals``: its "limit_figures" when it checked every state as it read the run (a
+            long run read in windows), else its joints, pose and clock.
 
     Returns:
         One dict per figure.
@@ -130,5 +131,7 @@ def limit_summary(robot: Robot, signals: dict) -> list[dict]:
 
     from .limit_check import check_limits
 
-    return [dict(asdict(f), line=f.line()) for f in check_limits(robot, signals["joints"], signals["pose"],
-                                                                  signals.get("clock"))]
+    figures = signals.get("limit_figures")
+    if figures is None:
+        figures = check_limits(robot, signals["joints"], signals["pose"], signals.get("clock"))
+    return [dict(asdict(f), line=f.line()) for f in figures]

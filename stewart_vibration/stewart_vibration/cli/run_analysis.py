@@ -24,8 +24,8 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
     from ..analysis.tissue_figures import summarize_tissue
     from ..analysis.vibration_figures import summarize_vibration
 
-    try:
-        signals = load_signals(out)
+    try:  # the 500 Hz streams only around the vibrations; the limits are checked over every state as it is read
+        signals = load_signals(out, windows=vibration_windows(record), robot=robot)
     except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
         summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
         return
@@ -59,6 +59,20 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
     summary["report_dir"] = write_report(out, out / "report", robot_config, allow_truncated=cut)
     if summary["report_dir"] is None:
         summary["problems"].append("the report could not be written (see the log above)")
+
+
+WINDOW_MARGIN_S = 1.5  # s of states kept before and after a vibration: its start is found up to 1 s early
+
+
+def vibration_windows(record) -> list[tuple[float, float]]:
+    """The spans (sim s) whose states the figures of the run's vibrations read: each from its start (or the
+    start the runner asked for) to its end, WINDOW_MARGIN_S either side."""
+    windows = []
+    for vib in record.vibrations:
+        start = float(vib.get("t0", vib["start_time"]))
+        duration = float(vib.get("parameters", {}).get("duration_s", 0.0))
+        windows.append((start - WINDOW_MARGIN_S, start + duration + WINDOW_MARGIN_S))
+    return windows
 
 
 def pair_vibrations(record):
