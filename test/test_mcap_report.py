@@ -5,7 +5,9 @@ from __future__ import annotations
 import json
 
 import numpy as np
+import pytest
 
+from stewart_vibration.analysis import report_data, run_streams
 from stewart_vibration.cli.main import main
 from stewart_vibration.mcap_log import McapRunWriter
 
@@ -47,13 +49,36 @@ def _write_run(path, n=400, f_hz=20.0, dt=0.002):
     return direction
 
 
-def test_report_summary_and_plots(tmp_path, capsys):
+@pytest.mark.parametrize("n, batch, analysed_max_s", [(400, None, None), (12_000, 997, None), (12_000, 997, 10.0)])
+def test_report_summary_and_plots(tmp_path, monkeypatch, n, batch, analysed_max_s):
+    """The report of a clean 20 Hz vibration; the long one is read in small batches (its whole-run figures
+    streamed, its plotted series as envelopes, its steady vibration read again on its own), and fitted over the
+    middle of its steady part only when that is longer than the longest span analysed."""
+    if batch:
+        monkeypatch.setattr(run_streams, "BATCH_MESSAGES", batch)
+    if analysed_max_s:
+        monkeypatch.setattr(report_data, "ANALYSED_MAX_S", analysed_max_s)
     path = tmp_path / "run.mcap"
-    direction = _write_run(path)
+    direction = _write_run(path, n=n)
     out = tmp_path / "report"
     assert main(["report", str(path), "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["message_count"] == 400 * 3 + 2
+    assert summary["message_count"] == n * 3 + 2
+    # the steady vibration: where the units move (from the first sample past 2 % of the peak to the last), less
+    # 0.25 s of ramp at each end when it lasts over 1 s
+    t = np.arange(n) * 0.002
+    level = np.abs(5e-4 * np.sin(2 * np.pi * 20.0 * t))
+    active = t[level > 0.02 * level.max()]
+    trim = 0.25 if active[-1] - active[0] > 1.0 else 0.0
+    assert summary["vibration_window_s"] == pytest.approx([active[0] + trim, active[-1] - trim], abs=1e-9)
+    a, b = summary["vibration_window_s"]
+    c, d = summary["analysed_window_s"]
+    if analysed_max_s:
+        assert (c + d) / 2 == pytest.approx((a + b) / 2) and d - c == pytest.approx(analysed_max_s)
+        assert "its middle" in (out / "summary.md").read_text()
+    else:
+        assert (c, d) == (a, b)
+    assert summary["leg_length_mean_m"]["leg_1"] == pytest.approx(0.3 + 1e-4 * np.sin(2 * np.pi * 20.0 * t).mean())
     # A clean, exactly sampled sine: the least-squares fit's golden-section search stops at a bracket of
     # 1e-9 f around the true frequency, and at that frequency error the fitted amplitude is off by
     # ~ (pi df T)^2 / 6 ~ 1e-18 relative; what is left is round-off.

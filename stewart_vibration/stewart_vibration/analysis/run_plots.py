@@ -58,7 +58,8 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
     in s from the first message).
 
     Args:
-        data: the run's arrays (``run_report.extract``).
+        data: the run's data (``report_data.report_data``): whole-run series as envelopes, the steady
+            vibration's samples in "window".
         summary: the run's summary (``run_report.summarize``), for the figures' titles.
         out: an existing directory to write into.
 
@@ -90,7 +91,7 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         _save(fig, out, "vibration.png", plots)
     if "pose_xyz" in data:
         fig = plt.figure(figsize=(13, 6))
-        mean = data["pose_xyz"].mean(axis=0)
+        mean = data["pose_mean"]
         dev = (data["pose_xyz"] - mean) * 1e3
         for k, name in enumerate("xyz"):
             ax = fig.add_subplot(3, 2, 2 * k + 1)
@@ -101,10 +102,10 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
                 ax.set_title("Platform position about its mean (ground_truth/platform_pose)")
         ax.set_xlabel("time (s)")
         ax3 = fig.add_subplot(1, 2, 2, projection="3d")
-        window = data.get("vibration_window")
-        if window:  # the vibration itself, in um, about its own mean
-            sel = (data["pose_t"] >= window[0]) & (data["pose_t"] <= window[1])
-            path = (data["pose_xyz"][sel] - data["pose_xyz"][sel].mean(axis=0)) * 1e6
+        window = data.get("analysed_window")
+        steady = data.get("window", {})
+        if window and steady.get("pose") is not None and len(steady["pose"]):  # the vibration, in um, about its mean
+            path = (steady["pose"] - steady["pose"].mean(axis=0)) * 1e6
             path = path[::max(1, path.shape[0] // PATH_POINTS)]  # a back-and-forth line: a stride keeps its shape
             ax3.plot(path[:, 0], path[:, 1], path[:, 2], lw=0.8, color="gray")
             p = summary.get("platform", {})
@@ -138,16 +139,17 @@ def plot_all(data: dict, summary: dict, out: Path) -> list[str]:
         for ax in axes[-2:]:
             ax.set_xlabel("time (s)")
         _save(fig, out, "forces.png", plots)
-        window = data.get("vibration_window")
-        if window and "force" in data and "est" in data:  # 0.1 s of the steady vibration, close up
+        window, steady = data.get("analysed_window"), data.get("window", {})
+        if window and "force" in data and "est" in data and "force" in steady:  # 0.1 s of the steady vibration
             mid = 0.5 * (window[0] + window[1])
             fig, axes = _legs_grid(f"Leg axial force during the vibration, {mid:.2f}-{mid + 0.1:.2f} s: "
                                    "measured (black) vs estimated (orange dashed)")
-            ms = (data["force_t"] >= mid) & (data["force_t"] <= mid + 0.1)
-            es = (data["est_t"] >= mid) & (data["est_t"] <= mid + 0.1)
+            ms = (steady["force_t"] >= mid) & (steady["force_t"] <= mid + 0.1)
+            es = (steady["est_t"] >= mid) & (steady["est_t"] <= mid + 0.1)
             for i, ax in enumerate(axes):
-                ax.plot(data["force_t"][ms], data["force"][ms, i], color="black", lw=1.2, label="measured")
-                ax.plot(data["est_t"][es], data["est"][es, i], color="tab:orange", lw=1.2, ls="--", label="estimated")
+                ax.plot(steady["force_t"][ms], steady["force"][ms, i], color="black", lw=1.2, label="measured")
+                ax.plot(steady["est_t"][es], steady["est"][es, i], color="tab:orange", lw=1.2, ls="--",
+                        label="estimated")
                 ax.set_title(f"leg_{i + 1}")
                 ax.set_ylabel("force (N)")
                 ax.grid(alpha=0.3)
@@ -203,7 +205,7 @@ def _plot_wrench(data: dict, out: Path, plots: list[str]) -> None:
         ax.legend(loc="best", fontsize=7)
         ax = axes[2, col]
         if we is not None:
-            # te: set with we (run_report.extract)
+            # te: set with we (report_data.report_data)
             common, ia, ie = np.intersect1d(np.round(ta, 6), np.round(cast(np.ndarray, te), 6), return_indices=True)
             err = np.linalg.norm(we[ie, first:first + 3] - wa[ia, first:first + 3], axis=1)
             _line(ax, common, err, color="tab:red", lw=0.8)

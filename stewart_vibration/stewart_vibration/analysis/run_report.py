@@ -20,8 +20,7 @@ from ..kinematics.robot_config import load_robot
 from ..mcap_log.reader import RunFiles, RunReader, open_run
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from .fits import dominant_sinusoid
-from .run_signals import load_signals
-from .tissue_figures import guard_trips
+from .report_data import report_data
 from .vibration_figures import leg_force_error, platform_vibration
 
 EVENT_WORDS = ("start", "stop", "e-stop", "emergency", "estop", "reset")
@@ -32,76 +31,6 @@ def _find(reader: RunReader | RunFiles, suffix: str) -> str | None:
         if t.topic.endswith(suffix) and t.message_count:
             return t.topic
     return None
-
-
-def vibration_window(data: dict, ramp_trim_s: float = 0.25) -> tuple[float, float] | None:
-    """(start, end) s of the steady vibration: where any |vib_i| exceeds 2 % of its peak, minus
-    ``ramp_trim_s`` at both ends (the ramps) when the interval is long enough; None if no vibration.
-
-    Args:
-        data: the run's arrays (``extract``): ``vib_t`` [n] (s from the first message), ``vib`` [n, 6] (m).
-        ramp_trim_s: trimmed at both ends (s) when the interval is longer than 4 ``ramp_trim_s``.
-
-    Returns:
-        (start, end) (s from the first message), or None without vib_* samples or with all of them 0.
-    """
-    if "vib" not in data or not len(data["vib_t"]):
-        return None
-    level = np.abs(data["vib"]).max(axis=1)
-    if level.max() <= 0:
-        return None
-    active = np.flatnonzero(level > 0.02 * level.max())
-    t0, t1 = float(data["vib_t"][active[0]]), float(data["vib_t"][active[-1]])
-    if t1 - t0 > 4 * ramp_trim_s:
-        t0, t1 = t0 + ramp_trim_s, t1 - ramp_trim_s
-    return t0, t1
-
-
-def _within(t: np.ndarray, window) -> np.ndarray:
-    return np.ones(len(t), dtype=bool) if window is None else (t >= window[0]) & (t <= window[1])
-
-
-def extract(reader: RunReader | RunFiles, signals: dict) -> dict:
-    """Arrays of the run (SI) keyed by what they are, for the plots and the summary; missing topics are left out.
-
-    Args:
-        reader: the open run (its first message is the time origin; its events).
-        signals: ``run_signals.load_signals`` of the same run (the arrays are taken from it, not decoded again).
-
-    Returns:
-        {"time_origin_s": log time of the first message (s); "leg_t", "leg_lengths" [n, 6] (m);
-        "vib_t", "vib" [n, 6] (m); "force_t", "force" [n, 6] (measured axial force, N) from legs/joint_states;
-        "est_t", "est" [n, 6] (estimated leg force, N); "pose_t", "pose_xyz" [n, 3] (m); "wrench_applied(_t)",
-        "wrench_estimated(_t)" [n, 6] ([N; N m], the estimate only with an applied one); "guard_trips";
-        "events"; "vibration_window" (``vibration_window``)}. Every time (``*_t``, ``t_s``) is in s from
-        the first message.
-    """
-    data: dict = {}
-    first = next(iter(reader.messages()), None)
-    t0 = first.log_time if first is not None else 0
-    origin = t0 / 1e9
-    data["time_origin_s"] = origin
-    (st, sensed), (et, estimate) = signals["sensed_joints"], signals["force_estimate"]
-    for key, name, t, values in (("leg", "leg_lengths", st, sensed["position"][:, :6]),
-                                 ("vib", "vib", st, sensed["position"][:, 6:12]),
-                                 ("force", "force", st, sensed["effort"][:, :6]),
-                                 ("est", "est", et, estimate["effort"])):
-        kept = np.isfinite(values).all(axis=1)  # a state that left this field empty is not a sample of it
-        if kept.any():
-            data[f"{key}_t"], data[name] = t[kept] - origin, values if kept.all() else values[kept]
-    pt, poses = signals["pose"]
-    if pt.size:
-        data["pose_t"], data["pose_xyz"] = pt - origin, poses[:, :3]
-    for key, name in (("applied", "tissue_wrench"), ("estimated", "wrench_estimate")):
-        t, wrench = signals[name]
-        if t.size and (key == "applied" or "wrench_applied" in data):
-            data[f"wrench_{key}_t"], data[f"wrench_{key}"] = t - origin, wrench
-    if signals["guard_status"]:
-        data["guard_trips"] = [dict(trip.record(), t_s=trip.trip_time_s - origin)
-                               for trip in guard_trips({"guard_status": signals["guard_status"]})]
-    data["events"] = _events(reader, t0)
-    data["vibration_window"] = vibration_window(data)
-    return data
 
 
 def _events(reader: RunReader | RunFiles, t0: int) -> list[dict]:
@@ -126,17 +55,17 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
     """The JSON summary: counts, leg amplitudes/frequencies, platform vibration, force error, events.
 
     The platform's vibration and the force error come from the run summary's own functions over the
-    steady window found here (``vibration_window``), at the legs' median fitted frequency.
+    steady vibration (``report_data``: its middle minute at most), at the legs' median fitted frequency.
 
     Args:
         reader: the open run.
-        data: the run's arrays (``extract``).
+        data: the run's data (``report_data.report_data``, with "events").
         signals: ``run_signals.load_signals`` of the same run.
         robot: removes an applied tissue's leg forces from the measured efforts, as the run summary does.
 
     Returns:
         A JSON-ready dict (SI units; times in s from the first message): file, complete, message_count,
-        topics, leg_length_mean_m, vibration_window_s, per-leg vibration, platform, force errors,
+        topics, leg_length_mean_m, vibration_window_s, analysed_window_s, per-leg vibration, platform, force errors,
         tissue_wrench, guard_trips and events, each only where the data exist.
 
     Raises:
@@ -153,13 +82,14 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
         "topics": {t.topic: {"type": t.type_name, "count": t.message_count} for t in topics},
     }
     if "leg_lengths" in data:
-        out["leg_length_mean_m"] = dict(zip(LEG_NAMES, np.mean(data["leg_lengths"], axis=0).tolist()))
-    window = data.get("vibration_window")
-    out["vibration_window_s"] = list(window) if window else None
-    if "vib" in data and window:
-        sel = _within(data["vib_t"], window)
+        out["leg_length_mean_m"] = dict(zip(LEG_NAMES, data["leg_length_mean"].tolist()))
+    out["vibration_window_s"] = list(data["vibration_window"]) if data.get("vibration_window") else None
+    window = data.get("analysed_window")  # the steady vibration, or its middle minute when it is longer
+    out["analysed_window_s"] = list(window) if window else None
+    steady = data.get("window", {})
+    if window and steady.get("vib_t") is not None and steady["vib_t"].size:
         out["vibration"] = {
-            n: dict(zip(("amplitude_m", "frequency_hz"), dominant_sinusoid(data["vib_t"][sel], data["vib"][sel, i])))
+            n: dict(zip(("amplitude_m", "frequency_hz"), dominant_sinusoid(steady["vib_t"], steady["vib"][:, i])))
             for i, n in enumerate(VIB_NAMES)
         }
     frequency = float(np.median([v["frequency_hz"] for v in out["vibration"].values()])) \
@@ -169,25 +99,24 @@ def summarize(reader: RunReader | RunFiles, data: dict, signals: dict, robot: Ro
         # the run summary's computation (analysis.vibration_figures.platform_vibration) over this window
         line = platform_vibration(signals, window[0] + origin, window[1] + origin, frequency)
         direction = line["direction"] * (1 if line["direction"][np.argmax(np.abs(line["direction"]))] > 0 else -1)
-        sel = _within(data["pose_t"], window)
         out["platform"] = {
-            "mean_position_m": data["pose_xyz"][sel].mean(axis=0).tolist(),
+            "mean_position_m": steady["pose"].mean(axis=0).tolist(),
             "frequency_hz": frequency,
             "vibration_direction": direction.tolist(),
             "vibration_amplitude_m": line["amplitude_m"],
             "off_axis_ratio": line["off_axis_ratio"],
         }
     if "est" in data and "force" in data:
-        # the run summary's computation (analysis.vibration_figures.leg_force_error): over the whole run, and over
-        # the steady vibration relative to the fitted force amplitude
-        whole = leg_force_error(robot, signals, -np.inf, np.inf, None)
+        # the run summary's computation (analysis.vibration_figures.leg_force_error): over the whole run (as the
+        # recording streamed past: report_data), and over the steady vibration relative to the fitted amplitude
+        whole = data.get("force_error")
         if whole is not None:
             out["force_error_rms_n"] = dict(zip(LEG_NAMES, whole["rms_error_n"].tolist()))
-        steady = leg_force_error(robot, signals, window[0] + origin, window[1] + origin, frequency) \
+        during = leg_force_error(robot, signals, window[0] + origin, window[1] + origin, frequency) \
             if window and frequency else None
-        if steady is not None:
-            out["force_error_rms_n_vibration"] = dict(zip(LEG_NAMES, steady["rms_error_n"].tolist()))
-            out["force_error_worst_leg_relative_vibration"] = steady["worst_leg_relative"]
+        if during is not None:
+            out["force_error_rms_n_vibration"] = dict(zip(LEG_NAMES, during["rms_error_n"].tolist()))
+            out["force_error_worst_leg_relative_vibration"] = during["worst_leg_relative"]
     if "wrench_applied" in data and "wrench_estimated" in data:
         ta, te = np.round(data["wrench_applied_t"], 6), np.round(data["wrench_estimated_t"], 6)
         _, ia, ie = np.intersect1d(ta, te, return_indices=True)
@@ -223,7 +152,9 @@ def markdown(summary: dict, plots: list[str]) -> str:
     lines += [f"| {k} | {v['type']} | {v['count']} |" for k, v in summary["topics"].items()]
     if summary.get("vibration_window_s"):
         a, b = summary["vibration_window_s"]
-        lines += ["", f"Steady vibration from {a:.2f} s to {b:.2f} s (ramps excluded); figures below are over it."]
+        c, d = summary["analysed_window_s"]
+        over = "it" if (a, b) == (c, d) else f"its middle, {c:.2f} s to {d:.2f} s"
+        lines += ["", f"Steady vibration from {a:.2f} s to {b:.2f} s (ramps excluded); figures below are over {over}."]
     if "vibration" in summary:
         lines += ["", "| leg | mean length (m) | vib amplitude (m) | frequency (Hz) |", "|---|---|---|---|"]
         for i, (_n, v) in enumerate(summary["vibration"].items()):
@@ -279,9 +210,10 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
     reader = open_run(mcap_path, allow_truncated=allow_truncated, verify=True)
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    signals = load_signals(reader)
-    data = extract(reader, signals)
-    summary = summarize(reader, data, signals, robot or load_robot())
+    robot = robot or load_robot()
+    data, signals = report_data(reader, robot)
+    data["events"] = _events(reader, data["time_origin_ns"])
+    summary = summarize(reader, data, signals, robot)
     plots = run_plots.plot_all(data, summary, out)
     summary["plots"] = plots
     (out / "summary.json").write_text(json.dumps(summary, indent=2))

@@ -9,6 +9,8 @@ streams' stamps, counted for stream health, in ns).
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 
 from ..mcap_log.reader import RunFiles, RunReader, open_run
@@ -27,7 +29,8 @@ TYPED_STATUS = {"vibration/status": "stewart_vibration_interfaces/msg/VibrationU
                 "kinematics/guard_status": "stewart_vibration_interfaces/msg/ForceGuardStatus"}
 
 
-def load_signals(mcap_path, windows=None, robot: Robot | None = None) -> dict:
+def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dict | None = None,
+                 coverage: bool = True) -> dict:
     """Time series of a run (an MCAP file, a run folder: every file in it, in time order; or an open
     RunReader / RunFiles): ground-truth poses, joint states, force estimates (header-stamp times in s), the
     stream counts and the nodes' last diagnostics. Cut files are read as far as their chunks are whole.
@@ -43,6 +46,10 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None) -> dict:
             the rows inside one of them.
         robot: the robot whose limits the states are checked against as they are read ("limit_figures"); None:
             not checked here.
+        sinks: {topic key (e.g. "legs/joint_states"): callable} given every decoded batch of the topic as it is
+            read (``run_streams.read_streams``): more figures computed as the run streams past.
+        coverage: collect the 500 Hz streams' stamps ("stream_stamps", "stream_counts", the files' states: what the
+            recording covers); False: empty (the report does not judge coverage, and an hour of them is 72 MB).
 
     Returns:
         {"pose": (times [n] (s), poses [n, 6] (m, rad)) the true poses, "joints": (times [n], {"position",
@@ -73,15 +80,13 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None) -> dict:
     parts = reader.files if isinstance(reader, RunFiles) else [reader]
     recorded = _recorded_keys(parts, kinds)
     keep = {} if windows is None else _window_keep(windows, recorded)
-    scan, sinks = None, {}
+    scan, feeds = None, [dict(sinks or {})]
     if robot is not None:
         scan = LimitScan(robot)
-        truth_states = "ground_truth/joint_states" in recorded
-        truth_pose = "ground_truth/platform_pose" if "ground_truth/platform_pose" in recorded else "platform/pose"
-        sinks = {"ground_truth/joint_states" if truth_states else "legs/joint_states": scan.add_states,
-                 truth_pose: scan.add_poses}
+        feeds.append({truth_key(recorded, "ground_truth/joint_states", "legs/joint_states"): scan.add_states,
+                      truth_key(recorded, "ground_truth/platform_pose", "platform/pose"): scan.add_poses})
     streams, per_file = read_streams(parts, kinds, raw=("vibration/status", "kinematics/guard_status", "/diagnostics"),
-                                     counted=STREAM_TOPICS, sinks=sinks, keep=keep)
+                                     counted=STREAM_TOPICS if coverage else (), sinks=_merged(feeds), keep=keep)
     got = streams.decoded
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         if not got[new][0].size:
@@ -127,7 +132,32 @@ WINDOWED = ("ground_truth/joint_states", "legs/joint_states", "legs/force_estima
 WRENCHES = ("ground_truth/tissue_wrench", "platform/external_wrench_estimate", "platform/tissue_wrench")
 
 
-def _recorded_keys(parts, kinds: dict) -> set[str]:
+def truth_key(recorded: set[str], truth: str, fallback: str) -> str:
+    """The topic key a figure of the truth reads: ``truth``, or ``fallback`` in a log without it (the joints:
+    the sensed states of a log from before the truth had its own topics; the pose: its old name)."""
+    return truth if truth in recorded else fallback
+
+
+def _merged(feeds: list[dict]) -> dict:
+    """{key: callable}: every callable given for a key, called in turn."""
+    out: dict = {}
+    for feed in feeds:
+        for key, sink in feed.items():
+            out.setdefault(key, []).append(sink)
+    return {key: sinks[0] if len(sinks) == 1 else functools.partial(_each, sinks) for key, sinks in out.items()}
+
+
+def _each(sinks: list, *batch) -> None:
+    for sink in sinks:
+        sink(*batch)
+
+
+def recorded_keys(mcap_path, kinds) -> set[str]:
+    """The keys of ``kinds`` (topic keys) that a run (an open RunReader / RunFiles) holds messages of."""
+    return _recorded_keys(mcap_path.files if isinstance(mcap_path, RunFiles) else [mcap_path], kinds)
+
+
+def _recorded_keys(parts, kinds) -> set[str]:
     """The keys of ``kinds`` that some file of the run holds messages of."""
     return {key for part in parts for t in part.topics() if t.message_count
             for key in [topic_key(t.topic, kinds)] if key is not None}
@@ -147,7 +177,7 @@ def _window_keep(windows, recorded: set[str]) -> dict:
 
 def _file_coverage(part: dict) -> dict:
     """What one file holds: its name, whether it is complete, its states and their first and last stamp (s)."""
-    mine = part["publish_ns"]["legs/joint_states"]
+    mine = part["publish_ns"].get("legs/joint_states", np.empty(0, np.int64))
     first, last = (int(mine.min()) / 1e9, int(mine.max()) / 1e9) if mine.size else (None, None)
     return {"file": part["file"], "complete": part["complete"], "states": int(mine.size), "first_s": first,
             "last_s": last}

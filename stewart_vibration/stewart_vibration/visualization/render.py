@@ -22,8 +22,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from PIL import Image  # noqa: E402 - matplotlib's own dependency
 
-from ..analysis.run_report import extract  # noqa: E402
-from ..analysis.run_signals import load_signals  # noqa: E402
+from ..analysis.report_data import report_data  # noqa: E402
 from ..errors import StewartError  # noqa: E402
 from ..kinematics.robot_config import load_robot  # noqa: E402
 from ..kinematics.rotations import rotation_from_quaternion  # noqa: E402
@@ -110,12 +109,12 @@ def render_run(path, out, at_s: float | None = None, robot_config=None) -> dict:
     pose_topic = next((t for t in topics if t.endswith("ground_truth/platform_pose")), None)
     if pose_topic is None:
         raise StewartError(f"{path}: no ground_truth/platform_pose recorded, nothing to draw")
-    data = extract(reader, load_signals(reader))
+    robot = load_robot(robot_config)
+    data, _signals = report_data(reader, robot)
     t0 = next(reader.messages()).log_time
     window = data.get("vibration_window")
     if at_s is None:
         at_s = (window[0] + window[1]) / 2 if window else float(data["pose_t"][-1])
-    robot = load_robot(robot_config)
     t_abs = t0 + int(at_s * 1e9)
     stamp, position, quaternion = _pose_at(reader, pose_topic, t_abs)
     vib_topic = next((t for t in topics if t.endswith("vibration/joint_trajectory")), None)
