@@ -214,6 +214,34 @@ def test_a_full_disk_is_an_error_at_once_and_the_file_stays_readable(ros_domain,
         assert "mcap-recover" in rec.log_text()
 
 
+def test_a_recorder_on_sim_time_records_what_it_discovers_while_clock_is_silent(ros_domain, tmp_path):
+    """A recorder on sim time beside publishers but no /clock (as one respawned while /clock is not yet matched)
+    still discovers and records their topics: discovery does not wait for sim time to move."""
+    env = _env(ros_domain)
+    folder = tmp_path / "bag"
+    rec = start_python_module("recorder", RECORDER, ["--ros-args", "-p", "use_sim_time:=true", "-p",
+                                                     f"output_dir:={folder}"], env, tmp_path / "logs")
+    pub = None
+    try:
+        assert wait_for(lambda: "recording to" in rec.log_text(), 30), rec.log_text()
+        pub = start_python_module("publisher", PUBLISHER, ["--count", "1000", "--rate", "100", "--topics",
+                                                           "joint_states"], env, tmp_path / "logs")
+        assert wait_for(lambda: f"subscribed {JS}" in rec.log_text(), 30), rec.log_text()
+        (path,) = list(folder.glob("*.mcap"))
+
+        def recorded() -> int:
+            try:
+                return sum(1 for _ in RunReader(path).messages([JS]))
+            except Exception:  # noqa: BLE001 - being written
+                return 0
+
+        assert wait_for(lambda: recorded() > 100, 30), rec.log_text()[-3000:]
+    finally:
+        if pub is not None:
+            pub.stop()
+        rec.stop()
+
+
 @pytest.mark.parametrize("executor", ["events", "single"])
 def test_a_stopped_recorder_counts_what_it_lost(ros_domain, tmp_path, executor):
     """SIGSTOP for 2 s while a 500 Hz /clock (publisher history 0.2 s) and joint states flow: the samples DDS

@@ -95,10 +95,12 @@ class McapRecorderNode(Node):
         self._fault: tuple[str, str] | None = None  # (errno name, reason) of the last write failure
         self.create_service(StartRecording, "~/start", self._on_start)
         self.create_service(StopRecording, "~/stop", self._on_stop)
-        self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover)
+        # discovery runs on the steady clock: a recorder that waited for sim time would record nothing while
+        # /clock is silent or not yet matched (a recorder respawned beside a running suite)
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(float(self.get_parameter("discovery_period_s").value), self._discover, clock=steady)
         # the file being written and its counters, for UIs that start after the "recording to" log line
         self.diagnostics = Diagnostics(self, "mcap recorder")
-        steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(1.0, self.report, clock=steady)
         self.create_timer(FAULT_CHECK_PERIOD_S, self._check_writer, clock=steady)
         self._last_file = ""
