@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from stewart_vibration.analysis.run_streams import topic_key
 from stewart_vibration.install import default_config_dir
 from stewart_vibration.mcap_log.reader import open_run
 from stewart_vibration.messages import cdr
@@ -84,16 +85,12 @@ def node_parameters() -> dict[str, float]:
     return {name: float(values[name]) for name in PARAMETERS}
 
 
-def _key(topic: str) -> str:
-    return next(key for key in TOPICS if topic == key or topic.endswith("/" + key))
-
-
 def recorded(run_dir: Path) -> tuple[list, str]:
     """The run's messages of TOPICS in the recorder's log-time order (ties in the order it received them):
     [(place, key, raw message)], and the MCAP's name."""
     run = open_run(run_dir)
-    names = sorted({t.topic for t in run.topics() if any(t.topic == k or t.topic.endswith("/" + k) for k in TOPICS)})
-    messages = [(i, _key(m.topic), m) for i, m in enumerate(run.messages(names))]
+    names = sorted({t.topic for t in run.topics() if topic_key(t.topic, TOPICS) is not None})
+    messages = [(i, topic_key(m.topic, TOPICS), m) for i, m in enumerate(run.messages(names))]
     return messages, Path(getattr(run, "path", run_dir)).name
 
 

@@ -87,14 +87,18 @@ def _worst(values: np.ndarray, times: np.ndarray, limit: float, name: str, unit:
     return LimitFigure(name, unit, worst, limit, float(times[index[0]]), leg, bad)
 
 
+def stroke_excess(hinge: np.ndarray, low: float, high: float) -> np.ndarray:
+    """How far (m) each hinge-to-hinge length lies outside [low, high] (negative inside; inf if not finite)."""
+    finite = np.where(np.isfinite(hinge), hinge, np.nan)
+    return np.maximum(np.nan_to_num(low - finite, nan=np.inf), np.nan_to_num(finite - high, nan=np.inf))
+
+
 def _stroke(hinge: np.ndarray, t: np.ndarray, low: float, high: float) -> LimitFigure:
     """The hinge-to-hinge lengths [n, 6] (m) against [low, high] (m), STROKE_TOLERANCE_M either side."""
     if hinge.size == 0:
         return LimitFigure("stroke", "m", 0.0, high, low_limit=low, least=0.0)
     finite = np.where(np.isfinite(hinge), hinge, np.nan)
-    below = np.nan_to_num(low - finite, nan=np.inf)
-    above = np.nan_to_num(finite - high, nan=np.inf)
-    excess = np.maximum(below, above)
+    excess = stroke_excess(hinge, low, high)
     index = np.unravel_index(int(np.argmax(excess)), excess.shape)
     bad = int(np.count_nonzero(~(excess <= STROKE_TOLERANCE_M)))
     return LimitFigure("stroke", "m", float(np.nanmax(finite)), high, float(t[index[0]]), int(index[1]) + 1, bad,

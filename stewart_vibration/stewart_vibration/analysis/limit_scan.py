@@ -23,16 +23,10 @@ from .limit_check import (
     pose_figures,
     state_figures,
     steps_back,
+    stroke_excess,
 )
 
 CARRY = 2 * STRUT_BASELINE  # states of the slab before that complete the differences across the seam
-
-
-def _stroke_excess(hinge: np.ndarray, figure: LimitFigure) -> float:
-    """How far (m) the furthest of ``hinge`` [n, 6] lies outside the stroke of ``figure`` (inf for a length that
-    is not finite; the stroke figure's own ordering)."""
-    low, high = figure.low_limit, figure.limit
-    return float(np.nan_to_num(np.maximum(low - hinge, hinge - high), nan=np.inf).max())
 
 
 class LimitScan:
@@ -60,7 +54,9 @@ class LimitScan:
         t, x = np.concatenate([self._carry_t, times]), np.concatenate([self._carry_x, positions])
         figures = state_figures(self.robot, t, x, first)
         self._states.append(figures)
-        self._stroke_excess.append(_stroke_excess(positions[:, :6] + positions[:, 6:12], figures[0]))
+        lim = self.robot.limits
+        hinge = positions[:, :6] + positions[:, 6:12]
+        self._stroke_excess.append(float(stroke_excess(hinge, lim.stroke_min, lim.stroke_max).max()))
         self._not_finite += not_finite_count(columns)
         self._backwards += steps_back(t[max(first - 1, 0):], strict=True)
         self._carry_t, self._carry_x = t[-CARRY:].copy(), x[-CARRY:].copy()

@@ -16,15 +16,13 @@ import numpy as np
 from ..mcap_log.reader import RunFiles, RunReader
 from ..robot import Robot
 from .report_scan import ForceErrorScan, RunningMean, StreamEnvelope, VibrationActivity
-from .run_signals import load_signals, recorded_keys, truth_key
-from .run_streams import POSE, StreamKind
+from .run_signals import TISSUE_KEYS, load_signals, recorded_keys, truth_key
 from .tissue_figures import guard_trips
 from .vibration_figures import leg_force_error
 
 RAMP_TRIM_S = 0.25  # trimmed from both ends of the active span (the ramps) when it is longer than 4 of them
 WINDOW_MARGIN_S = 0.5  # s of states read beyond the steady window in the second pass
 ANALYSED_MAX_S = 60.0  # the steady vibration's figures are fitted over its middle minute at most
-TISSUE_TOPICS = ("ground_truth/tissue_wrench", "platform/tissue_wrench")
 TRUTH_STATES = ("ground_truth/joint_states", "legs/joint_states")  # the measured efforts, or a log's sensed ones
 
 
@@ -35,7 +33,6 @@ class _Reducers:
         self.origin, self.measured_from_sensed = origin, measured_from_sensed
         self.envelopes = {key: StreamEnvelope(width) for key, width in
                           (("leg", 6), ("vib", 6), ("force", 6), ("est", 6), ("pose", 3))}
-        self.samples = dict.fromkeys(self.envelopes, 0)
         self.leg_mean, self.pose_mean = RunningMean(6), RunningMean(3)
         self.activity = VibrationActivity()
         self.force_error = ForceErrorScan()
@@ -43,7 +40,6 @@ class _Reducers:
     def _add(self, key: str, t: np.ndarray, values: np.ndarray, finite_only: bool = True) -> np.ndarray:
         kept = np.isfinite(values).all(axis=1) if finite_only else np.ones(len(t), bool)
         self.envelopes[key].add(t[kept] - self.origin, values[kept])
-        self.samples[key] += int(kept.sum())
         return kept
 
     def sensed(self, t, columns: dict) -> None:
@@ -129,10 +125,9 @@ def report_data(reader: RunReader | RunFiles, robot: Robot) -> tuple[dict, dict]
     first = next(iter(reader.messages()), None)
     origin_ns = first.log_time if first is not None else 0
     origin = origin_ns / 1e9
-    kinds = dict.fromkeys((*TISSUE_TOPICS, *TRUTH_STATES, "ground_truth/platform_pose"), StreamKind(POSE))
-    recorded = recorded_keys(reader, kinds)
+    recorded = recorded_keys(reader, (*TISSUE_KEYS, *TRUTH_STATES, "ground_truth/platform_pose"))
     reducers = _Reducers(origin, measured_from_sensed="ground_truth/joint_states" not in recorded)
-    tissue = bool(recorded & set(TISSUE_TOPICS))
+    tissue = bool(recorded.intersection(TISSUE_KEYS))
     if tissue:
         signals = load_signals(reader, coverage=False)
         for key, sink in reducers.sinks(recorded).items():
@@ -152,7 +147,7 @@ def report_data(reader: RunReader | RunFiles, robot: Robot) -> tuple[dict, dict]
                   "force_error": force_error, "leg_length_mean": reducers.leg_mean.result(),
                   "pose_mean": reducers.pose_mean.result()}
     for key, name in (("leg", "leg_lengths"), ("vib", "vib"), ("force", "force"), ("est", "est"), ("pose", "pose_xyz")):
-        if reducers.samples[key]:
+        if reducers.envelopes[key].samples:
             data[f"{key}_t"], data[name] = reducers.envelopes[key].result()
     if analysed is not None:
         data["window"] = _window_samples(signals, analysed, origin)

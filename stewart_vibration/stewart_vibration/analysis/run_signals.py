@@ -78,7 +78,7 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dic
              "vibration/joint_trajectory": StreamKind(STAMP), "/clock": StreamKind(STAMP),
              "platform/pose": StreamKind(POSE), "platform/tissue_wrench": StreamKind(WRENCH)}  # LEGACY_TRUTH's
     parts = reader.files if isinstance(reader, RunFiles) else [reader]
-    recorded = _recorded_keys(parts, kinds)
+    recorded = recorded_keys(reader, kinds)
     keep = {} if windows is None else _window_keep(windows, recorded)
     scan, feeds = None, [dict(sinks or {})]
     if robot is not None:
@@ -129,7 +129,8 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dic
 
 WINDOWED = ("ground_truth/joint_states", "legs/joint_states", "legs/force_estimate", "ground_truth/platform_pose",
             "platform/pose_estimate", "platform/pose")  # the 500 Hz streams a long run need not hold whole
-WRENCHES = ("ground_truth/tissue_wrench", "platform/external_wrench_estimate", "platform/tissue_wrench")
+TISSUE_KEYS = ("ground_truth/tissue_wrench", "platform/tissue_wrench")  # the applied tissue wrench (and its old name)
+WRENCHES = (*TISSUE_KEYS, "platform/external_wrench_estimate")
 
 
 def truth_key(recorded: set[str], truth: str, fallback: str) -> str:
@@ -152,15 +153,9 @@ def _each(sinks: list, *batch) -> None:
         sink(*batch)
 
 
-def recorded_keys(mcap_path, kinds) -> set[str]:
-    """The keys of ``kinds`` (topic keys) that a run (an open RunReader / RunFiles) holds messages of."""
-    return _recorded_keys(mcap_path.files if isinstance(mcap_path, RunFiles) else [mcap_path], kinds)
-
-
-def _recorded_keys(parts, kinds) -> set[str]:
-    """The keys of ``kinds`` that some file of the run holds messages of."""
-    return {key for part in parts for t in part.topics() if t.message_count
-            for key in [topic_key(t.topic, kinds)] if key is not None}
+def recorded_keys(reader: RunReader | RunFiles, keys) -> set[str]:
+    """The topic ``keys`` that some file of a run (an open RunReader / RunFiles) holds messages of."""
+    return {key for t in reader.topics() if t.message_count for key in [topic_key(t.topic, keys)] if key is not None}
 
 
 def _window_keep(windows, recorded: set[str]) -> dict:
@@ -171,7 +166,7 @@ def _window_keep(windows, recorded: set[str]) -> dict:
     def inside(times: np.ndarray) -> np.ndarray:
         return np.asarray(((times[:, None] >= spans[:, 0]) & (times[:, None] <= spans[:, 1])).any(axis=1), bool)
 
-    tissue = bool({"ground_truth/tissue_wrench", "platform/tissue_wrench"} & recorded)
+    tissue = bool(recorded.intersection(TISSUE_KEYS))
     return {key: inside for key in WINDOWED + (() if tissue else WRENCHES)}
 
 
