@@ -430,6 +430,20 @@ def test_an_output_folder_that_cannot_be_made_is_one_line(bad_files, nothing_sta
         refused_in_one_line(["run", "--out", blocker], capsys, f"--out {blocker}: exists and is not a folder")
 
 
+@pytest.mark.parametrize("left", ["run_20260101_000000.mcap", "metadata.yaml"])
+def test_run_refuses_an_output_folder_that_holds_another_run(bad_files, nothing_starts, capsys, tmp_path, left):
+    """An --out folder with another run's MCAP (or its bag metadata) is refused before anything starts: the
+    summary reads every MCAP of the folder as this run's. An empty existing folder is taken."""
+    earlier = tmp_path / "earlier"
+    earlier.mkdir()
+    (earlier / left).write_bytes(bad_files["good"].read_bytes() if left.endswith(".mcap") else b"x")
+    refused_in_one_line(["run", "--out", earlier], capsys, f"--out {earlier}: already holds a run", left)
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    from stewart_vibration.cli.run_cmd import _output_folder
+    assert _output_folder(str(empty)) == empty
+
+
 # -- numbers and names ---------------------------------------------------------------------------------------
 
 BAD_NUMBERS = ["nan", "inf", "-inf", "-1", "1e300", "abc", "", "0x10"]

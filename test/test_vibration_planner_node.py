@@ -219,10 +219,11 @@ def test_a_goal_streams_reports_feedback_and_its_cancel_ramps_out(robot, planner
     np.testing.assert_allclose(coef[0], gains * amp, atol=1e-3 * amp)  # signed: phase 0 (k>0) or pi (k<0)
     assert np.abs(coef[1]).max() < 1e-3 * amp
 
-    # feedback at 10 Hz (wall), each with the plan
+    # feedback at 10 Hz (wall), each with the plan; counted over 2 s so that one stall of either process on a
+    # busy machine (a few hundred ms) does not read as a missing stream
     count = len(goal.feedback)
-    client.spin_for(1.0)
-    assert len(goal.feedback) - count >= 8, len(goal.feedback) - count
+    client.spin_for(2.0)
+    assert len(goal.feedback) - count >= 14, len(goal.feedback) - count
     assert all(plan_t0(f.feedback.plan) == plan_t0(plan) for f in goal.feedback)
 
     # cancel: one last window ramping out from a sample the previous windows carried at full amplitude

@@ -131,13 +131,18 @@ def node_names(text: str) -> str:
 
 
 def _output_folder(given: str | None) -> Path:
-    """The run's output folder, created now (a path that cannot be a folder fails before any node starts):
-    ``given``, or a new runs/run_<stamp>/."""
+    """The run's output folder, created now (a path that cannot be a folder, or a folder that already holds a
+    run, fails before any node starts): ``given``, or a new runs/run_<stamp>/."""
     if given is None:
         return new_run_folder("runs")
     out = Path(given).expanduser()
     if out.exists() and not out.is_dir():
         raise InvalidInputError(f"--out {given}: exists and is not a folder")
+    earlier = sorted(p.name for p in out.glob("*.mcap")) if out.is_dir() else []
+    if earlier or (out / "metadata.yaml").exists():
+        # the summary reads every MCAP of the folder as one run's files: another run's would be judged with it
+        raise InvalidInputError(f"--out {given}: already holds a run ({', '.join(earlier) or 'metadata.yaml'}); "
+                                "give a new or empty folder")
     out.mkdir(parents=True, exist_ok=True)  # OSError (permissions, a file on the way): one line from main
     return out
 
