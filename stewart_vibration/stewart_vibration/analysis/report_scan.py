@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InvalidInputError
+from ..vibration.sine_fit import SineSums
 
 PLOT_BINS = 2000  # a whole-run line is drawn as this many min/max pairs at least, twice as many at most
 
@@ -151,17 +152,19 @@ class VibrationActivity:
 
 
 class ForceErrorScan:
-    """``fits.force_error`` without a frequency over a whole run whose estimates and measurements arrive in
-    batches: each measured sample within the estimates' span against the estimates linearly interpolated to its
-    time; RMS per leg, and the measured forces' half peak-to-peak as their amplitude."""
+    """``fits.force_error`` over a whole run whose estimates and measurements arrive in batches: each measured
+    sample within the estimates' span against the estimates linearly interpolated to its time; RMS per leg, and
+    as the measured forces' amplitude their half peak-to-peak, or with ``frequency`` (Hz) their fitted oscillation
+    (``SineSums`` over ``window``, s: the span the samples lie in)."""
 
-    def __init__(self, width: int = 6):
+    def __init__(self, width: int = 6, frequency: float | None = None, window: tuple[float, float] = (0.0, 1.0)):
         self.est_t, self.est = np.empty(0), np.empty((0, width))
         self.first_est = np.nan
         self.meas_t, self.meas = np.empty(0), np.empty((0, width))
         self.squares, self.count = np.zeros(width), 0
         self.high, self.low = np.full(width, -np.inf), np.full(width, np.inf)
         self.estimates = 0
+        self.sums = SineSums(frequency, width, window) if frequency else None
 
     def add_estimates(self, t, forces) -> None:
         """Estimated leg forces: times [n] (s), forces [n, 6] (N), in their recorded order."""
@@ -198,6 +201,8 @@ class ForceErrorScan:
             self.squares += ((est - fm) ** 2).sum(axis=0)
             self.count += tm.size
             self.high, self.low = np.maximum(self.high, fm.max(axis=0)), np.minimum(self.low, fm.min(axis=0))
+            if self.sums is not None:
+                self.sums.add(tm, fm)
         self.meas_t, self.meas = self.meas_t[~ready], self.meas[~ready]
         keep = max(int(np.searchsorted(self.est_t, newest, side="right")) - 1, 0)
         self.est_t, self.est = self.est_t[keep:], self.est[keep:]
@@ -205,11 +210,24 @@ class ForceErrorScan:
     def result(self) -> dict | None:
         """force_error's dict; None with fewer than four estimates. Raises InvalidInputError when fewer than four
         measured samples lie within the estimates' span (as force_error)."""
-        if self.estimates < 4:
+        return self._figures(self.estimates, self.squares, self.count, self.high - self.low, self.sums)
+
+    def combined(self, other: ForceErrorScan) -> dict | None:
+        """``result`` of this scan's samples and ``other``'s together (two parts of a run, each part's measured
+        samples against that part's estimates; the same frequency and window)."""
+        sums = self.sums.merged(other.sums) if self.sums is not None and other.sums is not None else None
+        high, low = np.maximum(self.high, other.high), np.minimum(self.low, other.low)
+        return self._figures(self.estimates + other.estimates, self.squares + other.squares,
+                             self.count + other.count, high - low, sums)
+
+    @staticmethod
+    def _figures(estimates: int, squares: np.ndarray, count: int, peak_to_peak: np.ndarray,
+                 sums: SineSums | None) -> dict | None:
+        if estimates < 4:
             return None
-        if self.count < 4:
+        if count < 4:
             raise InvalidInputError("force_error: the estimate and measurement do not overlap")
-        rms = np.sqrt(self.squares / self.count)
-        amplitude = (self.high - self.low) / 2
+        rms = np.sqrt(squares / count)
+        amplitude = sums.fit().amplitude if sums is not None else peak_to_peak / 2
         return {"rms_error_n": rms, "force_amplitude_n": amplitude, "relative_rms_error": rms / amplitude,
-                "worst_leg_relative": float((rms / amplitude).max()), "samples": int(self.count)}
+                "worst_leg_relative": float((rms / amplitude).max()), "samples": int(count)}

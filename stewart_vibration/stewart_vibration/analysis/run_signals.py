@@ -86,7 +86,7 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dic
         feeds.append({truth_key(recorded, "ground_truth/joint_states", "legs/joint_states"): scan.add_states,
                       truth_key(recorded, "ground_truth/platform_pose", "platform/pose"): scan.add_poses})
     streams, per_file = read_streams(parts, kinds, raw=("vibration/status", "kinematics/guard_status", "/diagnostics"),
-                                     counted=STREAM_TOPICS if coverage else (), sinks=_merged(feeds), keep=keep)
+                                     counted=STREAM_TOPICS if coverage else (), sinks=merged_sinks(feeds), keep=keep)
     got = streams.decoded
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         if not got[new][0].size:
@@ -139,8 +139,8 @@ def truth_key(recorded: set[str], truth: str, fallback: str) -> str:
     return truth if truth in recorded else fallback
 
 
-def _merged(feeds: list[dict]) -> dict:
-    """{key: callable}: every callable given for a key, called in turn."""
+def merged_sinks(feeds: list[dict]) -> dict:
+    """{key: callable}: every callable the ``feeds`` ({key: callable} each) give for a key, called in turn."""
     out: dict = {}
     for feed in feeds:
         for key, sink in feed.items():

@@ -22,7 +22,8 @@ from ..messages.diagnostic_status import decode_diagnostic_array
 from ..messages.joint_states import decode_joint_states_dropping_malformed
 from ..messages.stamped_doubles import decode_stamped_doubles
 
-BATCH_MESSAGES = 20_000  # raw messages held per topic before they are decoded together
+BATCH_MESSAGES = 2_000  # raw messages held per topic before they are decoded together: 2,000 read a run as fast as
+# 20,000 did (faster: the batch stays in cache) and hold ~60 MB less at once (seven 500 Hz topics pending)
 
 JOINTS, POSE, WRENCH, STAMP = "joints", "pose", "wrench", "stamp"
 

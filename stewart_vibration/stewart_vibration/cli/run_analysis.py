@@ -23,9 +23,13 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
     from ..analysis.run_verdict import check_bounds, limit_summary
     from ..analysis.tissue_figures import summarize_tissue
     from ..analysis.vibration_figures import summarize_vibration
+    from ..analysis.vibration_scan import held_windows
 
-    try:  # the 500 Hz streams only around the vibrations; the limits are checked over every state as it is read
-        signals = load_signals(out, windows=vibration_windows(record), robot=robot)
+    try:  # the 500 Hz streams only around the vibrations (a long one's ends: its middle is summed in a second
+        # read); the limits are checked over every state as it is read
+        windows, spans = held_windows(vibration_spans(record), WINDOW_MARGIN_S, streaming=not tissue_recorded(out))
+        signals = load_signals(out, windows=windows, robot=robot)
+        streamed = steady_streams(robot, record, signals, spans, out)
     except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
         summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
         return
@@ -37,11 +41,10 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
     summary["recording"] = recording_coverage(signals, span)
     summary["restarts"] = restart_gaps(signals, record.restarts)
     summary["problems"] += recording_problems(summary["recording"], summary["restarts"])
-    nominal = robot.home_pose
-    for step_move, vib in pair_vibrations(record):
-        nominal = np.asarray(step_move["target"]) if step_move else nominal
+    for (nominal, vib), stream in zip(nominal_poses(robot, record), streamed, strict=True):
         try:
-            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
+            result = summarize_vibration(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]),
+                                         stream)
         except Exception as exc:  # noqa: BLE001 - e.g. interrupted before it vibrated
             summary["problems"].append(f"vibration starting at {vib['start_time']:.3f} s cannot be analysed: "
                                        f"{type(exc).__name__}: {exc}")
@@ -64,15 +67,45 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
 WINDOW_MARGIN_S = 1.5  # s of states kept before and after a vibration: its start is found up to 1 s early
 
 
-def vibration_windows(record) -> list[tuple[float, float]]:
-    """The spans (sim s) whose states the figures of the run's vibrations read: each from its start (or the
-    start the runner asked for) to its end, WINDOW_MARGIN_S either side."""
-    windows = []
-    for vib in record.vibrations:
-        start = float(vib.get("t0", vib["start_time"]))
-        duration = float(vib.get("parameters", {}).get("duration_s", 0.0))
-        windows.append((start - WINDOW_MARGIN_S, start + duration + WINDOW_MARGIN_S))
-    return windows
+def vibration_spans(record) -> list[tuple[float, float]]:
+    """(start, duration) (sim s) of each vibration of the run: from its start (or the start the runner asked
+    for), its planned duration."""
+    return [(float(vib.get("t0", vib["start_time"])), float(vib.get("parameters", {}).get("duration_s", 0.0)))
+            for vib in record.vibrations]
+
+
+def nominal_poses(robot, record) -> list:
+    """Each vibration with the pose it was planned at: the target of the last move that preceded it (home
+    before any move)."""
+    nominal, out = robot.home_pose, []
+    for step_move, vib in pair_vibrations(record):
+        nominal = np.asarray(step_move["target"]) if step_move else nominal
+        out.append((nominal, vib))
+    return out
+
+
+def steady_streams(robot, record, signals: dict, spans: list, run: Path) -> list:
+    """The middle of each long vibration, summed in a second read of the run (``vibration_scan.stream_steady``);
+    None for a vibration held whole, or one whose frame cannot be found (its figures then say why)."""
+    from ..analysis.vibration_figures import vibration_frame
+    from ..analysis.vibration_scan import stream_steady
+
+    frames = []
+    for (nominal, vib), span in zip(nominal_poses(robot, record), spans, strict=True):
+        try:
+            frame = vibration_frame(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
+        except Exception:  # noqa: BLE001 - summarize_vibration says why, with the same frame
+            frame, span = None, None
+        frames.append((frame, span))
+    return stream_steady(run, frames)
+
+
+def tissue_recorded(run: Path) -> bool:
+    """Whether the run recorded an applied tissue wrench (its figures compare every estimate with it)."""
+    from ..analysis.run_signals import TISSUE_KEYS, recorded_keys
+    from ..mcap_log.reader import open_run
+
+    return bool(recorded_keys(open_run(run, allow_truncated=True), TISSUE_KEYS))
 
 
 def pair_vibrations(record):
