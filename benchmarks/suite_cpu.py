@@ -163,8 +163,9 @@ def measure_lag(domain: int, seconds: float) -> dict:
     return out
 
 
-def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: float = 3.0,
-                  lag_s: float = 7.5, plant: str = "ideal") -> dict:
+def start_vibrating(vibration_s: float, out: Path, plant: str = "ideal"):
+    """The main job started with a vibration of ``vibration_s`` (s) on its own ROS domain, returned once it
+    vibrates: (its process, the lines it printed so far (still growing), the domain, the domain's lock)."""
     from stewart_vibration.runtime.processes import claim_ros_domain
 
     domain, lock = claim_ros_domain()
@@ -176,16 +177,21 @@ def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: floa
     vibrating = threading.Event()
 
     def read() -> None:
-        for line in proc.stdout:
+        for line in proc.stdout or []:
             lines.append(line)
             if ": vibrating: started" in line:
                 vibrating.set()
 
-    reader = threading.Thread(target=read, daemon=True)
-    reader.start()
+    threading.Thread(target=read, daemon=True).start()
     if not vibrating.wait(timeout=180):
         proc.kill()
         raise RuntimeError("the vibration never started:\n" + "".join(lines[-30:]))
+    return proc, lines, domain, lock
+
+
+def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: float = 3.0,
+                  lag_s: float = 7.5, plant: str = "ideal") -> dict:
+    proc, lines, domain, lock = start_vibrating(vibration_s, out, plant)
     time.sleep(settle_s)
     pids = [proc.pid, *children(proc.pid)]
     names = {pid: process_name(pid) for pid in pids}
@@ -204,7 +210,7 @@ def measure_suite(vibration_s: float, window_s: float, out: Path, settle_s: floa
     lag = measure_lag(domain, lag_s) if vibration_s > settle_s + window_s + lag_s + 2.0 else {}
     code = proc.wait(timeout=600)
     lock.close()
-    reader.join(timeout=5)
+    time.sleep(0.5)  # the last lines reach ``lines``
     summary_path = out / "summary.json"
     summary = json.loads(summary_path.read_text()) if summary_path.exists() else {}
     return {"exit_code": code, "window_s": wall, "cores": per_node, "total_cores": sum(per_node.values()),
