@@ -9,6 +9,7 @@ from types import SimpleNamespace
 from stewart_vibration.errors import InvalidInputError
 from stewart_vibration.ui.command_queue import (
     CALL_TIMEOUT_S,
+    ESTOP_DISCOVERY_S,
     ESTOP_RESEND_S,
     CommandInbox,
     EstopFanOut,
@@ -189,9 +190,29 @@ def test_an_e_stop_is_given_up_after_the_time_out_and_refused_when_there_is_no_s
                         "message": f"no answer from {SERVICE} within 10.0 s"}] * 2
     assert fan.call is None and service.forgotten[-1] is service.sent[-1]
     service.ready = False
-    fan.tick([replies.append])
+    fan.tick([replies.append])  # no server seen yet: it waits for one to be discovered, then gives up
+    service.now += ESTOP_DISCOVERY_S - 0.01
+    fan.tick([])
+    assert len(replies) == 2 and fan.call is None and len(service.sent) == 10
+    service.now += 0.01
+    fan.tick([])
     assert replies[-1]["message"] == f"service {SERVICE} is not available (is its node running?)"
-    assert fan.call is None and len(service.sent) == 10
+    assert fan.call is None and len(service.sent) == 10 and fan.waiting is None
+
+
+def test_an_e_stop_pressed_before_its_service_is_discovered_is_sent_once_it_is():
+    """A page can press e-stop while the UI's client has not matched the emulator's service yet: the request
+    waits for the server instead of being refused (a request sent before the match would be lost)."""
+    service, replies = EstopService(ready=False), []
+    fan, events = service.fan_out()
+    fan.tick([replies.append])
+    fan.tick([replies.append])  # a second press while waiting: answered by the same call
+    assert service.sent == [] and replies == []
+    service.now, service.ready = ESTOP_DISCOVERY_S - 0.5, True
+    fan.tick([])
+    assert len(service.sent) == 1 and len(events.view()) == 1
+    service.sent[0].answer(trigger())
+    assert replies == [{"ok": True, "message": "emergency stop latched"}] * 2 and fan.waiting is None
 
 
 def test_a_failed_e_stop_call_says_why():

@@ -21,6 +21,9 @@ from .suite_status import Event, EventLog
 
 CALL_TIMEOUT_S = 10.0
 ESTOP_RESEND_S = 1.0  # an unanswered e-stop call is sent again after this (its answer may be lost; it is idempotent)
+# how long an e-stop waits for its service to be discovered before it is answered as unavailable: a page can press
+# it while the UI's client has not yet matched the emulator's service, and a request sent before that is lost
+ESTOP_DISCOVERY_S = 3.0
 ESTOP = "estop"
 
 Reply = Callable[[dict], None]
@@ -155,20 +158,27 @@ class EstopCall:
 class EstopFanOut:
     """The pages' e-stops: one call of ``service`` at a time (``send()`` returns its future; ``forget(future)``
     drops an earlier send), sent again every ESTOP_RESEND_S while unanswered (it is idempotent; an answer can
-    be lost), failed after CALL_TIMEOUT_S. A reset between two e-stops cannot swallow the second."""
+    be lost), failed after CALL_TIMEOUT_S. While the service is not yet discovered the e-stops wait for it, up to
+    ESTOP_DISCOVERY_S, and are answered as unavailable after that. A reset between two e-stops cannot swallow the
+    second."""
 
     def __init__(self, service: str, ready: Callable[[], bool], send: Callable[[], Any],
                  forget: Callable[[Any], None], events: EventLog, clock: Callable[[], float] = time.monotonic):
         self.service, self.ready, self.send, self.forget = service, ready, send, forget
         self.events, self.clock = events, clock
         self.call: EstopCall | None = None
+        self.waiting: tuple[float, list[Reply]] | None = None  # (give up at (s), replies): no server seen yet
 
     def tick(self, replies: list[Reply]) -> None:
         """The e-stops that came since the last tick (their replies); resend or give up the call in flight."""
         if replies and self.call is not None:
             self.call.again.extend(replies)
+        elif replies and self.waiting is not None:
+            self.waiting[1].extend(replies)
         elif replies:
-            self._start(replies)
+            self._requested(replies)
+        if self.waiting is not None:
+            self._send_when_ready()
         call = self.call
         if call is None:
             return
@@ -183,15 +193,20 @@ class EstopFanOut:
             call.future, call.sent = self.send(), now
             call.future.add_done_callback(self.answered)
 
-    def _start(self, replies: list[Reply]) -> None:
-        self.events.add(Event("planning_ui", "emergency stop requested from the page", "ERROR"))
-        if not self.ready():
+    def _send_when_ready(self) -> None:
+        """The waiting e-stops: one call once the service is discovered, or unavailable when it was not in time."""
+        if self.waiting is None:
+            return
+        give_up, replies = self.waiting
+        if self.ready():
+            self.waiting = None
+            now = self.clock()
+            self.call = EstopCall(self.send(), now, now + CALL_TIMEOUT_S, replies)
+            self.call.future.add_done_callback(self.answered)
+        elif self.clock() >= give_up:
+            self.waiting = None
             for reply in replies:
                 reply(unavailable(self.service))
-            return
-        now = self.clock()
-        self.call = EstopCall(self.send(), now, now + CALL_TIMEOUT_S, replies)
-        self.call.future.add_done_callback(self.answered)
 
     def answered(self, future) -> None:
         """A send's future is done: its answer goes to the call's replies (an earlier send of a call sent again,
@@ -207,4 +222,10 @@ class EstopFanOut:
         for reply in call.replies:
             reply(result)
         if call.again:
-            self._start(call.again)
+            self._requested(call.again)
+            self._send_when_ready()
+
+    def _requested(self, replies: list[Reply]) -> None:
+        """New e-stops with no call in flight: logged, and waiting for the service (``_send_when_ready``)."""
+        self.events.add(Event("planning_ui", "emergency stop requested from the page", "ERROR"))
+        self.waiting = (self.clock() + ESTOP_DISCOVERY_S, list(replies))
