@@ -15,6 +15,8 @@ import numpy as np
 FIT_WINDOW_S = 0.15  # estimate history fitted against the progress (s of sim time)
 MIN_FIT_SAMPLES = 8
 MAX_EXTRAPOLATION = 5.0  # the fit is extrapolated at most this many times its own span of progress
+TREND_SIGNIFICANCE = 3.0  # a mean rise of up to this many standard errors is noise: not extrapolated
+PROVEN_TREND = 10.0  # from this many standard errors on the trend is extrapolated whole (a tissue's is ~100)
 MAX_GROWTH_EXPONENT = 2.0  # the exponential continuation of the fit grows at most e^2 - 1 times its slope / rate
 
 
@@ -23,7 +25,11 @@ def predict_load(samples, column: int, target_progress: float) -> tuple[float, f
     (t, sigma, |F|, |M|) samples: quadratic least squares in sigma around the latest progress (linear with
     few samples or little spread; the latest value when the progress does not change), extrapolated with the
     fit's slope F' and curvature F'' at the latest progress as an exponential while the load rises
-    (F + F' (exp(r d) - 1) / r, r = F''/F', d the progress ahead)."""
+    (F + F' (exp(r d) - 1) / r, r = F''/F', d the progress ahead); an easing load is never predicted to
+    rise. A mean change over the window within TREND_SIGNIFICANCE standard errors of none is noise, not a
+    trend: then the prediction is the fitted level plus that many noise deviations (never below the latest
+    value), so a load already at its limit is still stopped; from there to PROVEN_TREND standard errors the
+    rise's extrapolation is phased in."""
     rows = np.asarray(samples, float)
     now = float(rows[-1, column])
     if len(rows) < MIN_FIT_SAMPLES:
@@ -34,19 +40,39 @@ def predict_load(samples, column: int, target_progress: float) -> tuple[float, f
     if span < 1e-6:
         return now, now
     degree = 2 if len(rows) >= 2 * MIN_FIT_SAMPLES and span > 0.2 * ahead else 1
-    coef = np.polyfit(x / span, rows[:, column], degree)
+    u, load = x / span, rows[:, column]
+    coef = np.polyfit(u, load, degree)
+    residual = load - np.polyval(coef, u)
+    noise = float(np.sqrt(residual @ residual / (len(u) - degree - 1)))
     # a: how far ahead, in spans of the fitted progress; capped, since a trend seen over a sliver of progress (a
     # fast move's first estimates, model error of a few N) extrapolated a hundred spans ahead predicts kilonewtons
     a = min(ahead / span, MAX_EXTRAPOLATION)
-    slope, curvature = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0)
     polynomial = float(np.polyval(coef, a) - np.polyval(coef, 0.0))
+    rise = _mean_rise_significance(u, load, noise)
+    if rise < -TREND_SIGNIFICANCE:  # easing over the window: never predicted to rise
+        return now, now + min(polynomial, 0.0)
+    if rise <= TREND_SIGNIFICANCE:  # a trend the noise explains: the fitted level now, raised by its noise band
+        return now, max(now, float(coef[-1]) + TREND_SIGNIFICANCE * noise)
+    proven = min((rise - TREND_SIGNIFICANCE) / (PROVEN_TREND - TREND_SIGNIFICANCE), 1.0)
+    slope, curvature = float(coef[-2]), (2.0 * float(coef[0]) if degree == 2 else 0.0)
     if slope <= 0 or abs(curvature) < 1e-9 * slope:  # not rising here, or straight: the polynomial itself
-        return now, now + polynomial
+        return now, now + proven * polynomial
     # rising: continue with the local growth rate r = F''/F' (exponential stiffening keeps it): F' (e^{ra} - 1)/r,
     # never below the quadratic (its Taylor series has the quadratic's terms and more of the same sign). r a is
     # capped: on a load that is mostly noise (no tissue) r is noise over noise, and e^{ra} would run away
     rate = curvature / slope
-    return now, now + max(polynomial, slope * float(np.expm1(min(rate * a, MAX_GROWTH_EXPONENT))) / rate)
+    return now, now + proven * max(polynomial, slope * float(np.expm1(min(rate * a, MAX_GROWTH_EXPONENT))) / rate)
+
+
+def _mean_rise_significance(u: np.ndarray, load: np.ndarray, noise: float) -> float:
+    """The t statistic of the load's mean rise over the window: its straight line's slope per span of progress
+    ``u`` over the slope's standard error, with ``noise`` the fit's residual deviation (+-inf without noise)."""
+    centred = u - u.mean()
+    sxx = float(centred @ centred)
+    slope = float(centred @ load) / sxx
+    if noise <= 0:
+        return float(np.copysign(np.inf, slope)) if slope else 0.0
+    return slope * np.sqrt(sxx) / noise
 
 
 @dataclass(frozen=True)
