@@ -33,28 +33,6 @@ from .tissue_figures import tissue_leg_forces
 STEADY_MARGIN_S = 0.2  # skip this much after the ramp-in and before the ramp-out
 
 
-def active_duration(times, vib, leg_amplitudes, frequency: float, start: float, end: float) -> float:
-    """Time (s) within [start, end] during which the vibration units moved at >= half their planned
-    amplitude: the peak |vib_i| over each period-long bin, against 0.5 |k_i| A (the planned active time of
-    a ramped vibration is duration - ramp).
-
-    Only legs planned at more than 20 % of the largest amplitude count; all of them must reach half.
-
-    Args:
-        times: sample times [n] (s).
-        vib: vib_* displacements [n, 6] (m).
-        leg_amplitudes: planned leg amplitudes |k_i| A [6] (m).
-        frequency: the vibration frequency (Hz).
-        start: start of the interval (s).
-        end: end of the interval (s).
-
-    Returns:
-        The active time (s, a whole number of periods); 0.0 with fewer than 2 samples in [start, end].
-    """
-    peaks, samples = period_peaks(times, vib, frequency, start, end)
-    return active_time(peaks, leg_amplitudes, frequency) if samples >= 2 else 0.0
-
-
 def period_peaks(times, vib, frequency: float, start: float, end: float) -> tuple[np.ndarray, int]:
     """(the peak |vib_i| [bins, 6] (m) over each period-long bin of [start, end] (s), 0 in a bin without samples;
     the samples in [start, end]). Peaks of parts of a run combine by their maximum."""
@@ -67,8 +45,9 @@ def period_peaks(times, vib, frequency: float, start: float, end: float) -> tupl
 
 
 def active_time(peaks: np.ndarray, leg_amplitudes, frequency: float) -> float:
-    """The active time (s) of period peaks [bins, 6] (``period_peaks``): the bins where every leg planned at more
-    than 20 % of the largest amplitude reaches half its planned amplitude, a period each."""
+    """The active time (s, a whole number of periods) of period peaks [bins, 6] (``period_peaks``): the bins where
+    every leg planned at more than 20 % of the largest amplitude |k_i| A (``leg_amplitudes`` [6], m) reaches half
+    its planned amplitude, a period each (the planned active time of a ramped vibration is duration - ramp)."""
     leg_amplitudes = np.asarray(leg_amplitudes, float)
     strong = leg_amplitudes > 0.2 * leg_amplitudes.max()
     half = (peaks[:, strong] >= 0.5 * leg_amplitudes[strong]).all(axis=1)
@@ -193,7 +172,8 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
     Raises:
         KeyError: a setting is missing; ValueError: no window of the vibration was recorded.
     """
-    frame = vibration_frame(robot, signals, nominal_pose, settings, start_time)
+    frame = streamed.frame if streamed is not None else vibration_frame(robot, signals, nominal_pose, settings,
+                                                                        start_time)
     plan, frequency, start, (t0, t1) = frame.plan, frame.frequency, frame.start, frame.window
     out = {"frequency_hz": frequency, "planned_amplitude_m": plan.amplitude, "planned_direction": plan.direction,
            "start_time_s": start, "window_s": [t0, t1], "gains": plan.gains}
@@ -231,14 +211,10 @@ def summarize_vibration(robot: Robot, signals: dict, nominal_pose, settings: dic
         "leg_frequency_error_hz": float(np.abs(leg_freq - frequency).max()),
     })
     planned_active = frame.duration - frame.ramp
-    if streamed is None:
-        measured_active = active_duration(jt, joints["position"][:, 6:12], plan.leg_amplitudes, frequency, start,
-                                          frame.activity_end)
-    else:
-        peaks, samples = period_peaks(jt, joints["position"][:, 6:12], frequency, start, frame.activity_end)
-        samples += streamed.peak_samples
-        measured_active = active_time(np.maximum(peaks, streamed.peaks), plan.leg_amplitudes, frequency) \
-            if samples >= 2 else 0.0
+    peaks, samples = period_peaks(jt, joints["position"][:, 6:12], frequency, start, frame.activity_end)
+    if streamed is not None:
+        peaks, samples = np.maximum(peaks, streamed.peaks), samples + streamed.peak_samples
+    measured_active = active_time(peaks, plan.leg_amplitudes, frequency) if samples >= 2 else 0.0
     out.update({"active_duration_s": measured_active, "planned_active_duration_s": planned_active,
                 "active_duration_error_s": abs(measured_active - planned_active)})
     out["force"] = leg_force_error(robot, signals, t0, t1, frequency, streamed.force if streamed else None)

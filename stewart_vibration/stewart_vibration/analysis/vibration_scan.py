@@ -73,11 +73,16 @@ class SteadyStream:
         self.frame, self.span = frame, span
         f, window = frame.frequency, frame.window
         self.pose, self.estimate = SineSums(f, 3, window), SineSums(f, 3, window)
-        self.hinge, self.sensed = SineSums(f, 6, window), SineSums(f, 6, window)
+        self.sensed = SineSums(f, 6, window)
         self.first, self.second = SineSums(f, 6, window), SineSums(f, 6, window)
         self.peaks, self.peak_samples = period_peaks(np.empty(0), np.empty((0, 6)), f, frame.start,
                                                      frame.activity_end)
         self.force = ForceErrorScan(frequency=f, window=window)
+
+    @property
+    def hinge(self) -> SineSums:
+        """The true hinge lengths' sums over the whole steady window: both halves."""
+        return self.first.merged(self.second)
 
     def _in(self, t: np.ndarray) -> np.ndarray:
         """The samples in the streamed span and the steady window."""
@@ -97,7 +102,6 @@ class SteadyStream:
         self.peak_samples += samples
         sel = self._in(t)
         hinge = position[sel, :6] + position[sel, 6:12]
-        self.hinge.add(t[sel], hinge)
         first = t[sel] < 0.5 * sum(self.frame.window)
         self.first.add(t[sel][first], hinge[first])
         self.second.add(t[sel][~first], hinge[~first])

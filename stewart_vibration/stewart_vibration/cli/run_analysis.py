@@ -24,12 +24,14 @@ def summarize(robot, record, summary: dict, scenario, out: Path, robot_config: s
     from ..analysis.tissue_figures import summarize_tissue
     from ..analysis.vibration_figures import summarize_vibration
     from ..analysis.vibration_scan import held_windows
+    from ..mcap_log.reader import open_run
 
     try:  # the 500 Hz streams only around the vibrations (a long one's ends: its middle is summed in a second
         # read); the limits are checked over every state as it is read
-        windows, spans = held_windows(vibration_spans(record), WINDOW_MARGIN_S, streaming=not tissue_recorded(out))
-        signals = load_signals(out, windows=windows, robot=robot)
-        streamed = steady_streams(robot, record, signals, spans, out)
+        run = open_run(out, allow_truncated=True)
+        windows, spans = held_windows(vibration_spans(record), WINDOW_MARGIN_S, streaming=not tissue_recorded(run))
+        signals = load_signals(run, windows=windows, robot=robot)
+        streamed = steady_streams(robot, record, signals, spans, run)
     except Exception as exc:  # noqa: BLE001 - an unreadable log is a failed run, said in one line
         summary["problems"].append(f"the MCAP cannot be analysed: {type(exc).__name__}: {exc}")
         return
@@ -84,28 +86,31 @@ def nominal_poses(robot, record) -> list:
     return out
 
 
-def steady_streams(robot, record, signals: dict, spans: list, run: Path) -> list:
-    """The middle of each long vibration, summed in a second read of the run (``vibration_scan.stream_steady``);
-    None for a vibration held whole, or one whose frame cannot be found (its figures then say why)."""
+def steady_streams(robot, record, signals: dict, spans: list, run) -> list:
+    """The middle of each long vibration, summed in a second read of the open ``run``
+    (``vibration_scan.stream_steady``); None for a vibration held whole, or one whose frame cannot be found (its
+    figures then say why)."""
     from ..analysis.vibration_figures import vibration_frame
     from ..analysis.vibration_scan import stream_steady
 
     frames = []
     for (nominal, vib), span in zip(nominal_poses(robot, record), spans, strict=True):
-        try:
-            frame = vibration_frame(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
-        except Exception:  # noqa: BLE001 - summarize_vibration says why, with the same frame
-            frame, span = None, None
+        frame = None
+        if span is not None:  # a vibration held whole needs no frame here
+            try:
+                frame = vibration_frame(robot, signals, nominal, vib["parameters"], vib.get("t0", vib["start_time"]))
+            except Exception:  # noqa: BLE001 - summarize_vibration says why, with the same frame
+                span = None
         frames.append((frame, span))
     return stream_steady(run, frames)
 
 
-def tissue_recorded(run: Path) -> bool:
-    """Whether the run recorded an applied tissue wrench (its figures compare every estimate with it)."""
+def tissue_recorded(run) -> bool:
+    """Whether the run (an open RunReader / RunFiles) recorded an applied tissue wrench (its figures compare every
+    estimate with it)."""
     from ..analysis.run_signals import TISSUE_KEYS, recorded_keys
-    from ..mcap_log.reader import open_run
 
-    return bool(recorded_keys(open_run(run, allow_truncated=True), TISSUE_KEYS))
+    return bool(recorded_keys(run, TISSUE_KEYS))
 
 
 def pair_vibrations(record):
