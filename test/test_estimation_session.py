@@ -10,6 +10,7 @@ import pytest
 from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.estimation import ForceEstimator
+from stewart_vibration.estimation.delivered_units import FIT_WINDOW_S
 from stewart_vibration.kinematics import inverse_kinematics
 from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
@@ -75,10 +76,17 @@ def test_model_matches_the_emulator_through_the_estop(robot, run):
     assert (np.sqrt((err[vibrating] ** 2).mean(axis=0)) / amplitude).max() < 0.01
     after = t > run["estop"] + 0.1  # units at rest after the e-stop ramp: the model must know they stopped
     assert (err[after].max(axis=0) / amplitude).max() < 0.01
-    ignoring = ForceEstimator(robot)  # the old mirror's failure: assumes the vibration went on
+    ignoring = ForceEstimator(robot)  # the old mirror's failure: assumes the vibration went on ...
+    ignoring.delivered.add = lambda *_args: None  # ... and that the legs follow their demands
     ignoring.command_vibration(run["traj"], now=0.0)
     wrong = ignoring.estimate(t, struts, vib, strut_rates, vib_rates, eff)
     assert (np.abs(wrong.forces - eff)[after].max(axis=0) / amplitude).max() > 0.3
+    # the same mirror with the legs' response fitted from the sensors sees the units stop within its fit window
+    sensing = ForceEstimator(robot)
+    sensing.command_vibration(run["traj"], now=0.0)
+    seen = sensing.estimate(t, struts, vib, strut_rates, vib_rates, eff)
+    later = t > run["estop"] + 0.1 + FIT_WINDOW_S
+    assert (np.abs(seen.forces - eff)[later].max(axis=0) / amplitude).max() < 0.01
 
 
 def test_pose_is_where_strut_plus_vibration_unit_puts_the_platform(robot):

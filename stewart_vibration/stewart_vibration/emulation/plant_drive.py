@@ -94,6 +94,7 @@ class PlantDrive:
         self.dt = float(m.opt.timestep)
         self.strut_forces = np.zeros(6)
         self.unit_forces = np.zeros(6)
+        self.transmitted_forces = np.zeros(6)  # through the struts at the last step (``_transmitted``)
         self.last_accel = np.zeros(6)
         self._integral = np.zeros(6)
         self._previous_encoder = self.encoders()
@@ -162,6 +163,7 @@ class PlantDrive:
         self._previous_reference = self._previous_encoder.copy()
         self._integral = strut / (self.ki * self.dt)
         self.strut_forces, self.unit_forces = strut, coil
+        self.transmitted_forces = strut.copy()  # at rest, no friction: the rotor takes nothing
         x = self.data.qpos[self.vib_q]
         self._unit_reading = x.copy()
         self._previous_unit_reading = x.copy()
@@ -176,8 +178,21 @@ class PlantDrive:
         return np.hstack([np.asarray(lengths) - vib, vib])
 
     def first_force(self, controls: np.ndarray) -> np.ndarray:
-        """The struts' forces (6,) N the last step applied (what the load cells see)."""
-        return self.strut_forces.copy()
+        """The axial forces (6,) N the struts transmitted at the last step (what the load cells see)."""
+        return self.transmitted_forces.copy()
+
+    def _transmitted(self, servo: np.ndarray) -> np.ndarray:
+        """The axial force (6,) N each strut's piston receives across its slide at the step MuJoCo just took (its
+        forces and accelerations are the step's): the servo's force, plus the screw's viscous and Coulomb
+        friction, less what the reflected rotor mass takes to accelerate. An in-line load cell at the piston
+        reads this, not the motor's force: at 35 Hz the rotor's share is about half of it."""
+        m, d = self.model, self.data
+        n = d.nefc
+        friction = np.zeros(m.nv)
+        rows = d.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF
+        np.add.at(friction, d.efc_id[:n][rows], d.efc_force[:n][rows])
+        v = self.slide_v
+        return servo + d.qfrc_passive[v] + friction[v] - m.dof_armature[v] * d.qacc[v]
 
     def run(self, controls: np.ndarray) -> None:
         """One physics step per row of ``controls`` [n, 12] (strut references, unit demands)."""
@@ -204,3 +219,4 @@ class PlantDrive:
             self.strut_forces, self.unit_forces = forces, unit
             step(m, d)
         self.last_accel = d.qacc[self.slide_v].copy()
+        self.transmitted_forces = self._transmitted(self.strut_forces)

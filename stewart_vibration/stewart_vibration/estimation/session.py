@@ -6,8 +6,13 @@ its safety ramps as the emulator reports them on vibration/status -- and turns b
 states into modelled leg forces and the external wrench:
 
     pose = FK(leg_i + vib_i) (warm-started from the previous batch),
-    twist = J^-1 L_dot (measured), accel = J^-1 (L_ddot_commanded - c),
-    F_model = leg_forces(pose, twist, accel), W_ext = -J^T (F_measured - F_model).
+    twist = J^-1 L_dot (measured), accel = J^-1 (L_ddot - c),
+    F_model = leg_forces(pose, twist, accel), W_ext = -J^T (F_measured - F_model),
+
+with L_ddot the struts' commanded accelerations plus what the legs deliver of the units' demanded ones
+(``delivered_units``: fitted from the sensors, so a unit that answers its demand with its own gain and phase is
+modelled as it moves). The unit sensors' readings are carried forward by ``unit_sensor_latency_s``
+(``sensed_lengths``).
 
 A batch gives the same forces as feeding its states one by one (FK converges to 1e-12 m either way).
 """
@@ -28,7 +33,9 @@ from ..emulation.vibration_status import STRUT_STOP_CAUSES
 from ..errors import InvalidInputError, VibrationLimitError
 from ..kinematics import forward_kinematics, jacobian
 from ..robot import Robot
+from .delivered_units import DeliveredUnits
 from .motion import external_wrench, platform_accel, platform_twist
+from .sensed_lengths import sensed_leg_lengths
 
 # FK converged to 1e-14 m: a batch (one warm start for all) and single states (each warm-started from the
 # previous) then land on the same pose to ~1e-15 m, so their forces agree to ~1e-13 N.
@@ -54,8 +61,10 @@ class ForceEstimator:
     """Commands in, states in (batches), modelled forces out; see the module docstring."""
 
     def __init__(self, robot: Robot, vibration_ramp_s: float = 0.05, watchdog_s: float = 0.5,
-                 rms_window_s: float = 1.0):
+                 rms_window_s: float = 1.0, unit_sensor_latency_s: float = 0.0):
         self.robot = robot
+        self.unit_sensor_latency_s = float(unit_sensor_latency_s)
+        self.delivered = DeliveredUnits()
         # the emulator's checks too: every window on the topic arrives here, also those the emulator refuses (one
         # 1e4 s ahead made this mirror command metres), so refuse what it refuses
         self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s=np.inf)
@@ -123,9 +132,10 @@ class ForceEstimator:
         """Modelled forces for states [n]: stamps (s), strut and vibration positions / rates [n, 6]
         (m, m/s), measured axial forces [n, 6] (N; None or NaN rows = not measured)."""
         stamps = np.asarray(stamps, float)
-        struts, vib = np.asarray(struts, float), np.asarray(vib, float)
-        lengths = struts + vib
-        rates = np.asarray(strut_rates, float) + np.asarray(vib_rates, float)
+        struts, vib, vib_rates = np.asarray(struts, float), np.asarray(vib, float), np.asarray(vib_rates, float)
+        units = sensed_leg_lengths(np.zeros_like(vib), vib, vib_rates, self.unit_sensor_latency_s)
+        lengths = struts + units
+        rates = np.asarray(strut_rates, float) + vib_rates
         self._last_struts = struts[-1]
         self.state_time = float(stamps[-1])
         if self.struts is None:
@@ -143,7 +153,9 @@ class ForceEstimator:
         times = stamps[ok]
         jac = jacobian(self.robot, pose)
         twist = platform_twist(self.robot, pose, rates[ok], jac)
-        accel_legs = self.struts.sample(times)[2] + self.vibration.sample(times)[2]
+        strut_command, demand = self.struts.sample(times), self.vibration.sample(times)
+        self.delivered.add(times, struts[ok] - strut_command[0] + units[ok], demand)
+        accel_legs = strut_command[2] + self.delivered.accelerations(demand)
         accel = platform_accel(self.robot, pose, twist, accel_legs, jac)
         forces = leg_forces(self.robot, pose, twist, accel)
         self.pose = pose[-1]

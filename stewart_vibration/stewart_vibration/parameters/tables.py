@@ -135,6 +135,9 @@ LEG_FORCE_ESTIMATOR = (
       "start)", "s", 0.001, 0.5, read_only=True),
     P("batch_size", "integer", 10, "states processed together as soon as this many have queued (read at start)",
       "", 1, 1000, read_only=True),
+    P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
+      "firmware's control period; the units' data sheet): the sensed unit motion is carried forward by it (read at "
+      "start)", "s", 0.0, 0.01, read_only=True),
 )
 
 MCAP_RECORDER = (
