@@ -58,8 +58,12 @@ def spoil(robot, kind):
         pos[:, 0] += ramp
         value, name = 0.03 + 0.0, "strut velocity"
     elif kind == "strut acceleration":
-        dt = t - t[i]  # leg 2 accelerates at 0.3 m/s^2 for 0.05 s, then goes on at the 15 mm/s it reached
-        pos[:, 1] += np.where(dt < 0, 0.0, np.where(dt < 0.05, 0.15 * dt ** 2, 0.15 * 0.05 ** 2 + 0.015 * (dt - 0.05)))
+        # leg 2, where the heave is at rest (102 s): 1 s easing to -18 mm/s, 0.3 m/s^2 for 0.12 s (longer than the
+        # drive band's averages and stencil: it is read whole), 1 s easing back to rest; under the speed limit
+        accel = np.select([(t >= 100.88) & (t < 101.88), (t >= 101.88) & (t < 102.0), (t >= 102.0) & (t < 103.0)],
+                          [-0.018, 0.3, -0.018], 0.0)
+        velocity = np.concatenate([[0.0], np.cumsum(0.5 * (accel[1:] + accel[:-1]) / RATE)])
+        pos[:, 1] += np.concatenate([[0.0], np.cumsum(0.5 * (velocity[1:] + velocity[:-1]) / RATE)])
         value, name = 0.3, "strut acceleration"
     elif kind == "vibration unit displacement":
         sel = (t >= t[i]) & (t < t[i] + 0.2)  # unit 5 at 120 um for 7 whole periods (from a zero crossing)
@@ -112,6 +116,23 @@ def test_each_violation_fails_exactly_its_figure(robot, kind):
         assert abs(figure.time_s - 101.0) < 0.25
     line = next(x for x in limit_failures(figures) if name in x)
     assert line.startswith("limits over the recorded states: ") and "limit" in line
+
+
+@pytest.mark.parametrize("frequency", [20.0, 35.0, 60.0])
+def test_a_strut_shaken_in_the_therapy_band_is_not_a_drive_acceleration(robot, frequency):
+    """The units' reaction shakes a strut's servo at the vibration frequency (the realistic plant: ~4 um, 0.19
+    m/s^2 at 35 Hz), which no command asked for: judged on the struts' own motion (the drive band) it adds
+    under 1/25 of the drive's limit to the slow heave's anywhere in the therapy band; raw it is twice the limit. A slow move at
+    that acceleration is read whole (test_each_violation_fails_exactly_its_figure)."""
+    joints, pose, clock = legal_run(robot)
+    t, cols = joints
+    raw = 2 * robot.limits.strut_acceleration_max
+    pos = cols["position"].copy()
+    pos[:, :6] += raw / (2 * np.pi * frequency) ** 2 * np.sin(2 * np.pi * frequency * (t - t[0]) + 0.3)[:, None]
+    figures = {f.name: f for f in check_limits(robot, (t, dict(cols, position=pos)), pose, clock)}
+    heave = {f.name: f for f in check_limits(robot, joints, pose, clock)}["strut acceleration"].worst  # 0.005
+    assert not figures["strut acceleration"].violated
+    assert figures["strut acceleration"].worst - heave < robot.limits.strut_acceleration_max / 25
 
 
 def test_the_joint_angles_agree_with_the_kinematics_module(robot):

@@ -2,7 +2,7 @@
 over the whole run, holding one slab of states and poses at a time instead of the run.
 
 Each slab of joint states is checked with the last states of the slab before it in front (``CARRY`` of them:
-the longest difference stencil, so that a velocity or acceleration across the seam is computed once, from the
+the longest stencil: the strut acceleration's, its averages included, so that a velocity or acceleration across the seam is computed once, from the
 states on both sides); poses need no neighbours. The slabs' figures combine as the whole run's do: the first
 largest worst, the violations and counts summed, the stroke's lowest and highest values and the sample that is
 furthest outside. One difference: a gap between states is told from the median step of each slab with its
@@ -15,7 +15,7 @@ import numpy as np
 
 from ..robot import Robot
 from .limit_check import (
-    STRUT_BASELINE,
+    STRUT_SUPPORT,
     LimitFigure,
     combined_worst,
     count_figures,
@@ -26,7 +26,7 @@ from .limit_check import (
     stroke_excess,
 )
 
-CARRY = 2 * STRUT_BASELINE  # states of the slab before that complete the differences across the seam
+CARRY = 2 * STRUT_SUPPORT  # states of the slab before that complete the differences across the seam
 
 
 class LimitScan:
