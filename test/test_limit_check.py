@@ -122,8 +122,8 @@ def test_each_violation_fails_exactly_its_figure(robot, kind):
 def test_a_strut_shaken_in_the_therapy_band_is_not_a_drive_acceleration(robot, frequency):
     """The units' reaction shakes a strut's servo at the vibration frequency (the realistic plant: ~4 um, 0.19
     m/s^2 at 35 Hz), which no command asked for: judged on the struts' own motion (the drive band) it adds
-    under 1/25 of the drive's limit to the slow heave's anywhere in the therapy band; raw it is twice the limit. A slow move at
-    that acceleration is read whole (test_each_violation_fails_exactly_its_figure)."""
+    under 1/25 of the drive's limit to the slow heave's anywhere in the therapy band; raw it is twice the limit.
+    A slow move at that acceleration is read whole (test_each_violation_fails_exactly_its_figure)."""
     joints, pose, clock = legal_run(robot)
     t, cols = joints
     raw = 2 * robot.limits.strut_acceleration_max

@@ -2,11 +2,11 @@
 over the whole run, holding one slab of states and poses at a time instead of the run.
 
 Each slab of joint states is checked with the last states of the slab before it in front (``CARRY`` of them:
-the longest stencil: the strut acceleration's, its averages included, so that a velocity or acceleration across the seam is computed once, from the
-states on both sides); poses need no neighbours. The slabs' figures combine as the whole run's do: the first
-largest worst, the violations and counts summed, the stroke's lowest and highest values and the sample that is
-furthest outside. One difference: a gap between states is told from the median step of each slab with its
-carry, not of the whole run (the same at any steady state rate).
+the longest stencil, the strut acceleration's with its averages, so that a velocity or acceleration across the
+seam is computed once, from the states on both sides); poses need no neighbours. The slabs' figures combine as
+the whole run's do: the first largest worst, the violations and counts summed, the stroke's lowest and highest
+values and the sample that is furthest outside. One difference: a gap between states is told from the median
+step of each slab with its carry, not of the whole run (the same at any steady state rate).
 """
 
 from __future__ import annotations
