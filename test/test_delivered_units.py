@@ -15,7 +15,7 @@ from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.plant import load_plant
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.estimation import ForceEstimator
-from stewart_vibration.estimation.delivered_units import MIN_DEMAND_M, DeliveredUnits
+from stewart_vibration.estimation.delivered_units import FIT_WINDOW_S, MIN_DEMAND_M, DeliveredUnits, fit_response
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
@@ -33,43 +33,60 @@ def sinusoidal_demand(t, frequency, amplitude):
     return amplitude * s, amplitude * w * c, -amplitude * w * w * s
 
 
+class FollowsDemands(DeliveredUnits):
+    """The legs taken to move as demanded (what the estimator modelled before it fitted their response)."""
+
+    def add(self, stamps, lengths, demand) -> np.ndarray:
+        return np.asarray(demand[2], float)
+
+
 @pytest.mark.parametrize("frequency", [20.0, 35.0, 60.0])
 def test_a_unit_with_its_own_gain_and_phase_is_delivered_as_it_moves(frequency):
-    """Each leg answers its demand A_i sin(w t) with gain g_i and phase p_i (plus an offset and sensor noise): the
+    """Each leg answers its demand A_i sin(w t) with gain g_i and phase p_i (on its strut's length and a slow move,
+    with sensor noise): the
     fit returns alpha = g cos p, beta w = g sin p, and the delivered acceleration is the closed form
-    -w^2 g A sin(w t + p) to 0.5 % of its amplitude."""
+    -w^2 g A sin(w t + p) to 0.5 % of its amplitude from the second window on, whatever the batches."""
     rng = np.random.default_rng(4)
     w = 2 * np.pi * frequency
     amplitude = np.array([50e-6, 40e-6, 60e-6, 55e-6, 30e-6, 45e-6])
     gain = np.array([0.8, 1.2, 1.0, 0.6, 1.4, 0.95])
     phase = np.radians([-30.0, 10.0, 0.0, -80.0, 45.0, 170.0])
-    t = np.arange(0.0, 0.3, 1 / RATE)
+    t = 100.0 + np.arange(0.0, 0.3, 1 / RATE)
     demand = sinusoidal_demand(t, frequency, amplitude)
-    delivered = gain * amplitude * np.sin(w * t[:, None] + phase) + 3e-6 + 5e-8 * rng.standard_normal((t.size, 6))
-    fit = DeliveredUnits()
-    for lo in range(0, t.size, 10):  # in the estimator's batches of 10 states
-        part = slice(lo, lo + 10)
-        fit.add(t[part], delivered[part], tuple(d[part] for d in demand))
-    np.testing.assert_allclose(fit.alpha, gain * np.cos(phase), atol=2e-3)
-    np.testing.assert_allclose(fit.beta * w, gain * np.sin(phase), atol=2e-3)
+    drift = 0.17 + 2e-3 * (t - t[0])[:, None]  # the struts' lengths and a slow move (2 mm/s)
+    delivered = drift + gain * amplitude * np.sin(w * t[:, None] + phase) + 5e-8 * rng.standard_normal((t.size, 6))
     exact = -w * w * gain * amplitude * np.sin(w * t[:, None] + phase)
-    error = np.abs(fit.accelerations(demand) - exact)[-50:]
+    outputs = []
+    for size in (10, 7, t.size):  # the estimator's batches, odd ones, and all at once
+        fit = DeliveredUnits()
+        outputs.append(np.concatenate([fit.add(t[lo:lo + size], delivered[lo:lo + size],
+                                               tuple(d[lo:lo + size] for d in demand))
+                                       for lo in range(0, t.size, size)]))
+        np.testing.assert_array_equal(outputs[-1], outputs[0])  # bit for bit: the fits hang on the stamps only
+    fitted = np.floor(t / FIT_WINDOW_S) > np.floor(t[0] / FIT_WINDOW_S) + 1  # a whole window before them
+    error = np.abs(outputs[0] - exact)[fitted]
     assert np.all(error <= 0.005 * w * w * gain * amplitude), (error.max(axis=0) / (w * w * gain * amplitude))
+    alpha, beta, _omega2 = fit_response(t[-50:], delivered[-50:], *(d[-50:] for d in demand))
+    np.testing.assert_allclose(alpha, gain * np.cos(phase), atol=2e-3)
+    np.testing.assert_allclose(beta * w, gain * np.sin(phase), atol=2e-3)
 
 
-def test_without_a_demand_a_leg_follows_it_and_a_reset_forgets():
+def test_without_a_demand_a_leg_follows_it_and_time_going_back_forgets():
     """A leg whose demand is below MIN_DEMAND_M RMS (not vibrating, or another unit identified) keeps alpha 1,
-    beta 0 whatever its sensors say; time going back (a restarted emulator) forgets the fit."""
-    t = np.arange(0.0, 0.2, 1 / RATE)
+    beta 0 whatever its sensors say; time going back (a restarted emulator) forgets the fits: the legs then
+    follow their demands until a window has been fitted again."""
+    t = 200.0 + np.arange(0.0, 0.3, 1 / RATE)
     amplitude = np.array([50e-6, 0.5 * MIN_DEMAND_M, 0.0, 50e-6, 50e-6, 50e-6])
     demand = sinusoidal_demand(t, 35.0, amplitude)
-    sensed = 0.5 * demand[0] + 1e-6 * np.sin(2 * np.pi * 35.0 * t)[:, None]  # legs 2 and 3 shaken by the others
+    sensed = 0.17 + 0.5 * demand[0] + 1e-6 * np.sin(2 * np.pi * 35.0 * t)[:, None]  # legs 2, 3 shaken by the others
+    alpha, beta, _omega2 = fit_response(t, sensed, *demand)
+    assert alpha[1] == alpha[2] == 1.0 and beta[1] == beta[2] == 0.0
+    assert np.all(np.abs(alpha[[0, 3, 4, 5]] - 0.5) < 0.05)
     fit = DeliveredUnits()
-    fit.add(t, sensed, demand)
-    assert fit.alpha[1] == fit.alpha[2] == 1.0 and fit.beta[1] == fit.beta[2] == 0.0
-    assert np.all(np.abs(fit.alpha[[0, 3, 4, 5]] - 0.5) < 0.05)
-    fit.add(t[:5], sensed[:5], tuple(d[:5] for d in demand))  # back in time: 5 states are too few to fit
-    assert np.all(fit.alpha == 1.0) and np.all(fit.beta == 0.0)
+    later = fit.add(t, sensed, demand)
+    np.testing.assert_allclose(later[-10:, 0], 0.5 * demand[2][-10:, 0], rtol=0.05, atol=1e-3)
+    back = fit.add(t[:10] - 100.0, sensed[:10], tuple(d[:10] for d in demand))  # time went back
+    np.testing.assert_array_equal(back, demand[2][:10])
 
 
 def run_estimators(robot, plant, latency_s: float):
@@ -89,7 +106,7 @@ def run_estimators(robot, plant, latency_s: float):
     emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity, window.acceleration)
     estimators = {"sensed": ForceEstimator(robot, unit_sensor_latency_s=latency_s),
                   "demanded": ForceEstimator(robot, unit_sensor_latency_s=latency_s)}
-    estimators["demanded"].delivered.add = lambda *_args: None  # the legs taken to follow their demands
+    estimators["demanded"].delivered = FollowsDemands()
     _, p, v, e = emu.joint_state()
     for est in estimators.values():
         est.estimate([emu.time], [p[:6]], [p[6:]], [v[:6]], [v[6:]], [e[:6]])

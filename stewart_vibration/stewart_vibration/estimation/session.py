@@ -14,7 +14,8 @@ with L_ddot the struts' commanded accelerations plus what the legs deliver of th
 modelled as it moves). The unit sensors' readings are carried forward by ``unit_sensor_latency_s``
 (``sensed_lengths``).
 
-A batch gives the same forces as feeding its states one by one (FK converges to 1e-12 m either way).
+A batch gives the same forces as feeding its states one by one (FK converges to 1e-12 m either way; the legs'
+response is fitted per fixed window of stamps, whatever the batches).
 """
 
 from __future__ import annotations
@@ -153,9 +154,8 @@ class ForceEstimator:
         times = stamps[ok]
         jac = jacobian(self.robot, pose)
         twist = platform_twist(self.robot, pose, rates[ok], jac)
-        strut_command, demand = self.struts.sample(times), self.vibration.sample(times)
-        self.delivered.add(times, struts[ok] - strut_command[0] + units[ok], demand)
-        accel_legs = strut_command[2] + self.delivered.accelerations(demand)
+        demand = self.vibration.sample(times)
+        accel_legs = self.struts.sample(times)[2] + self.delivered.add(times, lengths[ok], demand)
         accel = platform_accel(self.robot, pose, twist, accel_legs, jac)
         forces = leg_forces(self.robot, pose, twist, accel)
         self.pose = pose[-1]
