@@ -15,7 +15,13 @@ from stewart_vibration.emulation.emulator import HardwareEmulator
 from stewart_vibration.emulation.plant import load_plant
 from stewart_vibration.emulation.strut_trajectory import build_trajectory
 from stewart_vibration.estimation import ForceEstimator
-from stewart_vibration.estimation.delivered_units import FIT_WINDOW_S, MIN_DEMAND_M, DeliveredUnits, fit_response
+from stewart_vibration.estimation.delivered_units import (
+    FIT_WINDOW_S,
+    MAX_RESPONSE,
+    MIN_DEMAND_M,
+    DeliveredUnits,
+    fit_response,
+)
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.robot import VIB_NAMES
 from stewart_vibration.sim.mjcf import load_simulation_settings
@@ -87,6 +93,23 @@ def test_without_a_demand_a_leg_follows_it_and_time_going_back_forgets():
     np.testing.assert_allclose(later[-10:, 0], 0.5 * demand[2][-10:, 0], rtol=0.05, atol=1e-3)
     back = fit.add(t[:10] - 100.0, sensed[:10], tuple(d[:10] for d in demand))  # time went back
     np.testing.assert_array_equal(back, demand[2][:10])
+
+
+def test_a_fit_no_unit_could_give_keeps_the_demand():
+    """What a hostile or stray command leaves in a window is no unit's response, and modelling it would put
+    kilonewtons into the estimate (2.1 kN in the hostile-DDS test): a demand at 5 Hz (slower than
+    MIN_FIT_FREQUENCY_HZ: the struts' own motion) and a leg moving 10x its 35 Hz demand (above MAX_RESPONSE) keep
+    alpha 1, beta 0; a leg moving 3x its demand (a resonant unit) is fitted."""
+    t = 300.0 + np.arange(0.0, 0.1, 1 / RATE)
+    slow = sinusoidal_demand(t, 5.0, np.full(6, 50e-6))
+    moving = 0.17 + 1e-3 * np.sin(2 * np.pi * 5.0 * t)[:, None] * np.ones(6)  # a strut move that correlates
+    alpha, beta, _ = fit_response(t, moving + slow[0], *slow)
+    assert np.all(alpha == 1.0) and np.all(beta == 0.0)
+    fast = sinusoidal_demand(t, 35.0, np.full(6, 1e-6))
+    gains = np.array([10.0, 10.0, 3.0, 3.0, 10.0, 3.0])
+    alpha, beta, _ = fit_response(t, 0.17 + gains * fast[0], *fast)
+    np.testing.assert_allclose(alpha, np.where(gains > MAX_RESPONSE, 1.0, gains), rtol=1e-6)
+    assert np.all(np.abs(beta) < 1e-9)
 
 
 def run_estimators(robot, plant, latency_s: float):

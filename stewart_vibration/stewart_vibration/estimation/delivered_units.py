@@ -11,8 +11,9 @@ unit's demand x_i, its rate v_i, a constant and a straight line in time (the str
 
 For a demand at one frequency w that is the leg's complex response alpha + j beta w, whatever its source
 (unit, strut, delay); the delivered acceleration is then alpha_i a_i + beta_i jerk_i, with the demand's jerk
-taken as -w^2 v_i (w^2 = -<a, x> / <x, x> over the same window). A leg whose demand is below
-``min_demand_m`` RMS over the window (no vibration, another unit identified) keeps the demand (alpha 1, beta 0).
+taken as -w^2 v_i (w^2 = -<a, x> / <x, x> over the same window). A leg keeps its demand (alpha 1, beta 0) where
+the fit cannot be a unit's response: a demand below ``min_demand_m`` RMS over the window (no vibration, another
+unit identified), slower than MIN_FIT_FREQUENCY_HZ, or a response above MAX_RESPONSE.
 
 The windows are fixed spans of the states' stamps, [k W, (k + 1) W) for whole k, and the states of window k
 use the fit of window k - 1: what a state is modelled with depends on the recorded states only, not on how
@@ -26,6 +27,12 @@ import numpy as np
 FIT_WINDOW_S = 0.1  # s of states fitted: 3.5 periods at 35 Hz, 2 at the therapy band's lowest 20 Hz
 MIN_DEMAND_M = 1e-7  # RMS demand over the window below which a leg is taken to follow its demand
 MIN_STATES = 8  # states a window needs to be fitted
+# a demand slower than this (under 1.5 periods in a window) is not fitted: its sinusoid cannot be told from the
+# struts' own motion there, and a unit that slow follows its demand
+MIN_FIT_FREQUENCY_HZ = 15.0
+# a fitted response larger than this is no unit's (resonant units amplify 1.5-2.1x in the therapy band): the
+# window held something else (a hostile command's stray demand, a move), and the leg is taken to follow its demand
+MAX_RESPONSE = 4.0
 
 
 class DeliveredUnits:
@@ -74,8 +81,8 @@ class DeliveredUnits:
 def fit_response(t, y, x, v, a, min_demand_m: float = MIN_DEMAND_M) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(alpha, beta (s), w^2 (1/s^2)) (6,) each of the legs' sensed lengths y [n, 6] (m) at stamps t [n] (s)
     against the demands x, v, a [n, 6]: least squares y ~ alpha x + beta v + c + d (t - t_mean) per leg; alpha 1,
-    beta 0 for a leg whose demand is below ``min_demand_m`` RMS or whose fit is singular, and for fewer than
-    MIN_STATES states."""
+    beta 0 for a leg whose demand is below ``min_demand_m`` RMS or slower than MIN_FIT_FREQUENCY_HZ, whose fit is
+    singular or larger than MAX_RESPONSE, and for fewer than MIN_STATES states."""
     n = len(y)
     alpha, beta, omega2 = np.ones(6), np.zeros(6), np.zeros(6)
     if n < MIN_STATES:
@@ -97,7 +104,10 @@ def fit_response(t, y, x, v, a, min_demand_m: float = MIN_DEMAND_M) -> tuple[np.
     if solvable.any():
         coef[solvable] = np.linalg.solve(scaled[solvable], (right / scale)[solvable][..., None])[..., 0] \
             / scale[solvable]
-    alpha[k] = np.where(solvable, coef[:, 0], 1.0)
-    beta[k] = np.where(solvable, coef[:, 1], 0.0)
-    omega2[k] = np.maximum(-(a[:, k] * x[:, k]).sum(0) / power[k], 0.0)
+    rate2 = np.maximum(-(a[:, k] * x[:, k]).sum(0) / power[k], 0.0)
+    response = np.hypot(coef[:, 0], coef[:, 1] * np.sqrt(rate2))
+    plausible = solvable & (rate2 >= (2 * np.pi * MIN_FIT_FREQUENCY_HZ) ** 2) & (response <= MAX_RESPONSE)
+    alpha[k] = np.where(plausible, coef[:, 0], 1.0)
+    beta[k] = np.where(plausible, coef[:, 1], 0.0)
+    omega2[k] = np.where(plausible, rate2, 0.0)
     return alpha, beta, omega2
