@@ -36,18 +36,18 @@ MAX_RESPONSE = 4.0
 
 
 class DeliveredUnits:
-    """The legs' response to the unit demands, fitted per window of stamps from the sensors; ``accelerations``
-    maps demanded unit motion to the delivered hinge-length acceleration (see the module docstring)."""
+    """The legs' response to the unit demands, fitted per window of stamps from the sensors; ``add`` maps the
+    demanded unit motion to the delivered hinge-length acceleration (see the module docstring)."""
 
     def __init__(self, window_s: float = FIT_WINDOW_S, min_demand_m: float = MIN_DEMAND_M):
         self.window_s, self.min_demand = float(window_s), float(min_demand_m)
         self._index: int | None = None  # the window being filled
         self._parts: list = []  # its states: (stamps [n], lengths [n, 6], demand x, v, a [n, 6] each)
-        self._fits: dict[int, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}  # window -> (alpha, beta, w^2)
+        self._fit: tuple[int, tuple[np.ndarray, np.ndarray, np.ndarray]] | None = None  # (window, (alpha, beta, w^2))
 
     def reset(self) -> None:
         """Forget every state and fit (time went back): the legs follow their demands until refitted."""
-        self._index, self._parts, self._fits = None, [], {}
+        self._index, self._parts, self._fit = None, [], None
 
     def add(self, stamps, lengths, demand) -> np.ndarray:
         """States [n] in time order: stamps (s), the sensed hinge lengths [n, 6] (m) and the units' demand (x m,
@@ -67,14 +67,15 @@ class DeliveredUnits:
                 self._close()
             self._index = int(k)
             self._parts.append((stamps[rows], lengths[rows], x[rows], v[rows], a[rows]))
-            alpha, beta, omega2 = self._fits.get(int(k) - 1, (np.ones(6), np.zeros(6), np.zeros(6)))
+            fitted = self._fit is not None and self._fit[0] == int(k) - 1
+            alpha, beta, omega2 = self._fit[1] if fitted else (np.ones(6), np.zeros(6), np.zeros(6))  # type: ignore[index]
             out[rows] = alpha * a[rows] - beta * omega2 * v[rows]
         return out
 
     def _close(self) -> None:
         """Fit the window being filled and keep only the fit the next window needs."""
         t, y, x, v, a = (np.concatenate([p[j] for p in self._parts]) for j in range(5))
-        self._fits = {int(self._index): fit_response(t, y, x, v, a, self.min_demand)}  # type: ignore[arg-type]
+        self._fit = (int(self._index), fit_response(t, y, x, v, a, self.min_demand))  # type: ignore[arg-type]
         self._parts = []
 
 
