@@ -7,8 +7,10 @@ looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6}."""
 from __future__ import annotations
 
 import ipaddress
+import json
 import os
 import socket
+import subprocess
 import sys
 import types
 from pathlib import Path
@@ -20,6 +22,7 @@ from sensor_msgs.msg import JointState
 
 from stewart_vibration.runtime.processes import (
     DDS_PROFILE_ENV,
+    apply_environment,
     dds_environment,
     loopback_profile_path,
     ros_environment,
@@ -170,6 +173,63 @@ def test_reliable_writers_repair_a_lost_sample_within_50_ms():
     period = writers[0].find("dds:times/dds:heartbeatPeriod", ns)
     seconds = int(period.find("dds:sec", ns).text) + int(period.find("dds:nanosec", ns).text) * 1e-9
     assert seconds == pytest.approx(0.05)
+
+
+# A server whose answers can never reach a client (its response reader asks for TRANSIENT_LOCAL, the
+# server's response writer offers VOLATILE): the server waits for the match before dropping each answer,
+# so the gap between two requests' callbacks is its response writer's max_blocking_time.
+_UNREACHABLE_CLIENT = """
+import json, time
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_srvs.srv import Trigger
+
+rclpy.init()
+node = rclpy.create_node("answer_wait_probe")
+entered = []
+def answer(request, response):
+    entered.append(time.monotonic())
+    response.success = True
+    return response
+node.create_service(Trigger, "probe", answer)
+good = node.create_client(Trigger, "probe")
+strict = QoSProfile(depth=10, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+deaf = node.create_client(Trigger, "probe", qos_profile=strict)
+assert good.wait_for_service(timeout_sec=20)
+sent = time.monotonic()
+future = good.call_async(Trigger.Request())
+rclpy.spin_until_future_complete(node, future, timeout_sec=10)
+answered = time.monotonic() - sent if future.done() and future.result().success else None
+time.sleep(0.5)  # the deaf client's request writer is matched by now (same participant)
+deaf.call_async(Trigger.Request())
+deaf.call_async(Trigger.Request())
+end = time.monotonic() + 20
+while len(entered) < 3 and time.monotonic() < end:
+    rclpy.spin_once(node, timeout_sec=0.05)
+print(json.dumps({"answered_s": answered, "wait_s": entered[2] - entered[1] if len(entered) == 3 else None}))
+"""
+
+
+def _answer_waits(env: dict) -> dict:
+    result = subprocess.run([sys.executable, "-c", _UNREACHABLE_CLIENT], env=env, capture_output=True, text=True,
+                            timeout=120)
+    assert result.returncode == 0, result.stderr[-3000:]
+    return json.loads(result.stdout.strip().splitlines()[-1])
+
+
+def test_services_wait_a_second_for_their_client_before_dropping_an_answer(ros_domain):
+    """A service's answer goes out only once discovery has matched the client's response reader, which can
+    come after its request; Fast DDS waits the response writer's max_blocking_time (100 ms) and then drops
+    the answer, and the client (ros2cli's send_goal, a UI) waits forever. The profile gives service response
+    writers 1 s: measured on a server that can never reach its client, against Fast DDS's own defaults."""
+    profiled = _answer_waits(ros_environment(ros_domain))
+    defaults = _answer_waits(apply_environment(ros_environment(ros_domain), {
+        **dict.fromkeys(("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}))
+    print("profile:", profiled, "Fast DDS defaults:", defaults)
+    assert profiled["answered_s"] is not None and profiled["answered_s"] < 1.0  # a reachable client: at once
+    assert 0.95 <= profiled["wait_s"] < 2.0
+    assert defaults["wait_s"] < 0.5
 
 
 def _launch_actions(monkeypatch, share_dir: Path):
