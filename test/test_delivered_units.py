@@ -114,9 +114,9 @@ def test_a_fit_no_unit_could_give_keeps_the_demand():
 
 def run_estimators(robot, plant, latency_s: float):
     """The uncompensated plan of 35 Hz / 0.3 g along the force line at the paper's pose on the emulator with
-    ``plant``; two estimators with the drawing ``robot`` fed its sensors in batches of 10 states, one taking the
-    legs to follow their demands; returns the truth's and each estimator's 35 Hz force phasors [6] (N) over the
-    steady part."""
+    ``plant``; three estimators with the drawing ``robot`` fed its sensors in batches of 10 states: "sensed",
+    "demanded" (taking the legs to follow their demands) and "struts" (sensed, the pistons moving with their
+    struts); returns the truth's and each estimator's 35 Hz force phasors [6] (N) over the steady part."""
     emu = HardwareEmulator(robot, load_simulation_settings(timestep=1 / 2000), plant=plant)
     pose = paper_pose(robot)
     move_and_settle(emu, robot, pose)
@@ -128,7 +128,8 @@ def run_estimators(robot, plant, latency_s: float):
                             window.acceleration)
     emu.command_vibration(VIB_NAMES, t0, window.times, window.position, window.velocity, window.acceleration)
     estimators = {"sensed": ForceEstimator(robot, unit_sensor_latency_s=latency_s),
-                  "demanded": ForceEstimator(robot, unit_sensor_latency_s=latency_s)}
+                  "demanded": ForceEstimator(robot, unit_sensor_latency_s=latency_s),
+                  "struts": ForceEstimator(robot, unit_sensor_latency_s=latency_s, pistons_follow_struts=True)}
     estimators["demanded"].delivered = FollowsDemands()
     _, p, v, e = emu.joint_state()
     for est in estimators.values():
@@ -161,15 +162,28 @@ def run_estimators(robot, plant, latency_s: float):
     return result
 
 
+def force_errors(phasors: dict) -> dict:
+    """Each estimator's 35 Hz force error: RMS over the legs of |phasor - truth|, relative to the truth's RMS."""
+    size = np.sqrt(np.mean(np.abs(phasors["truth"]) ** 2))
+    return {name: float(np.sqrt(np.mean(np.abs(phasors[name] - phasors["truth"]) ** 2)) / size)
+            for name in phasors if name != "truth"}
+
+
 def test_on_the_robot_as_built_the_estimator_models_the_forces_the_units_deliver(robot):
     """Realistic plant, seed 1, its units' data-sheet sensor latency: the resonant units answer the
     uncompensated demands with their own gains and phases. Modelled from the demands the legs' 35 Hz forces are
     more than their own size off the truth (RMS over the legs); modelled from what the sensors say the legs
-    deliver, within 30 % (what is left: the estimator's nominal payload and pistons that move with the whole leg
-    where the robot's move with the strut)."""
-    phasors = run_estimators(robot, load_plant(CONFIG / "plant_realistic.yaml", robot), 0.0005)
-    size = np.sqrt(np.mean(np.abs(phasors["truth"]) ** 2))
-    error = {name: np.sqrt(np.mean(np.abs(phasors[name] - phasors["truth"]) ** 2)) / size
-             for name in ("sensed", "demanded")}
-    print({name: round(float(e), 3) for name, e in error.items()})
-    assert error["demanded"] > 1.0 and error["sensed"] < 0.3, error
+    deliver, within 30 %; with the pistons riding their struts as the robot's do (its units' 30 g sliders alone
+    vibrate), within 20 % (what is left: the nominal payload, 3.7 % light here, and the drawing's geometry)."""
+    error = force_errors(run_estimators(robot, load_plant(CONFIG / "plant_realistic.yaml", robot), 0.0005))
+    print({name: round(e, 3) for name, e in error.items()})
+    assert error["demanded"] > 1.0 and error["sensed"] < 0.3 and error["struts"] < min(0.2, 0.85 * error["sensed"])
+
+
+def test_on_the_drawing_the_pistons_vibrate_with_their_units(robot):
+    """The drawing's emulator lumps each unit into its piston: there the default model is exact (0.5 %) and the
+    one whose pistons ride their struts misses each piston's 0.1 kg times its unit's acceleration (about 0.3 N of a
+    few newtons), so the data sheet's setting belongs to the robot as built only."""
+    error = force_errors(run_estimators(robot, None, 0.0))
+    print({name: round(e, 4) for name, e in error.items()})
+    assert error["sensed"] < 0.005 and error["struts"] > 0.03

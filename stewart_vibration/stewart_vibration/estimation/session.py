@@ -12,7 +12,10 @@ states into modelled leg forces and the external wrench:
 with L_ddot the struts' commanded accelerations plus what the legs deliver of the units' demanded ones
 (``delivered_units``: fitted from the sensors, so a unit that answers its demand with its own gain and phase is
 modelled as it moves). The unit sensors' readings are carried forward by ``unit_sensor_latency_s``
-(``sensed_lengths``).
+(``sensed_lengths``). Newton-Euler moves each piston with its whole leg (the drawing's emulator lumps the unit
+into it); with ``pistons_follow_struts`` (the robot as built: the piston rides its strut and only the unit's
+moving mass vibrates) the pistons' share of the units' own acceleration, fitted alone from the unit sensors the
+same way, is taken off: F_i -= m_piston x_ddot_unit,i.
 
 A batch gives the same forces as feeding its states one by one (FK converges to 1e-12 m either way; the legs'
 response is fitted per fixed window of stamps, whatever the batches).
@@ -62,10 +65,11 @@ class ForceEstimator:
     """Commands in, states in (batches), modelled forces out; see the module docstring."""
 
     def __init__(self, robot: Robot, vibration_ramp_s: float = 0.05, watchdog_s: float = 0.5,
-                 rms_window_s: float = 1.0, unit_sensor_latency_s: float = 0.0):
+                 rms_window_s: float = 1.0, unit_sensor_latency_s: float = 0.0, pistons_follow_struts: bool = False):
         self.robot = robot
         self.unit_sensor_latency_s = float(unit_sensor_latency_s)
         self.delivered = DeliveredUnits()
+        self.unit_motion = DeliveredUnits() if pistons_follow_struts else None  # the units' own, beside the legs'
         # the emulator's checks too: every window on the topic arrives here, also those the emulator refuses (one
         # 1e4 s ahead made this mirror command metres), so refuse what it refuses
         self.vibration = VibrationBuffer(robot.vibration_unit, watchdog_s, vibration_ramp_s, max_lookahead_s=np.inf)
@@ -158,6 +162,8 @@ class ForceEstimator:
         accel_legs = self.struts.sample(times)[2] + self.delivered.add(times, lengths[ok], demand)
         accel = platform_accel(self.robot, pose, twist, accel_legs, jac)
         forces = leg_forces(self.robot, pose, twist, accel)
+        if self.unit_motion is not None:  # the pistons do not vibrate with the units' sliders
+            forces -= self.robot.leg.piston_mass * self.unit_motion.add(times, units[ok], demand)
         self.pose = pose[-1]
         wrench = np.full_like(forces, np.nan)
         if efforts is not None:

@@ -59,7 +59,8 @@ class LegForceEstimatorNode(Node):
         window, period, batch_size = params["rms_window_s"], params["batch_period_s"], params["batch_size"]
         self.robot = load_robot(self.get_parameter("robot_config").value or None)
         self.estimator = ForceEstimator(self.robot, rms_window_s=window,
-                                        unit_sensor_latency_s=params["unit_sensor_latency_s"])
+                                        unit_sensor_latency_s=params["unit_sensor_latency_s"],
+                                        pistons_follow_struts=params["pistons_follow_struts"])
         self.diagnostics = Diagnostics(self, "leg force estimator")
         self.malformed = MalformedInputs(self, self.diagnostics)
         self.health = StreamHealth()

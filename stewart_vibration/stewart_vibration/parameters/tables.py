@@ -138,6 +138,10 @@ LEG_FORCE_ESTIMATOR = (
     P("unit_sensor_latency_s", "double", 0.0, "how old a vibration unit's sensor reading is when reported (its "
       "firmware's control period; the units' data sheet): the sensed unit motion is carried forward by it (read at "
       "start)", "s", 0.0, 0.01, read_only=True),
+    P("pistons_follow_struts", "bool", False, "the pistons move with their struts and only each unit's moving mass "
+      "vibrates (the robot as built; the units' data sheet): the model takes the pistons' share of the units' "
+      "acceleration off; false: the pistons vibrate with the units, as the drawing's emulator lumps them (read at "
+      "start)", read_only=True),
 )
 
 MCAP_RECORDER = (
