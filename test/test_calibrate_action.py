@@ -1,6 +1,7 @@
 """The calibrate action over real DDS on the emulated robot as built (realistic plant, as fast as it runs):
-`stewart-vibration calibrate` as a user runs it writes a robot file whose geometry is judged against the plant
-file's truth (which only the test reads); plan-only moves nothing; bad goals and a cancel write nothing."""
+`stewart-vibration calibrate` as a user runs it writes a robot file whose geometry, payload and load cell zeros are
+judged against the plant file's truth (which only the test reads); plan-only moves nothing; bad goals and a cancel
+write nothing."""
 
 from __future__ import annotations
 
@@ -64,12 +65,20 @@ def test_calibrate_writes_a_robot_file_that_matches_the_plant(suite, tmp_path):
     assert "calibrate: SUCCEEDED" in done.stdout and str(output) in done.stdout
     client.spin_until(lambda: len(samples) >= 14, 10.0)
     assert [s.pose for s in samples] == list(range(1, 15)) and min(s.tracker_frames for s in samples) >= 15
+    assert all(np.isfinite(s.load_cells_n).all() for s in samples)
     calibrated = load_robot(output)
     provenance = load_yaml(output, "robot config")["calibration"]
     assert provenance["poses_used"] == 14 and 0.3 < provenance["reduced_chi2"] < 3.0, provenance
     # the plant's truth: strut readings where the true robot stands at a pose -> FK of each model
     robot = load_robot()
     plant = load_plant(default_config_dir() / "plant_realistic.yaml", robot, seed=SEED)
+    # its payload (7 % heavier than drawn) and its load cells' zeros, from the cells at rest
+    print("payload", calibrated.payload.mass, "true", plant.robot.payload.mass, "offsets",
+          calibrated.load_cell_offsets, "true", plant.sensors.load_cell_offsets_n)
+    assert "payload" in done.stdout and provenance["payload"]["residual_rms_n"] < 0.05, provenance
+    assert abs(calibrated.payload.mass / plant.robot.payload.mass - 1) < 0.035
+    np.testing.assert_allclose(calibrated.payload.com[:2], plant.robot.payload.com[:2], atol=1e-3)
+    np.testing.assert_allclose(calibrated.load_cell_offsets, plant.sensors.load_cell_offsets_n, atol=0.1)
     poses = reachable_candidates(robot, 30, 0.02, np.radians(15), np.random.default_rng(4))
     readings = inverse_kinematics(plant.robot, poses) - plant.strut_zero_offsets
     for model, bound in ((robot, None), (calibrated, 50e-6)):

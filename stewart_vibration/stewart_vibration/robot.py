@@ -120,7 +120,8 @@ class Robot:
     base_hinges: (6, 3) B_i in the base frame; platform_hinges: (6, 3) A_i in
     the platform frame; home_pose: (6,) [x, y, z, roll, pitch, yaw]; gravity (3,) m/s^2 in the base
     frame; strut_zero_offsets (6,) m: what each strut's encoder reads short of its hinge-to-hinge length
-    (encoder = length - offset; zero for the drawing, identified by a kinematic calibration). The arrays
+    (encoder = length - offset; zero for the drawing, identified by a kinematic calibration);
+    load_cell_offsets (6,) N: what each leg's load cell reads beyond the axial force (a calibration's). The arrays
     are read-only. Two robots are equal only if they are the same object (constants
     derived from a robot are cached per object, see ``derived``).
     """
@@ -135,13 +136,15 @@ class Robot:
     leg: LegInertia
     gravity: np.ndarray
     strut_zero_offsets: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    load_cell_offsets: np.ndarray = field(default_factory=lambda: np.zeros(6))
     calibrated: bool = False  # the file carries a calibration's corrections (not the drawing)
     source: str = ""
     characteristic_length: float = field(default=0.0)
 
     def __post_init__(self):
         for f in fields(self):
-            if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity", "strut_zero_offsets"):
+            if f.name in ("base_hinges", "platform_hinges", "home_pose", "gravity", "strut_zero_offsets",
+                          "load_cell_offsets"):
                 object.__setattr__(self, f.name, read_only_array(getattr(self, f.name)))
 
     @property
@@ -226,6 +229,9 @@ _PLAUSIBLE = {
     "inertia.payload.com_m": _LENGTH,
     "inertia.platform.inertia_kg_m2": Plausible(0.0, 10.0, "kg m^2", low_open=True),
     "inertia.payload.inertia_kg_m2": Plausible(0.0, 10.0, "kg m^2", low_open=True),
+    "inertia.payload_identified.mass_kg": Plausible(0.0, 100.0, "kg", low_open=True),
+    "inertia.payload_identified.com_m": _LENGTH,
+    "inertia.payload_identified.inertia_kg_m2": Plausible(0.0, 10.0, "kg m^2", low_open=True),
     "inertia.cylinder.mass_kg": Plausible(0.0, 10.0, "kg"),
     "inertia.cylinder.com_from_base_hinge_m": Plausible(0.0, 1.0, "m"),
     "inertia.cylinder.transverse_inertia_kg_m2": Plausible(0.0, 1.0, "kg m^2"),
@@ -240,6 +246,7 @@ _PLAUSIBLE = {
 # a calibration's hinge corrections and strut zero offsets: a few tenths of a millimetre on a real fixator;
 # more than 5 mm is another robot, not a calibrated drawing
 CALIBRATION_CORRECTION = Plausible(-0.005, 0.005, "m")
+LOAD_CELL_OFFSET = Plausible(-50.0, 50.0, "N")  # a load cell's zero: beyond this it is broken, not offset
 STROKE_RANGE = Plausible(0.01, 1.0, "m")  # stroke_max_m - stroke_min_m: a few cm to a metre
 GRAVITY_MAGNITUDE = Plausible(0.0, 20.0, "m/s^2")  # |gravity|: up to about 2 g
 
@@ -268,12 +275,13 @@ def _hinges(tree: dict, which: str, where: str) -> np.ndarray:
                              for i, row in enumerate(corrections)])
 
 
-def _strut_zero_offsets(tree: dict, where: str) -> np.ndarray:
-    """The optional ``geometry.strut_zero_offsets_m`` (6,) m (a calibration's), zeros without it."""
-    if "strut_zero_offsets_m" not in tree["geometry"]:
+def _calibrated_vector(tree: dict, section: str, key: str, where: str, plausible: Plausible) -> np.ndarray:
+    """The optional ``section.key`` (6,) of a calibration, zeros without it."""
+    if section in tree and not isinstance(tree[section], dict):
+        raise ConfigError(f"{where}: '{section}' must be a mapping")
+    if key not in tree.get(section, {}):
         return np.zeros(6)
-    return as_vector(tree["geometry"]["strut_zero_offsets_m"], "geometry.strut_zero_offsets_m", where, 6,
-                     CALIBRATION_CORRECTION)
+    return as_vector(tree[section][key], f"{section}.{key}", where, 6, plausible)
 
 
 def _body(tree: dict, key: str, where: str) -> RigidBody:
@@ -287,10 +295,13 @@ def _body(tree: dict, key: str, where: str) -> RigidBody:
 
 
 def drawing_tree(tree: dict) -> dict:
-    """A copy of a parsed robot file without any calibration (its hinge corrections, strut zero offsets and
-    provenance): the drawing the calibration corrects."""
+    """A copy of a parsed robot file without any calibration (its hinge corrections, strut zero offsets,
+    identified payload, load cell offsets and provenance): the drawing the calibration corrects."""
     tree = copy.deepcopy(tree)
-    tree.pop("calibration", None)
+    for key in ("calibration", "load_cells"):
+        tree.pop(key, None)
+    if isinstance(tree.get("inertia"), dict):
+        tree["inertia"].pop("payload_identified", None)
     geometry = tree.get("geometry")
     if isinstance(geometry, dict):
         geometry.pop("strut_zero_offsets_m", None)
@@ -370,13 +381,13 @@ def robot_from_dict(tree: dict, source: str = "<dict>") -> Robot:
         limits=limits,
         vibration_unit=vib,
         platform=_body(tree, "platform", where),
-        payload=_body(tree, "payload", where),
+        payload=_body(tree, "payload_identified" if isinstance(tree.get("inertia"), dict) and "payload_identified" in
+                      tree["inertia"] else "payload", where),
         leg=leg,
         gravity=gravity,
-        strut_zero_offsets=_strut_zero_offsets(tree, where),
-        calibrated=any(key in tree["geometry"][part] for part, key in (
-            ("base", "hinge_corrections_m"), ("platform", "hinge_corrections_m"))) or "strut_zero_offsets_m" in
-        tree["geometry"],
+        strut_zero_offsets=_calibrated_vector(tree, "geometry", "strut_zero_offsets_m", where, CALIBRATION_CORRECTION),
+        load_cell_offsets=_calibrated_vector(tree, "load_cells", "offsets_n", where, LOAD_CELL_OFFSET),
+        calibrated=drawing_tree(tree) != tree,
         source=source,
         characteristic_length=float(np.linalg.norm(platform[:, :2], axis=1).mean()),
     )

@@ -52,36 +52,41 @@ def calibration_settings(poses: int, settle_s: float, window_s: float, reach_m: 
 
 
 class WindowRecorder:
-    """The tracker frames and strut readings of one open window (nothing is kept while none is open)."""
+    """The tracker frames, strut readings and load cells of one open window (nothing is kept while none is
+    open)."""
 
     def __init__(self):
         self.window: tuple[float, float] | None = None
         self._frames: list[tuple[float, np.ndarray, np.ndarray]] = []
         self._readings: list[np.ndarray] = []
+        self._loads: list[np.ndarray] = []
 
     def open(self, start: float, end: float) -> None:
         """Keep what is stamped in [start, end] (robot clock, s) from now."""
-        self.window, self._frames, self._readings = (start, end), [], []
+        self.window, self._frames, self._readings, self._loads = (start, end), [], [], []
 
     def add_frame(self, stamp: float, position, quaternion) -> None:
         """One tracker frame: stamp (s), position (3,) m, quaternion (4,) [x, y, z, w], base frame."""
         if self.window is not None and self.window[0] <= stamp <= self.window[1]:
             self._frames.append((stamp, np.asarray(position, float), np.asarray(quaternion, float)))
 
-    def add_readings(self, stamps: np.ndarray, readings: np.ndarray) -> None:
-        """Strut readings (M, 6) m (leg_i + vib_i) stamped ``stamps`` (M,) s."""
+    def add_readings(self, stamps: np.ndarray, readings: np.ndarray, loads: np.ndarray | None = None) -> None:
+        """Strut readings (M, 6) m (leg_i + vib_i) and load cells (M, 6) N (NaN where not measured) stamped
+        ``stamps`` (M,) s."""
         if self.window is not None:
             inside = (stamps >= self.window[0]) & (stamps <= self.window[1])
             if inside.any():
                 self._readings.append(readings[inside])
+                self._loads.append(np.full((int(inside.sum()), 6), np.nan) if loads is None else loads[inside])
 
     def measure(self, tracker_rate_hz: float, noisy: bool) -> PoseMeasurement:
         """The window's averages (``average_window``'s refusals) and close it."""
         assert self.window is not None
         window, frames = self.window, self._frames
         readings = np.concatenate(self._readings) if self._readings else np.empty((0, 6))
+        loads = np.concatenate(self._loads) if self._loads else np.empty((0, 6))
         self.window = None
         stamps = np.array([f[0] for f in frames])
         positions = np.array([f[1] for f in frames]).reshape(-1, 3)
         quaternions = np.array([f[2] for f in frames]).reshape(-1, 4)
-        return average_window(stamps, positions, quaternions, readings, window, tracker_rate_hz, noisy)
+        return average_window(stamps, positions, quaternions, readings, window, tracker_rate_hz, noisy, loads)

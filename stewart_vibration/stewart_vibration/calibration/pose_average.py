@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -15,13 +15,14 @@ MIN_FRAMES = 5
 
 @dataclass(frozen=True)
 class PoseMeasurement:
-    """The averages of one window: tracker position (3,) m and rotation (3, 3), strut readings (6,) m, and how
-    many tracker frames went in."""
+    """The averages of one window: tracker position (3,) m and rotation (3, 3), strut readings (6,) m, how
+    many tracker frames went in, and the legs' load cells (6,) N (NaN for a leg without readings)."""
 
     position: np.ndarray
     rotation: np.ndarray
     readings: np.ndarray
     frames: int
+    loads: np.ndarray = field(default_factory=lambda: np.full(6, np.nan))
 
 
 def mean_rotation(rotations: np.ndarray) -> np.ndarray:
@@ -31,8 +32,10 @@ def mean_rotation(rotations: np.ndarray) -> np.ndarray:
 
 
 def average_window(stamps: np.ndarray, positions: np.ndarray, quaternions: np.ndarray, readings: np.ndarray,
-                   window: tuple[float, float], expected_rate_hz: float, noisy: bool = True) -> PoseMeasurement:
-    """Average the tracker frames stamped inside ``window`` (s) and the strut readings (M, 6) m taken in it.
+                   window: tuple[float, float], expected_rate_hz: float, noisy: bool = True,
+                   loads: np.ndarray | None = None) -> PoseMeasurement:
+    """Average the tracker frames stamped inside ``window`` (s), the strut readings (M, 6) m taken in it and
+    the load cells' readings (M, 6) N of the same states (None: not measured; a leg with a gap averages to NaN).
 
     Raises:
         CalibrationError: TRACKER_FROZEN when fewer than half the frames ``expected_rate_hz`` promises (and
@@ -52,5 +55,6 @@ def average_window(stamps: np.ndarray, positions: np.ndarray, quaternions: np.nd
                                                  f"{start:.2f} s (stamps or values unchanged): it is frozen")
     if readings.ndim != 2 or readings.shape[0] == 0:
         raise CalibrationError("BAD_DATA", f"no strut readings in the window at t = {start:.2f} s")
+    cells = np.full(6, np.nan) if loads is None or len(loads) != len(readings) else np.asarray(loads).mean(axis=0)
     return PoseMeasurement(positions.mean(axis=0), mean_rotation(rotation_from_quaternion(quaternions)),
-                           readings.mean(axis=0), int(len(stamps)))
+                           readings.mean(axis=0), int(len(stamps)), cells)

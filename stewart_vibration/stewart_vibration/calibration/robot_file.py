@@ -15,16 +15,19 @@ from .identification import CalibrationResult
 
 HEADER = """\
 # A calibrated robot file: config/robot.yaml (the drawing) with the hinge corrections and strut zero offsets a
-# kinematic calibration identified from tracker poses (geometry.*.hinge_corrections_m, geometry.strut_zero_offsets_m)
-# and its provenance (calibration). Load it wherever robot.yaml is loaded (robot_config parameter, --robot).
+# kinematic calibration identified from tracker poses (geometry.*.hinge_corrections_m, geometry.strut_zero_offsets_m),
+# the payload and load cell offsets identified from the cells at rest (inertia.payload_identified,
+# load_cells.offsets_n) and its provenance (calibration). Load it wherever robot.yaml is loaded (robot_config
+# parameter, --robot).
 # Written by the calibration; edit the drawing, not this file.
 """
 
 
-def calibrated_tree(tree: dict, result: CalibrationResult, provenance: dict) -> dict:
+def calibrated_tree(tree: dict, result: CalibrationResult, provenance: dict, load: dict | None = None) -> dict:
     """The robot file tree of ``result`` on the drawing ``tree`` (a parsed robot.yaml, calibrated or not):
     corrections = identified - drawn; ``provenance`` (plain values) goes into ``calibration`` with the fit's
-    figures."""
+    figures; ``load`` (``payload_identification.payload_tree``, or None) gives the identified payload, the load
+    cells' offsets and the payload's figures (``calibration.payload``)."""
     drawing = robot_from_config(drawing_tree(tree), "the drawing")
     base, platform, offsets = split_parameters(result.theta)
     out = drawing_tree(tree)
@@ -48,6 +51,10 @@ def calibrated_tree(tree: dict, result: CalibrationResult, provenance: dict) -> 
         "condition_number": round(result.condition_number, 2),
         "parameter_std_m": {name: float(f"{s:.3g}") for name, s in zip(parameter_names(), result.std)},
     }
+    if load is not None:
+        out["inertia"]["payload_identified"] = load["payload_identified"]
+        out["load_cells"] = load["load_cells"]
+        out["calibration"]["payload"] = load["provenance"]
     return out
 
 

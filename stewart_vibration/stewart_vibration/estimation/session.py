@@ -167,7 +167,7 @@ class ForceEstimator:
         self.pose = pose[-1]
         wrench = np.full_like(forces, np.nan)
         if efforts is not None:
-            measured = np.asarray(efforts, float)[ok]
+            measured = np.asarray(efforts, float)[ok] - self.robot.load_cell_offsets  # the cells' zeros
             have = np.isfinite(measured).all(axis=1)
             if have.any():
                 wrench[have] = external_wrench(self.robot, pose[have], measured[have], forces[have], jac[have])

@@ -40,6 +40,7 @@ from ..calibration.pose_average import PoseMeasurement
 from ..calibration.pose_plan import plan_calibration_poses
 from ..calibration.robot_file import calibrated_tree, dump_robot_file
 from ..errors import RefusedError, StewartError
+from ..estimation.payload_identification import calibrated_load
 from ..install import default_config_dir
 from ..kinematics.rotations import (
     pose_to_position_quaternion,
@@ -80,10 +81,10 @@ class CalibrationServer:
                                    goal_callback=lambda goal: GoalResponse.ACCEPT, cancel_callback=self.on_cancel)
 
     # -- sensor input ----------------------------------------------------------------------------
-    def on_states(self, stamps: np.ndarray, readings: np.ndarray) -> None:
-        """Solved joint states: stamps (M,) s, strut readings (M, 6) m (leg_i + vib_i)."""
+    def on_states(self, stamps: np.ndarray, readings: np.ndarray, loads: np.ndarray | None = None) -> None:
+        """Solved joint states: stamps (M,) s, strut readings (M, 6) m (leg_i + vib_i), load cells (M, 6) N."""
         self.last_state_wall = time.monotonic()
-        self.recorder.add_readings(stamps, readings)
+        self.recorder.add_readings(stamps, readings, loads)
         self.check_wait()
 
     def on_tracker(self, data: bytes) -> None:
@@ -215,13 +216,15 @@ class CalibrationServer:
         data = CalibrationData(np.array([m.position for m in measured]), np.array([m.rotation for m in measured]),
                                np.array([m.readings for m in measured]), np.array([m.frames for m in measured], float))
         fit = identify(node.robot, data, noise)
+        load, said = calibrated_load(node.robot, fit, data, np.array([m.loads for m in measured]))
         assert output is not None
-        self.write(output, fit, s, rate, noise, float(predicted.max()))
+        self.write(output, fit, s, rate, noise, float(predicted.max()), load)
         dropped = [d.index + 1 for d in fit.dropped]
         return Calibrate.Result(
             outcome=outcome("SUCCEEDED", f"{int(fit.used.sum())} of {len(poses)} poses used"
                                          f"{f', {len(dropped)} dropped' if dropped else ''}; residual RMS "
-                                         f"{_rms(fit) * 1e6:.2f} um, chi2/dof {fit.reduced_chi2:.2f}; wrote {output}"),
+                                         f"{_rms(fit) * 1e6:.2f} um, chi2/dof {fit.reduced_chi2:.2f}; {said}; "
+                                         f"wrote {output}"),
             path=str(output), poses_used=int(fit.used.sum()), poses_dropped=dropped, residual_rms_m=_rms(fit),
             reduced_chi2=fit.reduced_chi2, condition_number=fit.condition_number,
             predicted_std_max_m=float(predicted.max()), parameter_std_max_m=float(fit.std.max()))
@@ -256,10 +259,11 @@ class CalibrationServer:
         _fill_pose(msg.commanded, position, quaternion)
         _fill_pose(msg.tracker, sample.position, _quaternion_of(sample.rotation))
         msg.strut_readings_m = [float(v) for v in sample.readings]
+        msg.load_cells_n = [float(v) for v in sample.loads]
         self.sample_pub.publish(msg)
 
     def write(self, output: Path, fit: CalibrationResult, s: CalibrationSettings, rate: float, noise: TrackerNoise,
-              predicted_std_max: float) -> None:
+              predicted_std_max: float, load: dict | None) -> None:
         """The calibrated robot file at ``output``, written whole or not at all (temporary file + rename)."""
         source = self.node.get_parameter("robot_config").value or str(default_config_dir() / "robot.yaml")
         provenance = {"drawing": str(source), "tracker": {"rate_hz": rate, "position_noise_m": noise.position_m,
@@ -268,7 +272,7 @@ class CalibrationServer:
                       "settle_s": s.settle_s, "window_s": s.window_s, "reach_m": s.reach_m,
                       "tilt_deg": round(float(np.degrees(s.tilt_rad)), 6), "seed": s.seed,
                       "predicted_std_max_m": float(f"{predicted_std_max:.3g}")}
-        text = dump_robot_file(calibrated_tree(load_yaml(Path(source), "robot config"), fit, provenance))
+        text = dump_robot_file(calibrated_tree(load_yaml(Path(source), "robot config"), fit, provenance, load))
         partial = output.with_name(f".{output.name}.partial")
         partial.write_text(text)
         os.replace(partial, output)

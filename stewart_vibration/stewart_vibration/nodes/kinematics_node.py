@@ -188,7 +188,7 @@ class KinematicsNode(Node):
         self.lengths, self.state_time = legs[ok][-1], float(stamps[-1])
         self.rest.observe(stamps[ok], legs[ok])
         self.moves.settle_rest_wait()
-        self.calibration.on_states(stamps[ok], states.lengths[ok])
+        self.calibration.on_states(stamps[ok], states.lengths[ok], batch.effort[states.kept][:, legs_at][ok])
         self.supervisor.states_read(stamps, legs)
         # estimates already queued here are newer news than their absence: after a stall of this node the
         # states are taken first, and judging the guard blind before reading them would stop for nothing
