@@ -122,3 +122,13 @@ def test_offline_scenario_says_what_it_did(robot):
     np.testing.assert_allclose(data["fk_pose"], paper, rtol=0, atol=1e-10)
     assert data["fk_pose_error"] == pytest.approx(np.abs(np.array(data["fk_pose"]) - paper).max(), abs=1e-15)
     assert data["condition_number"] == pytest.approx(reference_ik(robot, paper)[3], rel=1e-10)
+
+
+def test_the_command_line_loads_mujoco_only_for_the_commands_that_simulate():
+    """Building the parser imports every subcommand's module: none may import MuJoCo at import time, or the
+    report of an hour's run (which never simulates) carries its ~50 MB of peak memory (benchmarks/long_runs.py)."""
+    probe = ("import sys\nfrom stewart_vibration.cli.main import build_parser\nbuild_parser()\n"
+             "print(sorted(m for m in sys.modules if m.split('.')[0] in ('mujoco', 'rclpy', 'matplotlib', 'scipy')))")
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert result.stdout.strip() == "[]", result.stdout

@@ -13,7 +13,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from ..errors import CalibrationError
 from ..robot import Robot
@@ -125,6 +124,8 @@ def _weakest(theta: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> s
 def _fit(theta0: np.ndarray, data: CalibrationData, noise: TrackerNoise) -> tuple[np.ndarray, np.ndarray]:
     """(theta, whitened Jacobian (K*6, 42)) of the maximum-likelihood fit; the whitening is evaluated at the
     start and again once at the first solution (it depends on the geometry only slightly)."""
+    from scipy.optimize import least_squares  # here: importing scipy costs every command line ~30 MB
+
     theta = theta0
     for _ in range(2):
         weights = whitening(theta, data.positions, data.rotations, data.frames, noise)

@@ -9,12 +9,10 @@ from typing import Any
 
 import numpy as np
 
-from ..dynamics.mujoco_validation import run_scenario
 from ..errors import InvalidInputError
 from ..kinematics.robot_config import load_robot
 from ..paper import PAPER_OMEGA_RAD_S
 from ..sim.mjcf import load_simulation_settings
-from ..sim.mujoco_sim import StewartSim
 from .arguments import positive_float
 from .output import format_table, print_json, to_jsonable
 
@@ -77,6 +75,10 @@ def run(args) -> int:
     tracking error. Returns 0 if every check passes, else 1. Raises InvalidInputError if a duration is
     shorter than 10 simulation steps, ConfigError (robot or simulation file).
     """
+    # MuJoCo only here: every other subcommand (the report of an hour's run among them) is spared its memory
+    from ..dynamics.mujoco_validation import run_scenario
+    from ..sim.mujoco_sim import StewartSim
+
     robot = load_robot(args.robot)
     overrides = {} if args.timestep is None else {"timestep": args.timestep}
     settings = load_simulation_settings(**overrides)
