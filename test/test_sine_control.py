@@ -51,7 +51,8 @@ def unit_errors(seed: int, gain=0.3, phase_deg=20.0):
 def test_the_loop_converges_from_30_percent_gain_and_20_degree_phase_errors(kinematic_map, seed, delay):
     plant = kinematic_map @ np.diag(unit_errors(seed))
     target = target_along([0.3, -0.2, 0.93], phase=0.4)
-    loop = SineController(kinematic_map, target, rotation_scale_m=SCALE)  # the default gain, 0.3
+    # the default gain (0.5) without delay; with one update of delay the gain the docstring gives for it
+    loop = SineController(kinematic_map, target, rotation_scale_m=SCALE, **({} if delay == 0 else {"gain": 0.3}))
     open_loop = delivered_figures(plant @ loop.demand, target, SCALE)
     assert judge(open_loop, loop.limits, updates=0)[0] == "converging"  # visible, and no abort before correcting
     history = [loop.demand.copy()] * (delay + 1)

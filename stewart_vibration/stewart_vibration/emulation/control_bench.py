@@ -25,7 +25,6 @@ from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from ..vibration.closed_loop import (
     DEFAULT_IMU_AVERAGE_S,
     DEFAULT_IMU_SILENCE_S,
-    DEFAULT_LOOP_GAIN,
     LoopStep,
     closed_loop_for,
 )
@@ -33,7 +32,7 @@ from ..vibration.compensation import target_motion
 from ..vibration.demand_schedule import DemandSchedule
 from ..vibration.identification_run import excitation_plan, identify_units, step_samples
 from ..vibration.settings import default_settings, start_check
-from ..vibration.sine_control import DeliveredSine, delivered_figures
+from ..vibration.sine_control import DEFAULT_LOOP_GAIN, DeliveredSine, delivered_figures
 from ..vibration.sine_fit import fit_sinusoid
 from ..vibration.unit_identification import VibrationIdentification
 from .emulator import HardwareEmulator

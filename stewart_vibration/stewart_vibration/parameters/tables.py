@@ -12,8 +12,9 @@ from ..emulation.consumer_pace import MAX_WAIT_S
 from ..motion.estimate_watch import BLIND_TRAVEL_M, MAX_ESTIMATE_AGE_S
 from ..motion.move_goal import MIN_SPEED_SCALE
 from ..runtime.sim_clock import REAL_TIME_FACTOR_MAX
-from ..vibration.closed_loop import DEFAULT_IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S, DEFAULT_LOOP_GAIN
+from ..vibration.closed_loop import DEFAULT_IMU_AVERAGE_S, DEFAULT_IMU_SILENCE_S
 from ..vibration.settings import STREAM_PARAMETERS
+from ..vibration.sine_control import DEFAULT_LOOP_GAIN
 from .spec import ParameterSpec as P
 
 ROBOT_CONFIG = P("robot_config", "string", "", "robot YAML path ('' = config/robot.yaml)", read_only=True)

@@ -32,9 +32,8 @@ from .streaming import VibrationStream
 from .unit_identification import VibrationIdentification
 
 MIN_SAMPLES = 8  # IMU samples a measurement needs over its measure_periods
-# the planner's defaults (parameters.tables declares them from these): the fraction of the estimated error
-# corrected per update (sine_control's docstring: its stability margins), and the IMU's silence that aborts
-DEFAULT_LOOP_GAIN = 0.5
+# the planner's defaults (parameters.tables declares them from these; the loop gain is sine_control's, beside its
+# stability margins): the IMU's silence that aborts
 DEFAULT_IMU_SILENCE_S = 0.1
 DEFAULT_IMU_AVERAGE_S = 0.002  # the emulated IMU integrates and dumps over its sample period (500 Hz)
 

@@ -17,8 +17,10 @@ update. For mu = 0.5 the loop is stable, without delay, for plant/estimate gain 
 error and for phase errors up to 75 deg at the nominal gain; with one update of delay (a correction acts
 after the next measurement) for ratios up to 2 and phase errors up to 46 deg. Over unit errors of +-30 % gain
 and +-20 deg phase the worst rate per update is 0.68 (mu = 0.5) or 0.81 (mu = 0.3) without delay, and 0.92
-(mu = 0.5) or 0.78 (mu = 0.3) with one update of delay: the default mu = 0.3 is the fastest there with the
-delay a streamed correction has (the test suite checks these figures).
+(mu = 0.5) or 0.78 (mu = 0.3) with one update of delay (the test suite checks these figures). The streamed loop
+(``closed_loop``) measures only periods after a correction has blended in, so it runs without delay and
+DEFAULT_LOOP_GAIN = 0.5 is the faster there; a loop that acts on measurements older than its last correction
+should take 0.3.
 """
 
 from __future__ import annotations
@@ -28,6 +30,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InvalidInputError
+
+DEFAULT_LOOP_GAIN = 0.5  # mu: the fraction of the estimated error corrected per update (see the module docstring)
 
 
 @dataclass(frozen=True)
@@ -167,7 +171,7 @@ class SineController:
         initial_demand: u0 (6,) complex; default the feed-forward H^-1 y*.
     """
 
-    def __init__(self, plant_estimate, target, gain: float = 0.3, rotation_scale_m: float = 0.1,
+    def __init__(self, plant_estimate, target, gain: float = DEFAULT_LOOP_GAIN, rotation_scale_m: float = 0.1,
                  max_demand_m=np.inf, limits: SineControlLimits | None = None, initial_demand=None):
         self.estimate = np.asarray(plant_estimate, dtype=complex)
         self.target = np.asarray(target, dtype=complex)
