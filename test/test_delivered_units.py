@@ -174,10 +174,11 @@ def test_on_the_robot_as_built_the_estimator_models_the_forces_the_units_deliver
     uncompensated demands with their own gains and phases. Modelled from the demands the legs' 35 Hz forces are
     more than their own size off the truth (RMS over the legs); modelled from what the sensors say the legs
     deliver, within 30 %; with the pistons riding their struts as the robot's do (its units' 30 g sliders alone
-    vibrate), within 20 % (what is left: the nominal payload, 3.7 % light here, and the drawing's geometry)."""
+    vibrate), within 15 % (measured 11 %; what is left: the nominal payload, 3.7 % light here, and the drawing's
+    geometry)."""
     error = force_errors(run_estimators(robot, load_plant(CONFIG / "plant_realistic.yaml", robot), 0.0005))
     print({name: round(e, 3) for name, e in error.items()})
-    assert error["demanded"] > 1.0 and error["sensed"] < 0.3 and error["struts"] < min(0.2, 0.85 * error["sensed"])
+    assert error["demanded"] > 1.0 and error["sensed"] < 0.3 and error["struts"] < min(0.15, 0.85 * error["sensed"])
 
 
 def test_on_the_drawing_the_pistons_vibrate_with_their_units(robot):

@@ -94,7 +94,8 @@ class PlantDrive:
         self.dt = float(m.opt.timestep)
         self.strut_forces = np.zeros(6)
         self.unit_forces = np.zeros(6)
-        self.transmitted_forces = np.zeros(6)  # through the struts at the last step (``_transmitted``)
+        self.transmitted_forces = np.zeros(6)  # through the struts at the state now (``first_force``)
+        self._probe = mujoco.MjData(m)  # a scratch state for that forward pass
         self.last_accel = np.zeros(6)
         self._integral = np.zeros(6)
         self._previous_encoder = self.encoders()
@@ -178,15 +179,34 @@ class PlantDrive:
         return np.hstack([np.asarray(lengths) - vib, vib])
 
     def first_force(self, controls: np.ndarray) -> np.ndarray:
-        """The axial forces (6,) N the struts transmitted at the last step (what the load cells see)."""
+        """The axial forces (6,) N the struts transmit at the state now (what the load cells and the truth
+        report): those of the step that starts here, with the servo's force for ``controls``' first row and the
+        coil forces the units' amplifiers hold, from a forward pass on a scratch copy of the state. MuJoCo's
+        accelerations and constraint forces after a step are those at its start, one step before the state's
+        stamp: 6 deg of phase at 35 Hz with 2 kHz physics."""
+        m, d, probe = self.model, self.data, self._probe
+        probe.time = d.time
+        probe.qpos[:], probe.qvel[:], probe.qacc_warmstart[:] = d.qpos, d.qvel, d.qacc_warmstart
+        servo = self._servo_force(np.asarray(controls)[0, :6], self.encoders(), self._integral)
+        probe.ctrl[:6] = servo
+        probe.ctrl[6:12] = self.loop.next_force() - self.units.damping_n_s_m * d.qvel[self.vib_v]
+        mujoco.mj_forward(m, probe)
+        self.transmitted_forces = self._transmitted(servo, probe)
         return self.transmitted_forces.copy()
 
-    def _transmitted(self, servo: np.ndarray) -> np.ndarray:
-        """The axial force (6,) N each strut's piston receives across its slide at the step MuJoCo just took (its
-        forces and accelerations are the step's): the servo's force, plus the screw's viscous and Coulomb
+    def _servo_force(self, reference: np.ndarray, encoder: np.ndarray, integral: np.ndarray) -> np.ndarray:
+        """The strut servos' forces (6,) N for a step towards ``reference`` from ``encoder`` (m), ``integral`` the
+        error sum before it (not updated here)."""
+        error = reference - encoder
+        rate_error = (reference - self._previous_reference) - (encoder - self._previous_encoder)
+        return self.kp * error + self.kv * rate_error / self.dt + self.ki * self.dt * (integral + error)
+
+    def _transmitted(self, servo: np.ndarray, d) -> np.ndarray:
+        """The axial force (6,) N each strut's piston receives across its slide in the state of MjData ``d`` after
+        a forward pass with the servo's force ``servo``: that force, plus the screw's viscous and Coulomb
         friction, less what the reflected rotor mass takes to accelerate. An in-line load cell at the piston
         reads this, not the motor's force: at 35 Hz the rotor's share is about half of it."""
-        m, d = self.model, self.data
+        m = self.model
         n = d.nefc
         friction = np.zeros(m.nv)
         rows = d.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF
@@ -196,19 +216,15 @@ class PlantDrive:
 
     def run(self, controls: np.ndarray) -> None:
         """One physics step per row of ``controls`` [n, 12] (strut references, unit demands)."""
-        m, d, dt = self.model, self.data, self.dt
+        m, d = self.model, self.data
         ctrl, step = d.ctrl, mujoco.mj_step
-        kp, kv, ki = self.kp, self.kv, self.ki
         loop, c_unit = self.loop, self.units.damping_n_s_m
         noise = self.rng.normal(0.0, self.unit_noise, (len(controls), 6)) if self.unit_noise > 0 else None
         for k, row in enumerate(controls):
             reference, demand = row[:6], row[6:]
             encoder = self.encoders()
-            error = reference - encoder
-            self._integral += error
-            forces = (kp * error + kv * ((reference - self._previous_reference)
-                                         - (encoder - self._previous_encoder)) / dt
-                      + ki * dt * self._integral)
+            forces = self._servo_force(reference, encoder, self._integral)
+            self._integral += reference - encoder
             self._previous_reference, self._previous_encoder = reference, encoder
             x = d.qpos[self.vib_q]
             reading = x if noise is None else x + noise[k]  # x: a copy (fancy indexing)
@@ -219,4 +235,3 @@ class PlantDrive:
             self.strut_forces, self.unit_forces = forces, unit
             step(m, d)
         self.last_accel = d.qacc[self.slide_v].copy()
-        self.transmitted_forces = self._transmitted(self.strut_forces)

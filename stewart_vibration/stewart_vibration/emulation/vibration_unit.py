@@ -148,6 +148,10 @@ class UnitLoop:
         self._pending = np.tile(force, (hw.delay_steps, 1))  # commands in the delay line, oldest first
         self._head = 0
 
+    def next_force(self) -> np.ndarray:
+        """The coil forces (6,) N the next ``coil_force`` call applies (the amplifiers' output now)."""
+        return self.hw.force_constant_error * self._amplifier
+
     def coil_force(self, demand, displacement, noise=None) -> np.ndarray:
         """Coil forces (6,) N for this period (see the class docstring)."""
         hw = self.hw
