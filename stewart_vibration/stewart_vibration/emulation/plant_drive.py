@@ -96,7 +96,6 @@ class PlantDrive:
         self.unit_forces = np.zeros(6)
         self.transmitted_forces = np.zeros(6)  # through the struts at the state now (``first_force``)
         self._probe = mujoco.MjData(m)  # a scratch state for that forward pass
-        self.last_accel = np.zeros(6)
         self._integral = np.zeros(6)
         self._previous_encoder = self.encoders()
         self._previous_reference = self._previous_encoder.copy()
@@ -170,7 +169,6 @@ class PlantDrive:
         self._previous_unit_reading = x.copy()
         # the static solve holds the flexure's pull at x too (the joint spring is MuJoCo's)
         self.loop.reset(x, coil)
-        self.last_accel = np.zeros(6)
 
     def plan(self, time: float, lengths, rates_half_back, accels, vib=None) -> np.ndarray:
         """The block's references [n, 12]: strut lengths (the commanded lengths minus the unit demands,
@@ -234,4 +232,3 @@ class PlantDrive:
             ctrl[6:12] = unit
             self.strut_forces, self.unit_forces = forces, unit
             step(m, d)
-        self.last_accel = d.qacc[self.slide_v].copy()
