@@ -126,7 +126,7 @@ def figures(summary: dict) -> dict:
         "direction_error_deg": vib.get("direction_error_deg"),
         "amplitude_error_pct": vib["amplitude_error"] * 100 if "amplitude_error" in vib else None,
         "leg_phase_error_deg": max(vib.get("leg_phase_error_deg") or [None] * 0, default=None),
-        "force_error_worst_leg_pct": force["worst_leg_relative"] * 100 if force else None,
+        "force_error_worst_leg_pct": force["worst_leg_vs_largest_amplitude"] * 100 if force else None,
         "worst_stream_ratio": streams.get("worst_ratio"), "states_lost": streams.get("lost"),
         "bound_failures": summary.get("bound_failures"), "problems": summary.get("problems"),
     }

@@ -75,6 +75,7 @@ def test_force_error_relative_to_amplitude():
     out = force_error(t, est, t, meas, 35.0)
     assert np.allclose(out["rms_error_n"], 0.05)
     assert out["worst_leg_relative"] == pytest.approx(0.01, rel=1e-6)
+    assert out["worst_leg_vs_largest_amplitude"] == pytest.approx(0.01, rel=1e-6)
     # only the measured samples inside the estimate's span count; four are enough, three are not
     short = force_error(t[10:14], est[10:14], t, meas)
     assert short["samples"] == 4 and np.allclose(short["rms_error_n"], 0.05)
@@ -97,3 +98,16 @@ def test_dominant_sinusoid_resolves_frequency_far_below_the_fft_bin(frequency):
 def test_dominant_sinusoid_of_too_few_samples_is_zero():
     assert dominant_sinusoid([0.0, 1.0], [1.0, 2.0]) == (0.0, 0.0)
 
+
+
+def test_a_leg_whose_force_does_not_vibrate_is_judged_against_the_largest_amplitude():
+    # along some directions a leg's force hardly vibrates: its own relative error is unbounded, the error
+    # against the vibration's force scale (the largest leg's amplitude, here 8 N) is not
+    t = np.arange(0, 1.0, 1 / 500)
+    amplitudes = np.array([8.0, 5.0, 0.0, 2.0, 1e-3, 4.0])
+    meas = 20 + np.sin(2 * np.pi * 35 * t)[:, None] * amplitudes
+    bias = np.array([0.04, 0.02, 0.06, 0.01, 0.03, 0.0])
+    out = force_error(t, meas + bias, t, meas, 35.0)
+    assert out["worst_leg_vs_largest_amplitude"] == pytest.approx(0.06 / 8.0, rel=1e-6)
+    assert out["relative_rms_error"][4] == pytest.approx(30.0, rel=1e-3)
+    assert out["worst_leg_relative"] > 1e3  # leg 3's fitted amplitude is rounding noise, or zero

@@ -168,8 +168,7 @@ def force_error(times_est, forces_est, times_meas, forces_meas, frequency: float
         frequency: vibration frequency (Hz) for the amplitude fit; None or 0: half the peak-to-peak.
 
     Returns:
-        {"rms_error_n": [6] (N), "force_amplitude_n": [6] (N), "relative_rms_error": [6],
-        "worst_leg_relative": float, "samples": number of measured samples used}.
+        ``force_error_figures`` of the RMS errors and amplitudes, with "samples": the measured samples used.
 
     Raises:
         InvalidInputError: fewer than 4 measured samples lie within the estimate's time span, or (with
@@ -188,10 +187,23 @@ def force_error(times_est, forces_est, times_meas, forces_meas, frequency: float
         amplitude = fit_sinusoid(tm, fm, frequency).amplitude
     else:
         amplitude = (fm.max(axis=0) - fm.min(axis=0)) / 2
-    return {
-        "rms_error_n": rms,
-        "force_amplitude_n": amplitude,
-        "relative_rms_error": rms / amplitude,
-        "worst_leg_relative": float((rms / amplitude).max()),
-        "samples": int(tm.size),
-    }
+    return force_error_figures(rms, amplitude, int(tm.size))
+
+
+def force_error_figures(rms_error_n, force_amplitude_n, samples: int) -> dict:
+    """The leg-force error figures of per-leg RMS errors (6,) N and force amplitudes (6,) N: "rms_error_n",
+    "force_amplitude_n", "relative_rms_error" (each leg's error over its own amplitude), "worst_leg_relative"
+    (the largest of those) and "worst_leg_vs_largest_amplitude" (the largest error over the largest amplitude:
+    the vibration's force scale), and "samples".
+
+    A leg's own amplitude can be as small as its error, or zero: along some directions a leg's force hardly
+    vibrates. The error against the force scale stays meaningful there, so it is the one a run is judged by.
+    """
+    rms, amplitude = np.asarray(rms_error_n, dtype=float), np.asarray(force_amplitude_n, dtype=float)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        relative = np.where(amplitude > 0, rms / np.where(amplitude > 0, amplitude, 1.0), np.inf)
+    scale = float(amplitude.max())
+    return {"rms_error_n": rms, "force_amplitude_n": amplitude, "relative_rms_error": relative,
+            "worst_leg_relative": float(relative.max()),
+            "worst_leg_vs_largest_amplitude": float(rms.max() / scale) if scale > 0 else float("inf"),
+            "samples": int(samples)}

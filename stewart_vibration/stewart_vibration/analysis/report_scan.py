@@ -13,6 +13,7 @@ import numpy as np
 
 from ..errors import InvalidInputError
 from ..vibration.sine_fit import SineSums
+from .fits import force_error_figures
 
 PLOT_BINS = 2000  # a whole-run line is drawn as this many min/max pairs at least, twice as many at most
 
@@ -229,5 +230,4 @@ class ForceErrorScan:
             raise InvalidInputError("force_error: the estimate and measurement do not overlap")
         rms = np.sqrt(squares / count)
         amplitude = sums.fit().amplitude if sums is not None else peak_to_peak / 2
-        return {"rms_error_n": rms, "force_amplitude_n": amplitude, "relative_rms_error": rms / amplitude,
-                "worst_leg_relative": float((rms / amplitude).max()), "samples": int(count)}
+        return force_error_figures(rms, amplitude, count)

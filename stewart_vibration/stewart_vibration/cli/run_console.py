@@ -84,7 +84,8 @@ def print_summary(summary: dict, bounds: dict) -> None:
         if vib["force"] is not None:
             f = vib["force"]
             print(f"  leg forces, model vs emulator: RMS error {np.round(f['rms_error_n'], 4).tolist()} N; "
-                  f"worst leg {f['worst_leg_relative'] * 100:.3f} % of the force amplitude")
+                  f"worst leg {f['worst_leg_vs_largest_amplitude'] * 100:.3f} % of the largest leg's force "
+                  f"amplitude ({f['worst_leg_relative'] * 100:.3f} % of its own)")
         print(f"  active (>= half amplitude) {vib['active_duration_s']:.3f} s of the planned "
               f"{vib['planned_active_duration_s']:.3f} s")
         loop = vib.get("closed_loop") or {}

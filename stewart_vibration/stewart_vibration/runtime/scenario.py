@@ -43,7 +43,7 @@ DEFAULT_BOUNDS = {
     "leg_phase_error_deg": 0.5,
     "leg_frequency_spread_hz": 0.01,
     "leg_frequency_error_hz": 0.01,  # worst leg: measured vs planned frequency
-    "force_rms_relative": 0.01,
+    "force_rms_relative": 0.01,  # the worst leg's RMS force error / the largest leg's force amplitude
     "off_axis_ratio": 0.01,  # RMS motion across the planned line / amplitude
     "leg_amplitude_error": 0.02,  # worst leg: measured vs |k_i| A
     "active_duration_error_s": 0.06,  # measured vs planned time at >= half amplitude (two 35 Hz periods)

@@ -312,6 +312,6 @@ def run_summary(robot: Robot, joints: StreamBuffer, pose: StreamBuffer, forces: 
         "leg_amplitude_expected_um": np.asarray(s["leg_amplitude_expected_m"]) * 1e6,
         "leg_phase_error_deg": s["leg_phase_error_deg"], "leg_frequency_spread_hz": s["leg_frequency_spread_hz"],
         "active_duration_s": s["active_duration_s"],
-        "force_error_worst_leg_pct": force["worst_leg_relative"] * 100 if force else None,
+        "force_error_worst_leg_pct": force["worst_leg_vs_largest_amplitude"] * 100 if force else None,
         "force_rms_error_n": force.get("rms_error_n"),
     })

@@ -325,8 +325,8 @@ function showSummary(s, report) {
       `(planned ${fmt(s.planned_amplitude_um, 3)} um, error ${fmt(s.amplitude_error_pct, 3)} %), direction error ` +
       `<b>${fmt(s.direction_error_deg, 4)} deg</b> (the controller's estimate); leg phase error <= ` +
       `${fmt(Math.max(...s.leg_phase_error_deg), 3)} deg; leg amplitudes [${s.leg_amplitude_um.map((v) => fmt(v, 2)).join(", ")}] um ` +
-      `(planned [${s.leg_amplitude_expected_um.map((v) => fmt(v, 2)).join(", ")}]); force model error (worst leg, RMS / ` +
-      `amplitude) <b>${fmt(s.force_error_worst_leg_pct, 3)} %</b>; active ${fmt(s.active_duration_s, 2)} s`;
+      `(planned [${s.leg_amplitude_expected_um.map((v) => fmt(v, 2)).join(", ")}]); force model error (worst leg's RMS / ` +
+      `the largest leg's amplitude) <b>${fmt(s.force_error_worst_leg_pct, 3)} %</b>; active ${fmt(s.active_duration_s, 2)} s`;
   }
   const links = (report || []).map((n) => `<a href="/files/report/${encodeURIComponent(n)}" target="_blank">${esc(n)}</a>`);
   $("report").innerHTML = links.length ? `report of the last finished run (beside the MCAP): ${links.join(" ")}` : "";
