@@ -4,7 +4,8 @@ model's error over the whole run, and the steady vibration's own samples at full
 
 A run is read twice, and held in neither: the first pass computes the whole-run figures as the recording streams
 past (``report_scan``), the second keeps the states of the steady vibration only (``load_signals(windows=...)``).
-A run with an applied tissue wrench is read whole once (the tissue figures compare every estimate with the applied
+A run no longer than two analysed spans (``held_whole``) is read once and held, and so is a run with an applied
+tissue wrench (the tissue figures compare every estimate with the applied
 wrench, and the force error takes the tissue's leg forces out at every state); the same reducers then take the
 whole arrays at once. Times are s from the run's first message (its log time), as the plots show them.
 """
@@ -24,6 +25,8 @@ RAMP_TRIM_S = 0.25  # trimmed from both ends of the active span (the ramps) when
 WINDOW_MARGIN_S = 0.5  # s of states read beyond the steady window in the second pass
 ANALYSED_MAX_S = 60.0  # the steady vibration's figures are fitted over its middle minute at most
 TRUTH_STATES = ("ground_truth/joint_states", "legs/joint_states")  # the measured efforts, or a log's sensed ones
+UNREAD = ("platform/pose_estimate", "/clock", "vibration/joint_trajectory")  # nothing in the report reads them
+UNREAD_WITHOUT_TISSUE = (*UNREAD, "platform/external_wrench_estimate")  # compared with an applied tissue wrench only
 
 
 class _Reducers:
@@ -93,6 +96,14 @@ def analysed_span(window: tuple[float, float] | None) -> tuple[float, float] | N
     return middle - 0.5 * ANALYSED_MAX_S, middle + 0.5 * ANALYSED_MAX_S
 
 
+def held_whole(reader: RunReader | RunFiles) -> bool:
+    """Whether a run is short enough to be read once and held: its recording (log time, its first file's first
+    message to its last file's last) lasts at most two ANALYSED_MAX_S. The second pass would hold about half as
+    much, and reading a short run again costs its report a quarter of its time."""
+    files = reader.files if isinstance(reader, RunFiles) else [reader]
+    return max(r.end_ns for r in files) - min(r.start_ns for r in files) <= 2 * ANALYSED_MAX_S * 1e9
+
+
 def _window_samples(signals: dict, window: tuple[float, float], origin: float) -> dict:
     """The steady vibration's samples (times s from the first message), as the plots and fits read them."""
     out = {}
@@ -120,7 +131,7 @@ def report_data(reader: RunReader | RunFiles, robot: Robot) -> tuple[dict, dict]
         samples {"vib_t", "vib", "force_t", "force", "est_t", "est", "pose_t", "pose"}; "force_error": the
         leg-force error over the whole run (``vibration_figures.leg_force_error``) or None; with a tissue wrench
         "wrench_applied(_t)", "wrench_estimated(_t)" [n, 6]; "guard_trips". signals: ``load_signals``' of the
-        run (whole with tissue, else around the steady vibration).
+        run (whole with tissue or when it is short, else around the steady vibration).
     """
     first = next(iter(reader.messages()), None)
     origin_ns = first.log_time if first is not None else 0
@@ -128,20 +139,26 @@ def report_data(reader: RunReader | RunFiles, robot: Robot) -> tuple[dict, dict]
     recorded = recorded_keys(reader, (*TISSUE_KEYS, *TRUTH_STATES, "ground_truth/platform_pose"))
     reducers = _Reducers(origin, measured_from_sensed="ground_truth/joint_states" not in recorded)
     tissue = bool(recorded.intersection(TISSUE_KEYS))
-    if tissue:
-        signals = load_signals(reader, coverage=False)
+    held = not tissue and held_whole(reader)
+    if held:
+        signals = load_signals(reader, sinks=reducers.sinks(recorded), coverage=False, skip=UNREAD_WITHOUT_TISSUE)
+        force_error = reducers.force_error.result()
+    elif tissue:
+        signals = load_signals(reader, coverage=False, skip=UNREAD)
         for key, sink in reducers.sinks(recorded).items():
             sink(*{"legs/joint_states": signals["sensed_joints"], "ground_truth/joint_states": signals["joints"],
                    "legs/force_estimate": signals["force_estimate"]}.get(key, signals["pose"]))
         force_error = leg_force_error(robot, signals, -np.inf, np.inf, None)
     else:
-        signals = load_signals(reader, windows=[], sinks=reducers.sinks(recorded), coverage=False)
+        signals = load_signals(reader, windows=[], sinks=reducers.sinks(recorded), coverage=False,
+                               skip=UNREAD_WITHOUT_TISSUE)
         force_error = reducers.force_error.result()
     window = _window(reducers.activity.span())
     analysed = analysed_span(window)
-    if analysed is not None and not tissue:
+    if analysed is not None and not (tissue or held):
         signals = load_signals(reader, windows=[(analysed[0] + origin - WINDOW_MARGIN_S,
-                                                 analysed[1] + origin + WINDOW_MARGIN_S)], coverage=False)
+                                                 analysed[1] + origin + WINDOW_MARGIN_S)], coverage=False,
+                               skip=UNREAD_WITHOUT_TISSUE)
     data: dict = {"time_origin_s": origin, "time_origin_ns": origin_ns, "vibration_window": window,
                   "analysed_window": analysed,
                   "force_error": force_error, "leg_length_mean": reducers.leg_mean.result(),

@@ -20,6 +20,7 @@ from ..kinematics.robot_config import load_robot
 from ..mcap_log.reader import RunFiles, RunReader, open_run
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from .fits import dominant_sinusoid
+from .plot_pool import PlotPool
 from .report_data import report_data
 from .vibration_figures import leg_force_error, platform_vibration
 
@@ -205,16 +206,16 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
         ConfigError: ``robot`` is None and config/robot.yaml cannot be loaded.
         ValueError, InvalidInputError: as ``summarize``.
     """
-    from . import run_plots
-
-    reader = open_run(mcap_path, allow_truncated=allow_truncated, verify=True)
-    out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    robot = robot or load_robot()
-    data, signals = report_data(reader, robot)
-    data["events"] = _events(reader, data["time_origin_ns"])
-    summary = summarize(reader, data, signals, robot)
-    plots = run_plots.plot_all(data, summary, out)
+    with PlotPool() as pool:  # its workers get ready to draw while the run is read
+        reader = open_run(mcap_path, allow_truncated=allow_truncated, verify=True)
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        robot = robot or load_robot()
+        data, signals = report_data(reader, robot)
+        data["events"] = _events(reader, data["time_origin_ns"])
+        pool.start(data, out)
+        summary = summarize(reader, data, signals, robot)
+        plots = pool.finish(summary)
     summary["plots"] = plots
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     (out / "summary.md").write_text(markdown(summary, plots))

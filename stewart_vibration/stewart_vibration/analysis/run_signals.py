@@ -30,7 +30,7 @@ TYPED_STATUS = {"vibration/status": "stewart_vibration_interfaces/msg/VibrationU
 
 
 def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dict | None = None,
-                 coverage: bool = True) -> dict:
+                 coverage: bool = True, skip=()) -> dict:
     """Time series of a run (an MCAP file, a run folder: every file in it, in time order; or an open
     RunReader / RunFiles): ground-truth poses, joint states, force estimates (header-stamp times in s), the
     stream counts and the nodes' last diagnostics. Cut files are read as far as their chunks are whole.
@@ -50,6 +50,8 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dic
             read (``run_streams.read_streams``): more figures computed as the run streams past.
         coverage: collect the 500 Hz streams' stamps ("stream_stamps", "stream_counts", the files' states: what the
             recording covers); False: empty (the report does not judge coverage, and an hour of them is 72 MB).
+        skip: topic keys (as in ``read_streams``, e.g. "platform/pose_estimate") not read: their series come back
+            empty (the report draws no estimated pose).
 
     Returns:
         {"pose": (times [n] (s), poses [n, 6] (m, rad)) the true poses, "joints": (times [n], {"position",
@@ -86,7 +88,8 @@ def load_signals(mcap_path, windows=None, robot: Robot | None = None, sinks: dic
         feeds.append({truth_key(recorded, "ground_truth/joint_states", "legs/joint_states"): scan.add_states,
                       truth_key(recorded, "ground_truth/platform_pose", "platform/pose"): scan.add_poses})
     streams, per_file = read_streams(parts, kinds, raw=("vibration/status", "kinematics/guard_status", "/diagnostics"),
-                                     counted=STREAM_TOPICS if coverage else (), sinks=merged_sinks(feeds), keep=keep)
+                                     counted=STREAM_TOPICS if coverage else (), sinks=merged_sinks(feeds), keep=keep,
+                                     skip=skip)
     got = streams.decoded
     for old, new in LEGACY_TRUTH.items():  # a log from before the truth had its own topics
         if not got[new][0].size:

@@ -200,7 +200,8 @@ def topic_key(topic: str, keys) -> str | None:
     return None
 
 
-def read_streams(parts, decoded: dict, raw=(), counted=(), sinks=None, keep=None) -> tuple[StreamSet, list]:
+def read_streams(parts, decoded: dict, raw=(), counted=(), sinks=None, keep=None,
+                 skip=()) -> tuple[StreamSet, list]:
     """Read every wanted topic of a run's files in one pass each.
 
     Args:
@@ -214,14 +215,17 @@ def read_streams(parts, decoded: dict, raw=(), counted=(), sinks=None, keep=None
             whole-run figure computed as the run is read. Batches are each in log-time order, file after file.
         keep: {decoded key: callable(times [n] s) -> mask [n]}: only these rows of the topic are kept (e.g. the
             windows a figure needs); a key not in it keeps every row.
+        skip: decoded keys whose messages are not read at all (their series come back empty): streams the
+            caller does not use cost nothing to pass over.
 
     Returns:
         (StreamSet, per file {"file", "complete", "publish_ns": {key: publish times [n] (ns) in that file}}).
     """
+    read = [key for key in decoded if key not in skip]
     expected = {key: 0 for key in decoded}
     for part in parts:
         for t in part.topics():
-            key = topic_key(t.topic, decoded)
+            key = topic_key(t.topic, read)
             if key is not None:
                 expected[key] += t.message_count
     sinks, keep = sinks or {}, keep or {}
@@ -231,7 +235,7 @@ def read_streams(parts, decoded: dict, raw=(), counted=(), sinks=None, keep=None
     publish: dict = {key: [] for key in counted}
     files: list[dict] = []
     for part in parts:
-        routes = {t.topic: (topic_key(t.topic, decoded), topic_key(t.topic, raw), topic_key(t.topic, counted))
+        routes = {t.topic: (topic_key(t.topic, read), topic_key(t.topic, raw), topic_key(t.topic, counted))
                   for t in part.topics()}
         routes = {topic: keys for topic, keys in routes.items() if any(k is not None for k in keys)}
         for collector in collectors.values():
