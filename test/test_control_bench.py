@@ -14,6 +14,7 @@ from stewart_vibration.install import default_config_dir
 from stewart_vibration.kinematics.rotations import rotation_from_rpy
 from stewart_vibration.paper import paper_pose
 from stewart_vibration.sim.mjcf import load_simulation_settings
+from stewart_vibration.vibration.sine_fit import fit_sinusoid
 
 pytestmark = pytest.mark.slow
 
@@ -92,10 +93,7 @@ def _rocking_mrad(times, roll, start: float, span: float = 0.4) -> float:
     motion the vibration does not make."""
     t, y = np.asarray(times), np.asarray(roll)
     inside = (t >= start) & (t < start + span)
-    t, y = t[inside], y[inside]
-    basis = np.column_stack([np.sin(2 * np.pi * 35.0 * t), np.cos(2 * np.pi * 35.0 * t), np.ones_like(t), t])
-    residual = y - basis @ np.linalg.lstsq(basis, y, rcond=None)[0]
-    return 1e3 * float(np.sqrt(np.mean(residual**2)))
+    return 1e3 * float(fit_sinusoid(t[inside], y[inside], 35.0).residual_rms)
 
 
 def test_a_payload_30_percent_heavier_while_vibrating_sets_the_platform_rocking_which_dies_out(robot):

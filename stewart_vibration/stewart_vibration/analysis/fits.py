@@ -200,8 +200,7 @@ def force_error_figures(rms_error_n, force_amplitude_n, samples: int) -> dict:
     vibrates. The error against the force scale stays meaningful there, so it is the one a run is judged by.
     """
     rms, amplitude = np.asarray(rms_error_n, dtype=float), np.asarray(force_amplitude_n, dtype=float)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        relative = np.where(amplitude > 0, rms / np.where(amplitude > 0, amplitude, 1.0), np.inf)
+    relative = np.divide(rms, amplitude, out=np.full_like(rms, np.inf), where=amplitude > 0)
     scale = float(amplitude.max())
     return {"rms_error_n": rms, "force_amplitude_n": amplitude, "relative_rms_error": relative,
             "worst_leg_relative": float(relative.max()),

@@ -140,17 +140,14 @@ def report_data(reader: RunReader | RunFiles, robot: Robot) -> tuple[dict, dict]
     reducers = _Reducers(origin, measured_from_sensed="ground_truth/joint_states" not in recorded)
     tissue = bool(recorded.intersection(TISSUE_KEYS))
     held = not tissue and held_whole(reader)
-    if held:
-        signals = load_signals(reader, sinks=reducers.sinks(recorded), coverage=False, skip=UNREAD_WITHOUT_TISSUE)
-        force_error = reducers.force_error.result()
-    elif tissue:
+    if tissue:
         signals = load_signals(reader, coverage=False, skip=UNREAD)
         for key, sink in reducers.sinks(recorded).items():
             sink(*{"legs/joint_states": signals["sensed_joints"], "ground_truth/joint_states": signals["joints"],
                    "legs/force_estimate": signals["force_estimate"]}.get(key, signals["pose"]))
         force_error = leg_force_error(robot, signals, -np.inf, np.inf, None)
-    else:
-        signals = load_signals(reader, windows=[], sinks=reducers.sinks(recorded), coverage=False,
+    else:  # the reducers take the run as it streams past; a short run is held too (windows=None), a long one not
+        signals = load_signals(reader, windows=None if held else [], sinks=reducers.sinks(recorded), coverage=False,
                                skip=UNREAD_WITHOUT_TISSUE)
         force_error = reducers.force_error.result()
     window = _window(reducers.activity.span())
