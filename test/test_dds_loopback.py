@@ -2,7 +2,8 @@
 (config/fastdds_localhost.xml) real nodes talk to each other and to a client, and every socket they
 own is bound to a loopback address; with STEWART_DDS_PROFILE=multihost the same check sees sockets on
 0.0.0.0 (so it can tell the difference). Sockets are read from /proc: the inodes of /proc/<pid>/fd
-looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6}."""
+looked up in /proc/<pid>/net/{udp,udp6,tcp,tcp6}; shared-memory segments from /proc/<pid>/maps (the loopback
+profile has none, the multihost one has)."""
 
 from __future__ import annotations
 
@@ -85,6 +86,20 @@ def inet_sockets(pid: int) -> list[tuple[str, str, int]]:
     return found
 
 
+def shared_memory_segments(pid: int) -> set[str]:
+    """The Fast DDS shared-memory files (/dev/shm/fastrtps_* or fastdds_*: ports and data segments) that pid
+    or a child has mapped."""
+    found = set()
+    for p in _pids(pid):
+        try:
+            maps = Path(f"/proc/{p}/maps").read_text().splitlines()
+        except OSError:
+            continue
+        found |= {line.split()[-1] for line in maps
+                  if "/dev/shm/fastrtps_" in line or "/dev/shm/fastdds_" in line}
+    return found
+
+
 def is_loopback(address: str) -> bool:
     ip = ipaddress.ip_address(address)
     if isinstance(ip, ipaddress.IPv6Address) and ip.ipv4_mapped is not None:
@@ -125,6 +140,9 @@ def test_suite_processes_talk_and_bind_only_loopback(ros_domain, tmp_path, monke
             assert sockets, f"{name}: no UDP/TCP socket found, so the check would prove nothing"
             outside = [s for s in sockets if not is_loopback(s[1])]
             assert not outside, f"{name} binds non-loopback addresses: {outside} (all: {sockets})"
+        # no shared-memory transport: a stalled or killed process would leave ports behind in /dev/shm
+        shared = {p.name: shared_memory_segments(p.popen.pid) for p in procs}
+        assert not any(shared.values()), f"nodes map Fast DDS shared memory: {shared}"
     finally:
         client.close()
         for proc in procs:
@@ -132,7 +150,7 @@ def test_suite_processes_talk_and_bind_only_loopback(ros_domain, tmp_path, monke
 
 
 def test_multihost_setting_binds_all_interfaces(ros_domain, tmp_path, monkeypatch):
-    """The same check on STEWART_DDS_PROFILE=multihost (Fast DDS defaults) finds 0.0.0.0."""
+    """The same check on STEWART_DDS_PROFILE=multihost (Fast DDS defaults) finds 0.0.0.0 and shared memory."""
     monkeypatch.setenv(DDS_PROFILE_ENV, "multihost")
     env = ros_environment(ros_domain)
     assert "FASTRTPS_DEFAULT_PROFILES_FILE" not in env and env["ROS_AUTOMATIC_DISCOVERY_RANGE"] == "SUBNET"
@@ -141,6 +159,8 @@ def test_multihost_setting_binds_all_interfaces(ros_domain, tmp_path, monkeypatc
         anywhere = lambda: [s for s in inet_sockets(proc.popen.pid) if s[1] in ("0.0.0.0", "::")]  # noqa: E731
         assert wait_for(anywhere, 30.0), f"{inet_sockets(proc.popen.pid)}\n{proc.log_text()[-2000:]}"
         print("multihost sockets:", inet_sockets(proc.popen.pid))
+        # Fast DDS's defaults include shared memory, so the loopback test's check of it can fail
+        assert wait_for(lambda: shared_memory_segments(proc.popen.pid), 10.0)
     finally:
         proc.stop()
 

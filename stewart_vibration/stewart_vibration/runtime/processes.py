@@ -24,7 +24,7 @@ from ..errors import ConfigError
 from ..install import find_config_file, prepend_interpreter_prefix
 
 # Fast DDS transport profile of the suite (docs/security.md): STEWART_DDS_PROFILE = "loopback"
-# (default: config/fastdds_localhost.xml, shared memory + UDPv4 on 127.0.0.1 only), "multihost"
+# (default: config/fastdds_localhost.xml, UDPv4 on 127.0.0.1 only, no shared memory), "multihost"
 # (Fast DDS defaults: every interface, multicast discovery on the subnet) or the path of a Fast DDS
 # XML profile file (its default participant profile is used as it is).
 DDS_PROFILE_ENV = "STEWART_DDS_PROFILE"
