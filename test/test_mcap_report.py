@@ -116,3 +116,30 @@ def test_a_long_series_is_plotted_as_its_envelope_with_every_peak():
     short_t, short_y = envelope(t[:1000], y[:1000])
     np.testing.assert_array_equal(short_t, t[:1000])
     np.testing.assert_array_equal(short_y, y[:1000])
+
+
+def test_a_report_that_fails_leaves_its_folder_as_it_was(tmp_path, monkeypatch):
+    """The summary fails after figures were drawn from the run's data: no figure reaches --out (an older
+    report's file there stays as it was), and nothing is left being drawn beside it."""
+    import time
+
+    from stewart_vibration.analysis import run_report
+
+    path = tmp_path / "run.mcap"
+    _write_run(path)
+    out = tmp_path / "report"
+    out.mkdir()
+    (out / "summary.json").write_text('{"older": true}')
+
+    def failing_summary(*_args):
+        deadline = time.monotonic() + 60
+        while not list(out.glob(".report-*/*.png")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert list(out.glob(".report-*/*.png")), "no figure was drawn before the summary: the test proves nothing"
+        raise ValueError("fewer than 4 ground-truth poses")
+
+    monkeypatch.setattr(run_report, "summarize", failing_summary)
+    with pytest.raises(ValueError, match="ground-truth poses"):
+        run_report.write_report(path, out)
+    assert sorted(p.name for p in out.iterdir()) == ["summary.json"]
+    assert (out / "summary.json").read_text() == '{"older": true}'

@@ -1,6 +1,7 @@
 """Where a node may write a file a client asked for (pure python): an action goal from the network names the
 path, so the node writes only YAML files, only in a folder it can write, and never over a file that is not
-one of its own kind (an identification, a calibrated robot file): a goal cannot clobber anything else."""
+one of its own kind (an identification, a calibrated robot file): a goal cannot clobber anything else. Files are
+written whole or not at all (``write_text_whole``)."""
 
 from __future__ import annotations
 
@@ -38,4 +39,14 @@ def writable_output(path: str, what: str, own_kind: Callable[[dict], bool]) -> P
                 from None
         if not own_kind(tree):
             raise InvalidInputError(f"output_path {path!r} exists and is not a {what}: not overwritten")
+    return target
+
+
+def write_text_whole(path: str | os.PathLike, text: str) -> Path:
+    """``text`` to ``path`` whole or not at all: written to a temporary file beside it, then renamed over it (a
+    reader never sees half a file, a failed write leaves the old one). Returns the path."""
+    target = Path(path)
+    partial = target.with_name(f".{target.name}.partial")
+    partial.write_text(text)
+    os.replace(partial, target)
     return target

@@ -12,12 +12,16 @@ displacements are plotted in mm (labelled), everything in the JSON is SI.
 from __future__ import annotations
 
 import json
+import os
+import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 from ..kinematics.robot_config import load_robot
 from ..mcap_log.reader import RunFiles, RunReader, open_run
+from ..output_files import write_text_whole
 from ..robot import LEG_NAMES, VIB_NAMES, Robot
 from .fits import dominant_sinusoid
 from .plot_pool import PlotPool
@@ -189,7 +193,8 @@ def markdown(summary: dict, plots: list[str]) -> str:
 
 def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bool = False,
                  robot: Robot | None = None) -> dict:
-    """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary.
+    """Write summary.json, summary.md and the PNGs into ``out_dir``; returns the summary. A report that fails
+    writes nothing there (its figures are drawn aside and moved in at the end).
 
     Args:
         mcap_path: a .mcap or a bag directory.
@@ -213,10 +218,18 @@ def write_report(mcap_path: str | Path, out_dir: str | Path, allow_truncated: bo
         robot = robot or load_robot()
         data, signals = report_data(reader, robot)
         data["events"] = _events(reader, data["time_origin_ns"])
-        pool.start(data, out)
-        summary = summarize(reader, data, signals, robot)
-        plots = pool.finish(summary)
-    summary["plots"] = plots
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
-    (out / "summary.md").write_text(markdown(summary, plots))
+        # figures are drawn into a staging folder and moved into out_dir only once the whole report succeeded:
+        # a report that fails leaves out_dir as it was (no figures of a report whose summary was never written)
+        staging = Path(tempfile.mkdtemp(prefix=".report-", dir=out))
+        try:
+            pool.start(data, staging)
+            summary = summarize(reader, data, signals, robot)
+            plots = pool.finish(summary)
+            summary["plots"] = plots
+            for name in plots:
+                os.replace(staging / name, out / name)
+        finally:
+            shutil.rmtree(staging, ignore_errors=True)
+    write_text_whole(out / "summary.json", json.dumps(summary, indent=2))
+    write_text_whole(out / "summary.md", markdown(summary, plots))
     return summary

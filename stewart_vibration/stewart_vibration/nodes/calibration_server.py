@@ -19,7 +19,6 @@ CANCELED (the running move stops; nothing written), SHUTDOWN.
 from __future__ import annotations
 
 import datetime
-import os
 import time
 from pathlib import Path
 
@@ -50,7 +49,7 @@ from ..kinematics.rotations import (
 )
 from ..messages.fields import BASE_FRAME
 from ..messages.stamped import poses_from_cdr
-from ..output_files import writable_output
+from ..output_files import writable_output, write_text_whole
 from ..safe_yaml import load_yaml
 from .message_conversions import time_message
 from .move_messages import move_goal
@@ -273,9 +272,7 @@ class CalibrationServer:
                       "tilt_deg": round(float(np.degrees(s.tilt_rad)), 6), "seed": s.seed,
                       "predicted_std_max_m": float(f"{predicted_std_max:.3g}")}
         text = dump_robot_file(calibrated_tree(load_yaml(Path(source), "robot config"), fit, provenance, load))
-        partial = output.with_name(f".{output.name}.partial")
-        partial.write_text(text)
-        os.replace(partial, output)
+        write_text_whole(output, text)
 
     def shutdown(self) -> None:
         self.check_wait(ending=True)
