@@ -4,6 +4,7 @@ messages that are no time, and the history depth of the 500 Hz streams. Periods 
 
 from __future__ import annotations
 
+import faulthandler
 import os
 import signal
 import sys
@@ -24,6 +25,9 @@ from .diagnostics import MalformedInputs
 # ~1.4 s and lost 196 states with 1 s of depth; beside a CPU hog at twice real time the estimator lost 109
 # states with 1.5 s (of wall time). The memory is ~1 MB per endpoint.
 STREAM_DEPTH = 3000
+# The longest a stopped node may take to end (wall s): the recorder finishing an hour's MCAP needs a few seconds; a
+# node still alive after it is stuck (a DDS call that never returns) and would hold its domain and a core
+SHUTDOWN_DEADLINE_S = 20.0
 # the status topics (the robot's vibration status, the force guard's): a late joiner gets the current state
 STATUS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -106,7 +110,7 @@ def guard_sim_clock() -> None:
     TimeSource.clock_callback = clock_callback  # type: ignore[method-assign]
 
 
-def run_node(factory, args=None, executor: str = "events") -> int:
+def run_node(factory, args=None, executor: str = "events", shutdown_deadline_s: float = SHUTDOWN_DEADLINE_S) -> int:
     """rclpy.init, spin the node from ``factory()`` until SIGINT / SIGTERM, clean up; returns the exit code.
 
     The signals only set a stop flag (no KeyboardInterrupt inside a callback);
@@ -120,7 +124,10 @@ def run_node(factory, args=None, executor: str = "events") -> int:
     before the node is destroyed (e.g. to stop a physics thread or finish a file).
     A node that cannot start (bad ``--ros-args``, a parameter file that cannot be read, bad parameter or
     configuration) prints one line saying why and returns 2, without a traceback. A /clock message that
-    is no time is dropped (``guard_sim_clock``).
+    is no time is dropped (``guard_sim_clock``). A node that has stopped spinning must end: if its shutdown
+    (``shutdown()``, destroying the node, rclpy's) has not returned after ``shutdown_deadline_s``, every
+    thread's traceback goes to stderr and the process exits with 1 (faulthandler's own thread does it, so a
+    call that never returns while holding the GIL cannot stop it).
     """
     if not init_rclpy(args):
         return 2
@@ -145,11 +152,13 @@ def run_node(factory, args=None, executor: str = "events") -> int:
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        faulthandler.dump_traceback_later(shutdown_deadline_s, exit=True)
         if node is not None:
             if hasattr(node, "shutdown"):
                 node.shutdown()
             node.destroy_node()
         rclpy.try_shutdown()
+        faulthandler.cancel_dump_traceback_later()
     return code
 
 
@@ -173,6 +182,7 @@ def init_rclpy(args=None, prefix: str = "[FATAL] cannot start:") -> bool:
 
 __all__ = [
     "STATUS_QOS",
+    "SHUTDOWN_DEADLINE_S",
     "STREAM_DEPTH",
     "make_executor",
     "StopFlag",
